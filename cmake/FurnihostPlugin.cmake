@@ -1,0 +1,31 @@
+# furnihost_add_plugin(<kind> <name> SOURCES ... [LIBS ...] [TESTS ...] [TEST_LIBS ...])
+#   Builds libfurnihost_<kind>_<name>.so into the build tree's plugin folder, installs it, and
+#   adds each TESTS source as a GoogleTest executable registered with ctest.
+function(furnihost_add_plugin kind name)
+  cmake_parse_arguments(P "" "" "SOURCES;LIBS;TESTS;TEST_LIBS;INCLUDES" ${ARGN})
+  set(target furnihost_${kind}_${name})
+  add_library(${target} MODULE ${P_SOURCES})
+  target_link_libraries(${target} PRIVATE furnihost::core ${P_LIBS})
+  if(P_INCLUDES)
+    target_include_directories(${target} PRIVATE ${P_INCLUDES})
+  endif()
+  set_target_properties(${target} PROPERTIES
+    PREFIX "lib" OUTPUT_NAME ${target}
+    LIBRARY_OUTPUT_DIRECTORY ${FURNIHOST_PLUGIN_BUILD_DIR})
+  install(TARGETS ${target} LIBRARY DESTINATION ${FURNIHOST_PLUGIN_INSTALL_DIR})
+  add_dependencies(furnihost_plugins ${target})
+  if(FURNIHOST_BUILD_TESTS)
+    foreach(src ${P_TESTS})
+      get_filename_component(tname ${src} NAME_WE)
+      set(tt ${target}_${tname})
+      add_executable(${tt} ${src})
+      target_link_libraries(${tt} PRIVATE furnihost::core furnihost::testing ${P_TEST_LIBS})
+      if(P_INCLUDES)
+        target_include_directories(${tt} PRIVATE ${P_INCLUDES})
+      endif()
+      add_dependencies(${tt} furnihost_plugins)
+      gtest_discover_tests(${tt} DISCOVERY_TIMEOUT 60
+        PROPERTIES ENVIRONMENT "FURNIHOST_PLUGIN_PATH=${FURNIHOST_PLUGIN_BUILD_DIR};FURNIHOST_SOURCE_DIR=${PROJECT_SOURCE_DIR}")
+    endforeach()
+  endif()
+endfunction()

@@ -1,0 +1,31 @@
+// Error types shared by host and plugins. They live in the core library so that their
+// type_info and vtables outlive any plugin that throws them.
+#pragma once
+#include <stdexcept>
+#include <string>
+
+#define FURNIHOST_API __attribute__((visibility("default")))
+
+namespace furnihost {
+
+// Bad user input: file, config, parameter, data. The CLI maps it to exit code 2.
+class FURNIHOST_API InputError : public std::runtime_error {
+ public:
+  explicit InputError(const std::string& what) : std::runtime_error(what) {}
+  ~InputError() override;
+};
+
+// Raised by a stage (plugin). The host prefixes the stage tag and type when it catches it.
+// `input` says whether the failure is the user's data (exit 2) or a defect (exit 1).
+class FURNIHOST_API StageError : public std::runtime_error {
+ public:
+  explicit StageError(const std::string& what, bool input = true)
+      : std::runtime_error(what), input_(input) {}
+  ~StageError() override;
+  bool IsInputError() const { return input_; }
+
+ private:
+  bool input_;
+};
+
+}  // namespace furnihost

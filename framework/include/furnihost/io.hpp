@@ -1,0 +1,52 @@
+// Scan and output file IO. Every writer goes through AtomicWrite (temp file + rename), so an
+// interrupted run never leaves a half-written output.
+#pragma once
+#include <functional>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+
+#include "furnihost/types.hpp"
+
+namespace furnihost {
+
+struct ReadStats {
+  size_t read = 0;         // points in the file
+  size_t non_finite = 0;   // dropped NaN/inf points
+};
+
+// Reads .pcd (ascii/binary/binary_compressed, via PCL; VIEWPOINT becomes the sensor origin
+// unless it is the PCL default of 0,0,0 with identity rotation), .ply (ascii / binary little
+// or big endian; x y z required, red green blue / label / instance kept) and .xyz/.txt
+// (x y z [more columns]). Non-finite points are dropped and counted.
+// `max_points` refuses larger scans with an InputError (0 = no cap).
+// Throws InputError "<path>: <what is wrong>".
+FURNIHOST_API Scan ReadScan(const std::string& path, ReadStats* stats = nullptr,
+                            size_t max_points = 0);
+
+// Writers. PCD is binary with VIEWPOINT from scan.origin; PLY is binary little endian with
+// optional per-point colours.
+FURNIHOST_API void WritePcd(const std::string& path, const Scan& scan);
+FURNIHOST_API void WritePly(const std::string& path, const Points& points,
+                            const std::vector<std::array<uint8_t, 3>>* colors = nullptr);
+FURNIHOST_API void WriteXyz(const std::string& path, const Points& points);
+// Chooses the writer from the extension (.pcd, .ply, .xyz/.txt).
+FURNIHOST_API void WriteScan(const std::string& path, const Scan& scan);
+
+// Writes via a temp file in the same folder and renames it over `path`. `fill` writes the
+// content to the temp path. Creates missing parent folders.
+FURNIHOST_API void AtomicWrite(const std::string& path,
+                               const std::function<void(const std::string& tmp_path)>& fill);
+FURNIHOST_API void AtomicWriteText(const std::string& path, const std::string& text);
+FURNIHOST_API void WriteJson(const std::string& path, const nlohmann::json& j);
+
+// Reads a JSON file; InputError "<path>: ..." on a missing file or a parse error (with line).
+FURNIHOST_API nlohmann::json ReadJson(const std::string& path);
+// Reads a *.gt.json file.
+FURNIHOST_API std::vector<GroundTruthObject> ReadGroundTruth(const std::string& path);
+FURNIHOST_API nlohmann::json GroundTruthToJson(const std::vector<GroundTruthObject>& objects);
+
+// Checks that `path` names a readable regular file (not a directory, FIFO, ...).
+FURNIHOST_API void RequireRegularFile(const std::string& path, const std::string& what);
+
+}  // namespace furnihost

@@ -1,0 +1,56 @@
+// Declared parameters: each plugin publishes a schema; the host validates JSON against it
+// before anything runs, fills defaults, and prints it in `furnihost plugins`.
+#pragma once
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "furnihost/error.hpp"
+
+namespace furnihost {
+
+enum class ParamType { Bool, Int, Number, String, Enum, NumberList, Object };
+
+FURNIHOST_API const char* ToString(ParamType t);
+
+struct ParamSpec {
+  std::string name;
+  ParamType type = ParamType::Number;
+  nlohmann::json default_value;
+  std::optional<double> min, max;     // inclusive range for Int/Number (and NumberList items)
+  std::vector<std::string> choices;   // for Enum
+  std::string help;
+};
+
+class FURNIHOST_API ParamSchema {
+ public:
+  ParamSchema& Bool(const std::string& name, bool def, const std::string& help);
+  ParamSchema& Int(const std::string& name, long long def, std::optional<double> min,
+                   std::optional<double> max, const std::string& help);
+  ParamSchema& Number(const std::string& name, double def, std::optional<double> min,
+                      std::optional<double> max, const std::string& help);
+  ParamSchema& String(const std::string& name, const std::string& def, const std::string& help);
+  ParamSchema& Enum(const std::string& name, const std::string& def,
+                    std::vector<std::string> choices, const std::string& help);
+  ParamSchema& NumberList(const std::string& name, std::vector<double> def,
+                          std::optional<double> min, std::optional<double> max,
+                          const std::string& help);
+  ParamSchema& Object(const std::string& name, nlohmann::json def, const std::string& help);
+
+  const std::vector<ParamSpec>& Specs() const { return specs_; }
+  const ParamSpec* Find(const std::string& name) const;
+
+  // Validates `given` (an object or null) and returns it with every default filled.
+  // `where` is a "file:/json/pointer" prefix used in error messages.
+  // Throws InputError such as "x.json:/stages/seg/params/angle_deg: expected a number in
+  // [0, 180], got \"forty\"".
+  nlohmann::json Resolve(const nlohmann::json& given, const std::string& where) const;
+
+  nlohmann::json ToJson() const;
+
+ private:
+  std::vector<ParamSpec> specs_;
+};
+
+}  // namespace furnihost

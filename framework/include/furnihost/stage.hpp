@@ -1,0 +1,115 @@
+// One abstract interface per stage kind. Plugins implement one of them; the host calls them.
+// Every call is pure with respect to the stage object (no hidden state between scans other
+// than what Load() installs) and deterministic for the seed in the context.
+#pragma once
+#include <cstdint>
+#include <optional>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "furnihost/types.hpp"
+
+namespace furnihost {
+
+enum class StageKind { Sensor, Segmenter, Features, Voter, Fitter };
+FURNIHOST_API const char* ToString(StageKind k);  // "sensor", ...
+FURNIHOST_API std::optional<StageKind> KindFromTypeName(const std::string& type);  // "segmenters.x" -> Segmenter
+
+// Run-wide facts every stage may read.
+struct RunContext {
+  uint64_t seed = 42;
+  int threads = 0;  // 0 = all cores
+  bool verbose = false;
+};
+
+class FURNIHOST_API Stage {
+ public:
+  virtual ~Stage();
+  virtual StageKind Kind() const = 0;
+};
+
+// ---- sensor ----------------------------------------------------------------------------
+// A placed object of a synthetic scene (world frame: x, y on the floor, z up).
+struct PlacedObject {
+  const CatalogModel* model = nullptr;
+  Eigen::Isometry3f pose = Eigen::Isometry3f::Identity();  // model -> world
+};
+
+// What a sensor is asked to acquire: either a file (`path`), or a synthetic scene of
+// `objects` plus optional `extra` geometry (floor, walls) scanned from `poses`.
+struct SensorRequest {
+  std::string path;
+  std::vector<PlacedObject> objects;
+  Mesh extra;
+  std::vector<Eigen::Isometry3f> poses;  // sensor -> world; x forward, z up. Empty = the
+                                         // sensor's default pattern (e.g. 16 training views)
+  std::optional<Eigen::Vector3f> origin;  // for file sensors: origin given on the CLI
+};
+
+class FURNIHOST_API Sensor : public Stage {
+ public:
+  ~Sensor() override;
+  StageKind Kind() const override { return StageKind::Sensor; }
+  // One Scan per pose (or per file). Throws StageError / InputError on bad input.
+  virtual std::vector<Scan> Acquire(const SensorRequest& request, const RunContext& ctx) = 0;
+};
+
+// ---- segmenter -------------------------------------------------------------------------
+class FURNIHOST_API Segmenter : public Stage {
+ public:
+  ~Segmenter() override;
+  StageKind Kind() const override { return StageKind::Segmenter; }
+  virtual Segmentation Segment(const Scan& scan, const RunContext& ctx) = 0;
+};
+
+// ---- features --------------------------------------------------------------------------
+class FURNIHOST_API Features : public Stage {
+ public:
+  ~Features() override;
+  StageKind Kind() const override { return StageKind::Features; }
+  // Raw (unnormalised) features, one row per part. The host learns and applies the [0, 1]
+  // normaliser (framework/normaliser.hpp).
+  virtual FeatureMatrix Compute(const Scan& scan, const Segmentation& seg,
+                                const RunContext& ctx) = 0;
+};
+
+// ---- voter -----------------------------------------------------------------------------
+class FURNIHOST_API Voter : public Stage {
+ public:
+  ~Voter() override;
+  StageKind Kind() const override { return StageKind::Voter; }
+  // Learns from the training views and returns the model as JSON (stored in the model file).
+  virtual nlohmann::json Train(const std::vector<TrainingView>& views, const RunContext& ctx) = 0;
+  // Installs a model returned by Train (possibly after a save/load round trip).
+  virtual void Load(const nlohmann::json& model) = 0;
+  // Votes with the parts of one or more scenes (fused in the world frame, Scan::pose).
+  virtual VoteResult Vote(const std::vector<SceneParts>& scenes, const RunContext& ctx) = 0;
+};
+
+// ---- fitter ----------------------------------------------------------------------------
+struct FitContext {
+  std::vector<SceneParts> scenes;
+  std::vector<const CatalogModel*> catalog;  // every model of the training catalog
+  RunContext run;
+};
+
+class FURNIHOST_API Fitter : public Stage {
+ public:
+  ~Fitter() override;
+  StageKind Kind() const override { return StageKind::Fitter; }
+  // Optional: precompute per-model data (e.g. dense sampled clouds) once for a catalog.
+  // Returned JSON is cached in the model file and passed back to Prepare on later runs.
+  virtual nlohmann::json Prepare(const std::vector<const CatalogModel*>& catalog,
+                                 const nlohmann::json& cached) {
+    (void)catalog;
+    (void)cached;
+    return nullptr;
+  }
+  // Takes the detections of the previous stage (voter hypotheses, or another fitter's
+  // output) and returns them fitted / verified / refined.
+  virtual std::vector<Detection> Fit(const std::vector<Detection>& input, const FitContext& ctx) = 0;
+};
+
+}  // namespace furnihost
