@@ -13,8 +13,5 @@ int RunPlugins(const std::vector<std::string>& args);   // furnihost plugins
 int RunValidate(const std::vector<std::string>& args);  // furnihost validate
 int RunTrain(const std::vector<std::string>& args);     // furnihost train
 int RunSimulate(const std::vector<std::string>& args);  // furnihost simulate
-int RunEval(const std::vector<std::string>& args);      // furnihost eval
 
-// Parses `args` with `app` (CLI11); prints help / errors the CLI11 way. Returns -1 to
-// continue, otherwise the exit code to return.
 }  // namespace furnihost::app

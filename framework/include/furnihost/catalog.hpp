@@ -16,7 +16,7 @@ struct CatalogIssue {
   std::string reason;  // one line
 };
 
-struct Catalog {
+struct FURNIHOST_API Catalog {
   std::string path;
   std::string hash;    // hex digest of catalog.json and every mesh file (model cache key)
   std::vector<CatalogModel> models;

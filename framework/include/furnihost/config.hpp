@@ -32,7 +32,7 @@ struct StageConfig {
   std::string pointer;    // "/stages/<tag>"
 };
 
-struct GraphConfig {
+struct FURNIHOST_API GraphConfig {
   std::string path;        // the file given by the user
   nlohmann::json resolved; // the whole config after extends + defaults
   uint64_t seed = 42;

@@ -1,0 +1,196 @@
+// `furnihost --graph G SCAN...` (detection) and `furnihost train --graph G`.
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+#include <random>
+
+#include "cli_common.hpp"
+#include "commands.hpp"
+#include "furnihost/catalog.hpp"
+#include "furnihost/geometry.hpp"
+#include "furnihost/io.hpp"
+#include "furnihost/log.hpp"
+#include "furnihost/pipeline.hpp"
+#if __has_include("birdseye.hpp")
+#include "birdseye.hpp"
+#define FURNIHOST_HAVE_BIRDSEYE 1
+#endif
+
+namespace fs = std::filesystem;
+
+namespace furnihost::app {
+
+namespace {
+
+void WriteParts(const std::string& path, const Scan& scan, const Segmentation& seg, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_int_distribution<int> c(40, 255);
+  Points pts;
+  std::vector<std::array<uint8_t, 3>> cols;
+  for (const auto& part : seg.parts) {
+    const std::array<uint8_t, 3> col{static_cast<uint8_t>(c(rng)), static_cast<uint8_t>(c(rng)), static_cast<uint8_t>(c(rng))};
+    for (int i : part.indices) {
+      pts.push_back(scan.pose * scan.points[i]);
+      cols.push_back(col);
+    }
+  }
+  WritePly(path, pts, &cols);
+}
+
+void WriteFitted(const std::string& path, const std::vector<Detection>& dets, const Catalog& catalog) {
+  Points pts;
+  std::vector<std::array<uint8_t, 3>> cols;
+  for (size_t i = 0; i < dets.size(); ++i) {
+    const auto& d = dets[i];
+    if (d.model.empty() || !d.verified.value_or(false)) continue;
+    const CatalogModel* m = catalog.Find(d.model);
+    if (!m) continue;
+    for (const auto& p : SampleSurface(m->mesh, 4000.f, i)) {
+      pts.push_back(d.model_pose * p);
+      cols.push_back(ClassColor(d.cls));
+    }
+  }
+  WritePly(path, pts, &cols);
+}
+
+}  // namespace
+
+int RunTrain(const std::vector<std::string>& args) {
+  CLI::App app{"Train the model of a graph from its catalog (simulate views, segment, features, vocabulary).", "train"};
+  CommonOptions common;
+  std::string graph, out;
+  bool strict = false;
+  common.Add(app);
+  app.add_option("--graph,-g", graph, "graph config (JSON)")->required();
+  app.add_option("--out,-o", out, "model file to write (default: the graph's model_cache)");
+  app.add_flag("--strict", strict, "invalid catalog entries are fatal instead of skipped");
+  if (auto rc = Parse(app, args)) return *rc;
+  common.Apply();
+  auto reg = common.MakeRegistry();
+  GraphConfig g = LoadGraph(graph, *reg);
+  if (!out.empty()) g.model_cache = out;
+  if (g.model_cache.empty()) throw InputError(graph + ":/model_cache: missing (or pass --out)");
+  Catalog catalog = LoadCatalog(g.catalog, strict);
+  Pipeline p(g, *reg);
+  TrainedModel m = EnsureModel(p, catalog, common.Context(g.seed), true);
+  std::cout << "trained " << g.model_cache << ": " << m.summary.dump() << "\n";
+  return 0;
+}
+
+int RunDetect(const std::vector<std::string>& args) {
+  CLI::App app{"Detect furniture in scans: segment, describe parts, vote, fit and verify CAD models.\n"
+               "usage: furnihost [detect] --graph G.json SCAN [SCAN ...] [options]", "detect"};
+  CommonOptions common;
+  std::string graph, out, origin_text;
+  std::vector<std::string> scans, poses;
+  bool fuse = false, save_parts = false, retrain = false, strict = false;
+  common.Add(app);
+  app.add_option("--graph,-g", graph, "graph config (JSON), e.g. configs/paper.json")->required();
+  app.add_option("scans", scans, "scan files (.pcd, .ply, .xyz)")->required();
+  app.add_option("--out,-o", out, "output folder (default furnihost-out/<scan stem>/)");
+  app.add_option("--origin", origin_text, "sensor origin x,y,z for scans without VIEWPOINT");
+  app.add_option("--pose", poses, "pose x,y,z,yaw_deg of each scan in the common frame (once per scan, with --fuse)");
+  app.add_flag("--fuse", fuse, "vote with all scans in one common space (multi-view fusion, paper Sect. VII-C)");
+  app.add_flag("--save-parts", save_parts, "write parts.ply: the segmentation, a random colour per part");
+  app.add_flag("--retrain", retrain, "retrain the model even if the cache is valid");
+  app.add_flag("--strict", strict, "invalid catalog entries are fatal instead of skipped");
+  if (auto rc = Parse(app, args)) return *rc;
+  common.Apply();
+  auto reg = common.MakeRegistry();
+  GraphConfig g = LoadGraph(graph, *reg);
+  RunContext ctx = common.Context(g.seed);
+  if (!poses.empty() && poses.size() != scans.size())
+    throw InputError("--pose: given " + std::to_string(poses.size()) + " times for " + std::to_string(scans.size()) + " scans");
+  std::optional<Eigen::Vector3f> origin;
+  if (!origin_text.empty()) {
+    auto o = ParseNumbers(origin_text, 3, "--origin");
+    origin = Eigen::Vector3f(o[0], o[1], o[2]);
+  }
+  std::vector<Pipeline::SceneInput> inputs;
+  for (size_t i = 0; i < scans.size(); ++i) {
+    RequireRegularFile(scans[i], "scan file");
+    Pipeline::SceneInput in;
+    in.path = scans[i];
+    in.origin = origin;
+    if (!poses.empty()) {
+      auto p = ParseNumbers(poses[i], 4, "--pose");
+      in.pose = UprightPose(p[0], p[1], p[2], static_cast<float>(p[3] * M_PI / 180.0));
+    }
+    inputs.push_back(in);
+  }
+  Pipeline pipeline(g, *reg);
+  std::optional<Catalog> catalog;
+  std::optional<TrainedModel> model;
+  if (pipeline.HasDetectionChain()) {
+    catalog = LoadCatalog(g.catalog, strict);
+    model = EnsureModel(pipeline, *catalog, ctx, retrain);
+  }
+  auto missing = pipeline.MissingStages();
+  if (!missing.empty()) {
+    std::string m;
+    for (const auto& s : missing) m += (m.empty() ? "" : ", ") + s;
+    spdlog::warn("{}: the graph has no {} stage: running the stages that exist; no detections are made without a voter", graph, m);
+  }
+
+  std::vector<std::vector<Pipeline::SceneInput>> groups;
+  if (fuse) groups.push_back(inputs);
+  else
+    for (const auto& in : inputs) groups.push_back({in});
+  for (const auto& group : groups) {
+    const std::string stem = fs::path(group.front().path).stem().string() + (group.size() > 1 ? "_fused" : "");
+    const std::string dir = !out.empty() ? (groups.size() > 1 ? (fs::path(out) / stem).string() : out)
+                                         : (fs::path("furnihost-out") / stem).string();
+    Stopwatch total;
+    auto r = pipeline.Detect(group, model ? &*model : nullptr, catalog ? &*catalog : nullptr, ctx);
+    fs::create_directories(dir);
+    if (save_parts) {
+      for (size_t i = 0; i < r.segmentations.size(); ++i) {
+        const std::string name = r.segmentations.size() > 1 ? "parts_" + std::to_string(i) + ".ply" : "parts.ply";
+        WriteParts((fs::path(dir) / name).string(), r.scans[i], r.segmentations[i], ctx.seed);
+      }
+      if (r.segmentations.empty()) spdlog::warn("--save-parts: the graph has no segmenter");
+    }
+    nlohmann::json j;
+    j["scan"] = group.size() == 1 ? nlohmann::json(group.front().path) : nlohmann::json(nlohmann::json::array());
+    if (group.size() > 1)
+      for (const auto& in : group) j["scan"].push_back(in.path);
+    j["graph"] = graph;
+    j["seed"] = ctx.seed;
+    j["points"] = 0;
+    for (const auto& s : r.scans) j["points"] = j["points"].get<size_t>() + s.points.size();
+    j["parts"] = 0;
+    for (const auto& s : r.segmentations) j["parts"] = j["parts"].get<size_t>() + s.parts.size();
+    j["stages_run"] = nlohmann::json::array();
+    for (const auto& [tag, ms] : r.timings_ms) j["stages_run"].push_back(tag);
+    if (!missing.empty()) j["missing_stages"] = missing;
+    j["detections"] = nlohmann::json::array();
+    for (const auto& d : r.detections) j["detections"].push_back(DetectionToJson(d));
+    j["timings_ms"] = nlohmann::json::object();
+    for (const auto& [tag, ms] : r.timings_ms) j["timings_ms"][tag] = ms;
+    j["timings_ms"]["total"] = total.Ms();
+    WriteJson((fs::path(dir) / "detections.json").string(), j);
+#ifdef FURNIHOST_HAVE_BIRDSEYE
+    if (r.voted) {
+      std::vector<const Scan*> sp;
+      for (const auto& s : r.scans) sp.push_back(&s);
+      WriteBirdsEye((fs::path(dir) / "votes").string(), sp, r.votes, r.detections);
+    }
+#endif
+    if (r.fitted) WriteFitted((fs::path(dir) / "fitted.ply").string(), r.detections, *catalog);
+
+    std::cout << stem << ": " << j["points"] << " points, " << j["parts"] << " parts";
+    if (!r.voted) std::cout << "; no voter ran, so no detections";
+    std::cout << " -> " << dir << "/detections.json\n";
+    for (const auto& d : r.detections) {
+      std::cout << "  " << std::left << std::setw(9) << d.cls << std::right << std::fixed << std::setprecision(2)
+                << " at (" << d.center.x() << ", " << d.center.y() << ")  score " << std::setprecision(3) << d.score;
+      if (!d.model.empty())
+        std::cout << "  model " << d.model << " yaw " << std::setprecision(0) << d.yaw * 180 / M_PI << " deg";
+      if (d.verified) std::cout << (*d.verified ? "  verified" : "  rejected: " + d.rejection);
+      std::cout << "\n";
+    }
+  }
+  return 0;
+}
+
+}  // namespace furnihost::app

@@ -1,0 +1,66 @@
+// furnihost — learn furniture from CAD catalogs, find it in 3D scans.
+#include <iostream>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "commands.hpp"
+#include "furnihost/error.hpp"
+#include "furnihost/log.hpp"
+
+namespace {
+
+const char* kUsage = R"(furnihost — locate and categorise furniture in 3D scans with models learned from CAD catalogs
+
+usage:
+  furnihost --graph G.json SCAN [SCAN ...] [--out DIR]   detect (trains and caches the model if needed)
+  furnihost train    --graph G.json                      build the model from the graph's catalog
+  furnihost simulate --catalog C.json --scene S.json --out room.pcd
+                                                         synthetic room scan with ground truth
+  furnihost validate --graph G.json [--print]            validate a graph config
+  furnihost plugins  [--json]                            list the plugins found
+
+Run `furnihost <command> --help` (or `furnihost detect --help`) for the options of each.
+Exit codes: 0 success, 2 usage/config/input error, 1 internal error.
+)";
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using namespace furnihost;
+  furnihost::SetupLogging(1);
+  std::vector<std::string> args(argv + 1, argv + argc);
+  const std::map<std::string, int (*)(const std::vector<std::string>&)> commands = {
+      {"detect", app::RunDetect},     {"train", app::RunTrain},       {"simulate", app::RunSimulate},
+      {"validate", app::RunValidate}, {"plugins", app::RunPlugins}};
+  try {
+    if (args.empty() || args[0] == "-h" || args[0] == "--help" || args[0] == "help") {
+      std::cout << kUsage;
+      return args.empty() ? 2 : 0;
+    }
+    if (args[0] == "--version") {
+      std::cout << "furnihost " << FURNIHOST_APP_VERSION << "\n";
+      return 0;
+    }
+    auto it = commands.find(args[0]);
+    if (it != commands.end()) return it->second(std::vector<std::string>(args.begin() + 1, args.end()));
+    if (args[0].rfind("-", 0) != 0 && args[0].find('.') == std::string::npos && args[0].find('/') == std::string::npos) {
+      std::cerr << "furnihost: error: unknown command '" << args[0]
+                << "' (commands: detect, train, simulate, validate, plugins; see --help)\n";
+      return 2;
+    }
+    return app::RunDetect(args);
+  } catch (const InputError& e) {
+    std::cerr << "furnihost: error: " << e.what() << "\n";
+    return 2;
+  } catch (const StageError& e) {
+    std::cerr << "furnihost: error: " << e.what() << "\n";
+    return e.IsInputError() ? 2 : 1;
+  } catch (const std::bad_alloc&) {
+    std::cerr << "furnihost: internal error: out of memory\n";
+    return 1;
+  } catch (const std::exception& e) {
+    std::cerr << "furnihost: internal error: " << e.what() << "\n";
+    return 1;
+  }
+}

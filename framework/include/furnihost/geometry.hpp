@@ -1,0 +1,23 @@
+// Small geometry helpers shared by host and plugins.
+#pragma once
+#include "furnihost/types.hpp"
+
+namespace furnihost {
+
+// Voxel-grid downsampling: one point (the centroid) per occupied cubic voxel of edge `voxel`
+// metres. Order follows the first point of each voxel, so results are deterministic.
+// Also returns, if `kept` is given, for each output point the index of the first input point.
+FURNIHOST_API Points VoxelDownsample(const Points& points, float voxel, std::vector<int>* kept = nullptr);
+
+// Isometry for an upright pose: translation (x, y, z), rotation yaw [rad] about +z.
+FURNIHOST_API Eigen::Isometry3f UprightPose(float x, float y, float z, float yaw);
+
+}  // namespace furnihost
+
+namespace furnihost {
+// Area-weighted uniform sampling of a mesh surface: about `per_m2` points per square metre
+// (at least one per triangle with area), deterministic for `seed`. Face normals to `normals`.
+FURNIHOST_API Points SampleSurface(const Mesh& mesh, float per_m2, uint64_t seed, Points* normals = nullptr);
+// A distinct, stable colour per class name (chair blue, table red, cabinet yellow, ...).
+FURNIHOST_API std::array<uint8_t, 3> ClassColor(const std::string& cls);
+}  // namespace furnihost

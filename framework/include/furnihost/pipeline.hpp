@@ -1,0 +1,99 @@
+// Training and detection through a validated graph: the orchestration shared by the CLI,
+// `furnihost eval` and the integration tests.
+#pragma once
+#include <map>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "furnihost/catalog.hpp"
+#include "furnihost/config.hpp"
+#include "furnihost/normaliser.hpp"
+#include "furnihost/registry.hpp"
+#include "furnihost/stage.hpp"
+
+namespace furnihost {
+
+constexpr int kModelFormatVersion = 1;
+
+// The learned model: everything detection needs besides the plugins themselves.
+struct TrainedModel {
+  int format_version = kModelFormatVersion;
+  nlohmann::json training_config;  // the graph parts that shape the model (see TrainingKey)
+  std::string catalog_hash;
+  std::string voter_type;
+  Normaliser normaliser;
+  nlohmann::json voter_model;
+  nlohmann::json summary;  // models, views, parts per class, time per stage
+};
+
+// The subset of a resolved graph that determines the trained model: training sensor,
+// segmenter, features and voter (type + params) and the seed.
+FURNIHOST_API nlohmann::json TrainingKey(const GraphConfig& graph);
+
+// Writes atomically: magic line "furnihost-model\n" followed by CBOR.
+FURNIHOST_API void SaveModel(const std::string& path, const TrainedModel& model);
+// InputError on a missing/corrupt file or another format version (says what to do).
+FURNIHOST_API TrainedModel LoadModel(const std::string& path);
+// "" when compatible, else one line saying what differs.
+FURNIHOST_API std::string Incompatibility(const TrainedModel& model, const GraphConfig& graph,
+                                          const std::string& catalog_hash);
+
+// The stages of a graph, created once and reused for every scan.
+class FURNIHOST_API Pipeline {
+ public:
+  Pipeline(const GraphConfig& graph, const Registry& registry);
+  const GraphConfig& Graph() const { return graph_; }
+
+  bool HasDetectionChain() const { return voter_ != nullptr; }
+  std::vector<std::string> MissingStages() const;  // kinds absent from the detection chain
+
+  TrainedModel Train(const Catalog& catalog, const RunContext& ctx);
+
+  struct SceneInput {
+    std::string path;
+    std::optional<Eigen::Vector3f> origin;
+    Eigen::Isometry3f pose = Eigen::Isometry3f::Identity();
+  };
+  struct Result {
+    std::vector<Scan> scans;
+    std::vector<Segmentation> segmentations;
+    std::vector<FeatureMatrix> features;  // normalised when a model was given
+    size_t clamped_features = 0;
+    VoteResult votes;
+    std::vector<Detection> detections;
+    bool voted = false, fitted = false;
+    std::vector<std::pair<std::string, double>> timings_ms;  // stage tag -> ms, in order
+  };
+  // Runs the chain on the scenes (fused into one vote space when there are several).
+  // `model` may be null when the graph has no voter.
+  Result Detect(const std::vector<SceneInput>& scenes, const TrainedModel* model,
+                const Catalog* catalog, const RunContext& ctx);
+
+  // Calls `f` and rethrows any exception with the stage tag and type in front.
+  template <class F>
+  auto Call(const StageConfig& s, F&& f) -> decltype(f());
+
+ private:
+  GraphConfig graph_;
+  const StageConfig *input_cfg_ = nullptr, *train_cfg_ = nullptr, *seg_cfg_ = nullptr,
+                    *feat_cfg_ = nullptr, *voter_cfg_ = nullptr;
+  std::vector<const StageConfig*> fitter_cfgs_;
+  std::shared_ptr<Sensor> input_, training_;
+  std::shared_ptr<Segmenter> segmenter_;
+  std::shared_ptr<Features> features_;
+  std::shared_ptr<Voter> voter_;
+  std::vector<std::shared_ptr<Fitter>> fitters_;
+  std::string loaded_model_id_;
+};
+
+// Resolves the model for a graph: loads the cache when compatible, otherwise trains and
+// writes it (atomically). `force` retrains.
+FURNIHOST_API TrainedModel EnsureModel(Pipeline& pipeline, const Catalog& catalog,
+                                       const RunContext& ctx, bool force = false);
+
+// Detection JSON as written to detections.json.
+FURNIHOST_API nlohmann::json DetectionToJson(const Detection& d);
+
+}  // namespace furnihost

@@ -1,0 +1,287 @@
+#include "furnihost/config.hpp"
+
+#include <algorithm>
+#include <filesystem>
+#include <functional>
+#include <map>
+#include <regex>
+#include <set>
+
+#include "furnihost/io.hpp"
+
+namespace fs = std::filesystem;
+
+namespace furnihost {
+
+namespace {
+
+const std::vector<std::string> kTopKeys = {"extends", "description", "comment", "seed", "threads",
+                                           "catalog", "model_cache", "training", "stages", "limits"};
+const std::vector<std::string> kStageKeys = {"type", "inputs", "params", "comment"};
+const std::vector<std::string> kTrainingKeys = {"sensor", "comment"};
+const std::vector<std::string> kLimitKeys = {"max_points", "comment"};
+
+std::string Join(const std::vector<std::string>& v) {
+  std::string s;
+  for (const auto& x : v) s += (s.empty() ? "" : ", ") + x;
+  return s;
+}
+
+std::string Shown(const nlohmann::json& v) {
+  std::string d = v.dump();
+  return d.size() > 60 ? d.substr(0, 57) + "..." : d;
+}
+
+void CheckKeys(const nlohmann::json& obj, const std::vector<std::string>& allowed, const std::string& where) {
+  for (auto it = obj.begin(); it != obj.end(); ++it)
+    if (std::find(allowed.begin(), allowed.end(), it.key()) == allowed.end())
+      throw InputError(where + "/" + it.key() + ": unknown key; valid: " + Join(allowed));
+}
+
+// Makes path-valued keys absolute relative to the file that sets them, so a variant that
+// extends a base in another folder keeps the base's paths.
+void AbsolutisePaths(nlohmann::json& j, const fs::path& dir) {
+  for (const char* key : {"catalog", "model_cache"}) {
+    if (j.contains(key) && j[key].is_string()) {
+      fs::path p = j[key].get<std::string>();
+      if (!p.empty() && p.is_relative()) j[key] = (dir / p).lexically_normal().string();
+    }
+  }
+}
+
+nlohmann::json LoadRecursive(const std::string& path, std::vector<std::string>& chain) {
+  std::error_code ec;
+  std::string canon = fs::weakly_canonical(path, ec).string();
+  if (std::find(chain.begin(), chain.end(), canon) != chain.end())
+    throw InputError(path + ": extends loop: " + Join(chain) + ", " + canon);
+  if (chain.size() > 32) throw InputError(path + ": extends chain deeper than 32 files");
+  chain.push_back(canon);
+  nlohmann::json j = ReadJson(path);
+  if (!j.is_object()) throw InputError(path + ": expected a JSON object at the top level, got " + Shown(j));
+  AbsolutisePaths(j, fs::path(path).parent_path());
+  if (j.contains("extends")) {
+    const auto& ext = j["extends"];
+    if (!ext.is_string()) throw InputError(path + ":/extends: expected a file name string, got " + Shown(ext));
+    fs::path base = fs::path(path).parent_path() / ext.get<std::string>();
+    if (!fs::exists(base)) throw InputError(path + ":/extends: unknown base config " + base.string() + " (no such file)");
+    nlohmann::json b = LoadRecursive(base.string(), chain);
+    j.erase("extends");
+    j = MergePatch(std::move(b), j);
+  }
+  chain.pop_back();
+  return j;
+}
+
+}  // namespace
+
+nlohmann::json MergePatch(nlohmann::json target, const nlohmann::json& patch) {
+  if (!patch.is_object()) return patch;
+  if (!target.is_object()) target = nlohmann::json::object();
+  for (auto it = patch.begin(); it != patch.end(); ++it) {
+    if (it.value().is_null())
+      target.erase(it.key());
+    else
+      target[it.key()] = MergePatch(target.contains(it.key()) ? target[it.key()] : nlohmann::json(), it.value());
+  }
+  return target;
+}
+
+nlohmann::json LoadConfigJson(const std::string& path) {
+  std::vector<std::string> chain;
+  return LoadRecursive(path, chain);
+}
+
+const StageConfig* GraphConfig::Find(const std::string& tag) const {
+  for (const auto& s : stages)
+    if (s.tag == tag) return &s;
+  return nullptr;
+}
+
+const StageConfig* GraphConfig::FirstOfKind(StageKind kind) const {
+  auto all = AllOfKind(kind);
+  return all.empty() ? nullptr : all.front();
+}
+
+std::vector<const StageConfig*> GraphConfig::AllOfKind(StageKind kind) const {
+  std::vector<const StageConfig*> out;
+  for (const auto& s : stages)
+    if (s.kind == kind && s.tag != training_sensor) out.push_back(&s);
+  return out;
+}
+
+GraphConfig ValidateGraph(const std::string& path, const nlohmann::json& config, const Registry& registry) {
+  const std::string w = path + ":";
+  if (!config.is_object()) throw InputError(w + " expected a JSON object, got " + Shown(config));
+  CheckKeys(config, kTopKeys, w);
+  GraphConfig g;
+  g.path = path;
+  nlohmann::json resolved = config;
+
+  if (config.contains("seed")) {
+    const auto& s = config["seed"];
+    if (!s.is_number_unsigned()) throw InputError(w + "/seed: expected a non-negative integer, got " + Shown(s));
+    g.seed = s.get<uint64_t>();
+  }
+  resolved["seed"] = g.seed;
+  if (config.contains("threads") && !(config["threads"].is_number_unsigned() && config["threads"].get<uint64_t>() <= 1024))
+    throw InputError(w + "/threads: expected an integer in [0, 1024], got " + Shown(config["threads"]));
+  for (const char* key : {"catalog", "model_cache", "description"}) {
+    if (config.contains(key) && !config[key].is_string())
+      throw InputError(w + "/" + key + ": expected a string, got " + Shown(config[key]));
+  }
+  if (config.contains("catalog")) g.catalog = config["catalog"].get<std::string>();
+  if (config.contains("model_cache")) g.model_cache = config["model_cache"].get<std::string>();
+  if (config.contains("limits")) {
+    const auto& l = config["limits"];
+    if (!l.is_object()) throw InputError(w + "/limits: expected an object, got " + Shown(l));
+    CheckKeys(l, kLimitKeys, w + "/limits");
+    if (l.contains("max_points") && !l["max_points"].is_number_unsigned())
+      throw InputError(w + "/limits/max_points: expected a non-negative integer, got " + Shown(l["max_points"]));
+  }
+
+  if (!config.contains("stages")) throw InputError(w + "/stages: missing (an object of stages keyed by tag)");
+  const auto& stages = config["stages"];
+  if (!stages.is_object())
+    throw InputError(w + "/stages: expected an object keyed by stage tag, got " + Shown(stages));
+  if (stages.empty()) throw InputError(w + "/stages: no stages");
+
+  // First pass: structure and plugin names, collecting every missing plugin for one message.
+  static const std::regex tag_re("[A-Za-z0-9_-]+");
+  std::vector<std::string> missing;
+  std::string first_missing_at;
+  for (auto it = stages.begin(); it != stages.end(); ++it) {
+    const std::string at = w + "/stages/" + it.key();
+    if (!std::regex_match(it.key(), tag_re)) throw InputError(at + ": stage tags may use letters, digits, _ and - only");
+    const auto& st = it.value();
+    if (!st.is_object()) throw InputError(at + ": expected an object, got " + Shown(st));
+    CheckKeys(st, kStageKeys, at);
+    if (!st.contains("type") || !st["type"].is_string())
+      throw InputError(at + "/type: expected a plugin type name such as \"segmenters.region_growing\"");
+    const std::string type = st["type"].get<std::string>();
+    if (!KindFromTypeName(type))
+      throw InputError(at + "/type: '" + type + "' is not <kind>s.<name> with kind sensor, segmenter, features, voter or fitter");
+    if (!registry.Find(type)) {
+      if (missing.empty()) first_missing_at = at + "/type";
+      if (std::find(missing.begin(), missing.end(), type) == missing.end()) missing.push_back(type);
+    }
+    if (st.contains("inputs")) {
+      const auto& in = st["inputs"];
+      bool ok = in.is_array();
+      if (ok) for (const auto& x : in) ok = ok && x.is_string();
+      if (!ok) throw InputError(at + "/inputs: expected a list of stage tags, got " + Shown(in));
+    }
+  }
+  if (!missing.empty()) {
+    std::string known = Join(registry.TypeNames());
+    throw InputError(first_missing_at + ": missing plugin" + (missing.size() > 1 ? "s " : " ") + Join(missing) +
+                     "; known: " + (known.empty() ? "(none found)" : known));
+  }
+
+  // Second pass: parameters and connections.
+  std::map<std::string, StageConfig> by_tag;
+  for (auto it = stages.begin(); it != stages.end(); ++it) {
+    StageConfig s;
+    s.tag = it.key();
+    s.pointer = "/stages/" + it.key();
+    s.type = it.value()["type"].get<std::string>();
+    s.kind = registry.Find(s.type)->kind;
+    if (it.value().contains("inputs")) s.inputs = it.value()["inputs"].get<std::vector<std::string>>();
+    s.params = registry.Find(s.type)->params.Resolve(
+        it.value().contains("params") ? it.value()["params"] : nlohmann::json(), w + s.pointer + "/params");
+    resolved["stages"][s.tag]["params"] = s.params;
+    resolved["stages"][s.tag]["inputs"] = s.inputs;
+    by_tag[s.tag] = s;
+  }
+  auto expected_input = [](StageKind k) -> std::vector<StageKind> {
+    switch (k) {
+      case StageKind::Sensor: return {};
+      case StageKind::Segmenter: return {StageKind::Sensor};
+      case StageKind::Features: return {StageKind::Segmenter};
+      case StageKind::Voter: return {StageKind::Features};
+      case StageKind::Fitter: return {StageKind::Voter, StageKind::Fitter};
+    }
+    return {};
+  };
+  for (auto& [tag, s] : by_tag) {
+    const std::string at = w + s.pointer + "/inputs";
+    auto want = expected_input(s.kind);
+    if (want.empty() && !s.inputs.empty()) throw InputError(at + ": a sensor takes no inputs");
+    if (!want.empty() && s.inputs.size() != 1)
+      throw InputError(at + ": a " + std::string(ToString(s.kind)) + " takes exactly one input (a " +
+                       ToString(want.front()) + (want.size() > 1 ? " or a fitter" : "") + " stage)");
+    for (size_t i = 0; i < s.inputs.size(); ++i) {
+      auto in = by_tag.find(s.inputs[i]);
+      if (in == by_tag.end()) {
+        std::string tags;
+        for (const auto& [t, _] : by_tag) tags += (tags.empty() ? "" : ", ") + t;
+        throw InputError(at + "/" + std::to_string(i) + ": unknown stage '" + s.inputs[i] + "'; stages: " + tags);
+      }
+      if (std::find(want.begin(), want.end(), in->second.kind) == want.end())
+        throw InputError(at + "/" + std::to_string(i) + ": kind mismatch: " + ToString(s.kind) + " '" + tag +
+                         "' cannot take " + ToString(in->second.kind) + " '" + in->first + "' (" +
+                         in->second.type + ")");
+    }
+  }
+
+  // Topological order; a cycle can only run through fitters but is checked generally.
+  std::map<std::string, int> state;  // 0 new, 1 visiting, 2 done
+  std::vector<std::string> order;
+  std::function<void(const std::string&, std::vector<std::string>&)> visit =
+      [&](const std::string& t, std::vector<std::string>& path_tags) {
+        if (state[t] == 2) return;
+        path_tags.push_back(t);
+        if (state[t] == 1) throw InputError(w + "/stages: cycle in connections: " + Join(path_tags));
+        state[t] = 1;
+        for (const auto& in : by_tag[t].inputs) visit(in, path_tags);
+        state[t] = 2;
+        path_tags.pop_back();
+        order.push_back(t);
+      };
+  for (const auto& [tag, _] : by_tag) {
+    std::vector<std::string> p;
+    visit(tag, p);
+  }
+  for (const auto& t : order) g.stages.push_back(by_tag[t]);
+
+  if (config.contains("training")) {
+    const auto& tr = config["training"];
+    if (!tr.is_object()) throw InputError(w + "/training: expected an object, got " + Shown(tr));
+    CheckKeys(tr, kTrainingKeys, w + "/training");
+    if (tr.contains("sensor")) {
+      if (!tr["sensor"].is_string()) throw InputError(w + "/training/sensor: expected a stage tag");
+      g.training_sensor = tr["sensor"].get<std::string>();
+      auto it = by_tag.find(g.training_sensor);
+      if (it == by_tag.end()) throw InputError(w + "/training/sensor: unknown stage '" + g.training_sensor + "'");
+      if (it->second.kind != StageKind::Sensor)
+        throw InputError(w + "/training/sensor: '" + g.training_sensor + "' is a " + ToString(it->second.kind) + ", not a sensor");
+      for (const auto& [t, s] : by_tag)
+        for (const auto& in : s.inputs)
+          if (in == g.training_sensor)
+            throw InputError(w + s.pointer + "/inputs: '" + t + "' takes the training sensor '" + in +
+                             "' as input; the detection chain must start at a file sensor");
+    }
+  }
+
+  // The detection chain must be a single line: one of each kind up to the voter, then fitters.
+  for (StageKind k : {StageKind::Sensor, StageKind::Segmenter, StageKind::Features, StageKind::Voter}) {
+    auto all = g.AllOfKind(k);
+    if (all.size() > 1)
+      throw InputError(w + "/stages: more than one " + std::string(ToString(k)) + " stage (" + all[0]->tag + ", " +
+                       all[1]->tag + "); a graph is one detection chain (plus an optional training sensor)");
+  }
+  auto fitters = g.AllOfKind(StageKind::Fitter);
+  std::map<std::string, int> consumers;
+  for (const auto* f : fitters) consumers[f->inputs[0]]++;
+  for (const auto& [t, n] : consumers)
+    if (n > 1) throw InputError(w + "/stages: stage '" + t + "' feeds " + std::to_string(n) + " fitters; fitters form one chain");
+  if (g.catalog.empty() && g.FirstOfKind(StageKind::Voter))
+    throw InputError(w + "/catalog: missing (the catalog.json the voter is trained from)");
+  g.resolved = resolved;
+  return g;
+}
+
+GraphConfig LoadGraph(const std::string& path, const Registry& registry) {
+  return ValidateGraph(path, LoadConfigJson(path), registry);
+}
+
+}  // namespace furnihost

@@ -1,0 +1,47 @@
+#include "furnihost/error.hpp"
+#include "furnihost/stage.hpp"
+#include "furnihost/types.hpp"
+
+namespace furnihost {
+
+// Out-of-line destructors anchor vtables and type_info in the core library, so dynamic_cast
+// and catch clauses agree between the host and every plugin.
+InputError::~InputError() = default;
+StageError::~StageError() = default;
+Stage::~Stage() = default;
+Sensor::~Sensor() = default;
+Segmenter::~Segmenter() = default;
+Features::~Features() = default;
+Voter::~Voter() = default;
+Fitter::~Fitter() = default;
+
+Eigen::AlignedBox3f Mesh::Bounds() const {
+  Eigen::AlignedBox3f b;
+  for (const auto& v : vertices) b.extend(v);
+  return b;
+}
+
+const char* ToString(StageKind k) {
+  switch (k) {
+    case StageKind::Sensor: return "sensor";
+    case StageKind::Segmenter: return "segmenter";
+    case StageKind::Features: return "features";
+    case StageKind::Voter: return "voter";
+    case StageKind::Fitter: return "fitter";
+  }
+  return "?";
+}
+
+std::optional<StageKind> KindFromTypeName(const std::string& type) {
+  auto dot = type.find('.');
+  if (dot == std::string::npos || dot + 1 >= type.size()) return std::nullopt;
+  const std::string prefix = type.substr(0, dot);
+  if (prefix == "sensors") return StageKind::Sensor;
+  if (prefix == "segmenters") return StageKind::Segmenter;
+  if (prefix == "features") return StageKind::Features;
+  if (prefix == "voters") return StageKind::Voter;
+  if (prefix == "fitters") return StageKind::Fitter;
+  return std::nullopt;
+}
+
+}  // namespace furnihost

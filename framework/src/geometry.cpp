@@ -1,0 +1,101 @@
+#include "furnihost/geometry.hpp"
+
+#include <cmath>
+#include <unordered_map>
+
+namespace furnihost {
+
+Points VoxelDownsample(const Points& points, float voxel, std::vector<int>* kept) {
+  if (!(voxel > 0.f)) {
+    if (kept) {
+      kept->resize(points.size());
+      for (size_t i = 0; i < points.size(); ++i) (*kept)[i] = static_cast<int>(i);
+    }
+    return points;
+  }
+  struct Acc {
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    int n = 0;
+    int first = 0;
+    int slot = 0;
+  };
+  std::unordered_map<uint64_t, Acc> cells;
+  cells.reserve(points.size() / 4 + 16);
+  std::vector<uint64_t> order;
+  const float inv = 1.f / voxel;
+  for (size_t i = 0; i < points.size(); ++i) {
+    const auto& p = points[i];
+    // 21 bits per axis: +-1e6 voxels around the origin; wraps beyond (still deterministic).
+    auto q = [&](float v) { return static_cast<uint64_t>(static_cast<int64_t>(std::floor(v * inv)) & 0x1FFFFF); };
+    const uint64_t key = q(p.x()) | (q(p.y()) << 21) | (q(p.z()) << 42);
+    auto [it, fresh] = cells.try_emplace(key);
+    if (fresh) {
+      it->second.first = static_cast<int>(i);
+      it->second.slot = static_cast<int>(order.size());
+      order.push_back(key);
+    }
+    it->second.sum += p.cast<double>();
+    it->second.n++;
+  }
+  Points out(order.size());
+  if (kept) kept->resize(order.size());
+  for (size_t s = 0; s < order.size(); ++s) {
+    const Acc& a = cells[order[s]];
+    out[s] = (a.sum / a.n).cast<float>();
+    if (kept) (*kept)[s] = a.first;
+  }
+  return out;
+}
+
+Eigen::Isometry3f UprightPose(float x, float y, float z, float yaw) {
+  Eigen::Isometry3f t = Eigen::Isometry3f::Identity();
+  t.linear() = Eigen::AngleAxisf(yaw, Eigen::Vector3f::UnitZ()).toRotationMatrix();
+  t.translation() = Eigen::Vector3f(x, y, z);
+  return t;
+}
+
+}  // namespace furnihost
+
+#include <random>
+
+namespace furnihost {
+
+Points SampleSurface(const Mesh& mesh, float per_m2, uint64_t seed, Points* normals) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<float> u(0.f, 1.f);
+  Points out;
+  if (normals) normals->clear();
+  const int nv = static_cast<int>(mesh.vertices.size());
+  for (const auto& t : mesh.triangles) {
+    if (t.minCoeff() < 0 || t.maxCoeff() >= nv) continue;
+    const Eigen::Vector3f a = mesh.vertices[t[0]], b = mesh.vertices[t[1]], c = mesh.vertices[t[2]];
+    const Eigen::Vector3f cr = (b - a).cross(c - a);
+    const float area = 0.5f * cr.norm();
+    if (!(area > 0.f)) continue;
+    const float expected = area * per_m2;
+    int n = static_cast<int>(expected);
+    if (u(rng) < expected - n) ++n;
+    for (int i = 0; i < n; ++i) {
+      float r1 = u(rng), r2 = u(rng);
+      if (r1 + r2 > 1.f) { r1 = 1.f - r1; r2 = 1.f - r2; }
+      out.push_back(a + r1 * (b - a) + r2 * (c - a));
+      if (normals) normals->push_back(cr.normalized());
+    }
+  }
+  return out;
+}
+
+std::array<uint8_t, 3> ClassColor(const std::string& cls) {
+  if (cls == "chair") return {40, 90, 220};
+  if (cls == "table") return {220, 40, 40};
+  if (cls == "cabinet") return {235, 200, 30};
+  if (cls == "armchair") return {40, 180, 220};
+  if (cls == "sofa") return {150, 60, 200};
+  if (cls == "desk") return {230, 120, 30};
+  uint32_t h = 2166136261u;
+  for (char c : cls) h = (h ^ static_cast<uint8_t>(c)) * 16777619u;
+  return {static_cast<uint8_t>(60 + h % 180), static_cast<uint8_t>(60 + (h >> 8) % 180),
+          static_cast<uint8_t>(60 + (h >> 16) % 180)};
+}
+
+}  // namespace furnihost

@@ -1,0 +1,168 @@
+#include "furnihost/params.hpp"
+
+#include <cmath>
+#include <sstream>
+
+namespace furnihost {
+
+const char* ToString(ParamType t) {
+  switch (t) {
+    case ParamType::Bool: return "bool";
+    case ParamType::Int: return "int";
+    case ParamType::Number: return "number";
+    case ParamType::String: return "string";
+    case ParamType::Enum: return "enum";
+    case ParamType::NumberList: return "number[]";
+    case ParamType::Object: return "object";
+  }
+  return "?";
+}
+
+namespace {
+
+std::string FormatNumber(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
+std::string RangeText(const ParamSpec& s) {
+  if (!s.min && !s.max) return "";
+  return " in [" + (s.min ? FormatNumber(*s.min) : std::string("-inf")) + ", " +
+         (s.max ? FormatNumber(*s.max) : std::string("inf")) + "]";
+}
+
+// Shortened dump of an offending value for messages.
+std::string Shown(const nlohmann::json& v) {
+  std::string d = v.dump();
+  if (d.size() > 60) d = d.substr(0, 57) + "...";
+  return d;
+}
+
+bool InRange(const ParamSpec& s, double v) {
+  return std::isfinite(v) && (!s.min || v >= *s.min) && (!s.max || v <= *s.max);
+}
+
+}  // namespace
+
+ParamSchema& ParamSchema::Bool(const std::string& name, bool def, const std::string& help) {
+  specs_.push_back({name, ParamType::Bool, def, {}, {}, {}, help});
+  return *this;
+}
+ParamSchema& ParamSchema::Int(const std::string& name, long long def, std::optional<double> min,
+                              std::optional<double> max, const std::string& help) {
+  specs_.push_back({name, ParamType::Int, def, min, max, {}, help});
+  return *this;
+}
+ParamSchema& ParamSchema::Number(const std::string& name, double def, std::optional<double> min,
+                                 std::optional<double> max, const std::string& help) {
+  specs_.push_back({name, ParamType::Number, def, min, max, {}, help});
+  return *this;
+}
+ParamSchema& ParamSchema::String(const std::string& name, const std::string& def,
+                                 const std::string& help) {
+  specs_.push_back({name, ParamType::String, def, {}, {}, {}, help});
+  return *this;
+}
+ParamSchema& ParamSchema::Enum(const std::string& name, const std::string& def,
+                               std::vector<std::string> choices, const std::string& help) {
+  specs_.push_back({name, ParamType::Enum, def, {}, {}, std::move(choices), help});
+  return *this;
+}
+ParamSchema& ParamSchema::NumberList(const std::string& name, std::vector<double> def,
+                                     std::optional<double> min, std::optional<double> max,
+                                     const std::string& help) {
+  specs_.push_back({name, ParamType::NumberList, def, min, max, {}, help});
+  return *this;
+}
+ParamSchema& ParamSchema::Object(const std::string& name, nlohmann::json def,
+                                 const std::string& help) {
+  specs_.push_back({name, ParamType::Object, std::move(def), {}, {}, {}, help});
+  return *this;
+}
+
+const ParamSpec* ParamSchema::Find(const std::string& name) const {
+  for (const auto& s : specs_)
+    if (s.name == name) return &s;
+  return nullptr;
+}
+
+nlohmann::json ParamSchema::Resolve(const nlohmann::json& given, const std::string& where) const {
+  if (!given.is_null() && !given.is_object())
+    throw InputError(where + ": expected an object of parameters, got " + Shown(given));
+  nlohmann::json out = nlohmann::json::object();
+  if (given.is_object()) {
+    for (auto it = given.begin(); it != given.end(); ++it) {
+      if (Find(it.key())) continue;
+      std::string valid;
+      for (const auto& s : specs_) valid += (valid.empty() ? "" : ", ") + s.name;
+      throw InputError(where + "/" + it.key() + ": unknown parameter; valid: " +
+                       (valid.empty() ? "(none)" : valid));
+    }
+  }
+  for (const auto& s : specs_) {
+    const std::string at = where + "/" + s.name;
+    if (!given.is_object() || !given.contains(s.name)) {
+      out[s.name] = s.default_value;
+      continue;
+    }
+    const nlohmann::json& v = given.at(s.name);
+    switch (s.type) {
+      case ParamType::Bool:
+        if (!v.is_boolean()) throw InputError(at + ": expected true or false, got " + Shown(v));
+        break;
+      case ParamType::Int:
+        if (!v.is_number_integer() || !InRange(s, v.get<double>()))
+          throw InputError(at + ": expected an integer" + RangeText(s) + ", got " + Shown(v));
+        break;
+      case ParamType::Number:
+        if (!v.is_number() || !InRange(s, v.get<double>()))
+          throw InputError(at + ": expected a number" + RangeText(s) + ", got " + Shown(v));
+        break;
+      case ParamType::String:
+        if (!v.is_string()) throw InputError(at + ": expected a string, got " + Shown(v));
+        break;
+      case ParamType::Enum: {
+        bool ok = v.is_string();
+        if (ok) {
+          ok = false;
+          for (const auto& c : s.choices) ok = ok || v.get<std::string>() == c;
+        }
+        if (!ok) {
+          std::string list;
+          for (const auto& c : s.choices) list += (list.empty() ? "" : ", ") + c;
+          throw InputError(at + ": expected one of " + list + ", got " + Shown(v));
+        }
+        break;
+      }
+      case ParamType::NumberList: {
+        bool ok = v.is_array();
+        if (ok)
+          for (const auto& x : v) ok = ok && x.is_number() && InRange(s, x.get<double>());
+        if (!ok)
+          throw InputError(at + ": expected a list of numbers" + RangeText(s) + ", got " + Shown(v));
+        break;
+      }
+      case ParamType::Object:
+        if (!v.is_object()) throw InputError(at + ": expected an object, got " + Shown(v));
+        break;
+    }
+    out[s.name] = v;
+  }
+  return out;
+}
+
+nlohmann::json ParamSchema::ToJson() const {
+  nlohmann::json a = nlohmann::json::array();
+  for (const auto& s : specs_) {
+    nlohmann::json p = {{"name", s.name}, {"type", ToString(s.type)}, {"default", s.default_value},
+                        {"help", s.help}};
+    if (s.min) p["min"] = *s.min;
+    if (s.max) p["max"] = *s.max;
+    if (!s.choices.empty()) p["choices"] = s.choices;
+    a.push_back(p);
+  }
+  return a;
+}
+
+}  // namespace furnihost

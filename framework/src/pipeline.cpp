@@ -1,0 +1,333 @@
+#include "furnihost/pipeline.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include "furnihost/io.hpp"
+#include "furnihost/log.hpp"
+
+namespace fs = std::filesystem;
+
+namespace furnihost {
+
+namespace {
+const char kMagic[] = "furnihost-model\n";
+
+nlohmann::json StageKey(const StageConfig* s) {
+  if (!s) return nullptr;
+  return {{"type", s->type}, {"params", s->params}};
+}
+}  // namespace
+
+template <class F>
+auto Pipeline::Call(const StageConfig& s, F&& f) -> decltype(f()) {
+  const std::string who = "stage '" + s.tag + "' (" + s.type + "): ";
+  try {
+    return f();
+  } catch (const InputError& e) {
+    throw InputError(who + e.what());
+  } catch (const StageError& e) {
+    throw StageError(who + e.what(), e.IsInputError());
+  } catch (const std::bad_alloc&) {
+    throw StageError(who + "out of memory", false);
+  } catch (const std::exception& e) {
+    throw StageError(who + e.what(), false);
+  } catch (...) {
+    throw StageError(who + "unknown exception", false);
+  }
+}
+
+nlohmann::json TrainingKey(const GraphConfig& g) {
+  const StageConfig* tr = g.training_sensor.empty() ? nullptr : g.Find(g.training_sensor);
+  return {{"seed", g.seed},
+          {"training_sensor", StageKey(tr)},
+          {"segmenter", StageKey(g.FirstOfKind(StageKind::Segmenter))},
+          {"features", StageKey(g.FirstOfKind(StageKind::Features))},
+          {"voter", StageKey(g.FirstOfKind(StageKind::Voter))}};
+}
+
+void SaveModel(const std::string& path, const TrainedModel& m) {
+  nlohmann::json j = {{"format_version", m.format_version}, {"training_config", m.training_config},
+                      {"catalog_hash", m.catalog_hash},     {"voter_type", m.voter_type},
+                      {"normaliser", m.normaliser.ToJson()}, {"voter_model", m.voter_model},
+                      {"summary", m.summary}};
+  const std::vector<uint8_t> cbor = nlohmann::json::to_cbor(j);
+  AtomicWrite(path, [&](const std::string& tmp) {
+    std::ofstream out(tmp, std::ios::binary);
+    out.write(kMagic, sizeof(kMagic) - 1);
+    out.write(reinterpret_cast<const char*>(cbor.data()), cbor.size());
+    out.flush();
+    if (!out) throw InputError(tmp + ": write failed");
+  });
+}
+
+TrainedModel LoadModel(const std::string& path) {
+  RequireRegularFile(path, "model file");
+  std::ifstream in(path, std::ios::binary);
+  std::string data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const size_t ml = sizeof(kMagic) - 1;
+  if (data.size() < ml || data.compare(0, ml, kMagic) != 0)
+    throw InputError(path + ": not a furnihost model file (bad magic)");
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::from_cbor(data.begin() + ml, data.end());
+  } catch (const std::exception& e) {
+    throw InputError(path + ": corrupt or truncated model file (" + std::string(e.what()) + "); delete it to retrain");
+  }
+  try {
+    TrainedModel m;
+    m.format_version = j.at("format_version").get<int>();
+    if (m.format_version != kModelFormatVersion)
+      throw InputError(path + ": model file format version " + std::to_string(m.format_version) +
+                       ", this furnihost reads version " + std::to_string(kModelFormatVersion) +
+                       "; retrain with `furnihost train --graph <config>`");
+    m.training_config = j.at("training_config");
+    m.catalog_hash = j.at("catalog_hash").get<std::string>();
+    m.voter_type = j.at("voter_type").get<std::string>();
+    m.normaliser = Normaliser::FromJson(j.at("normaliser"));
+    m.voter_model = j.at("voter_model");
+    m.summary = j.value("summary", nlohmann::json::object());
+    return m;
+  } catch (const InputError&) {
+    throw;
+  } catch (const std::exception& e) {
+    throw InputError(path + ": model file is missing a field (" + std::string(e.what()) + "); delete it to retrain");
+  }
+}
+
+std::string Incompatibility(const TrainedModel& m, const GraphConfig& g, const std::string& catalog_hash) {
+  if (m.catalog_hash != catalog_hash) return "the catalog changed (hash " + m.catalog_hash + " -> " + catalog_hash + ")";
+  const nlohmann::json want = TrainingKey(g);
+  for (auto it = want.begin(); it != want.end(); ++it) {
+    if (!m.training_config.contains(it.key()) || m.training_config[it.key()] != it.value()) {
+      const nlohmann::json have = m.training_config.value(it.key(), nlohmann::json());
+      nlohmann::json diff = nlohmann::json::diff(have, it.value());
+      std::string d = diff.dump();
+      if (d.size() > 200) d = d.substr(0, 197) + "...";
+      return "'" + it.key() + "' differs from the model's: " + d;
+    }
+  }
+  return "";
+}
+
+Pipeline::Pipeline(const GraphConfig& graph, const Registry& registry) : graph_(graph) {
+  input_cfg_ = graph_.FirstOfKind(StageKind::Sensor);
+  train_cfg_ = graph_.training_sensor.empty() ? nullptr : graph_.Find(graph_.training_sensor);
+  seg_cfg_ = graph_.FirstOfKind(StageKind::Segmenter);
+  feat_cfg_ = graph_.FirstOfKind(StageKind::Features);
+  voter_cfg_ = graph_.FirstOfKind(StageKind::Voter);
+  // Fitters in chain order (the graph's stages are topologically sorted).
+  fitter_cfgs_ = graph_.AllOfKind(StageKind::Fitter);
+  auto make = [&](const StageConfig* c) { return Call(*c, [&] { return registry.Create(c->type, c->params); }); };
+  if (input_cfg_) input_ = std::dynamic_pointer_cast<Sensor>(make(input_cfg_));
+  if (train_cfg_) training_ = std::dynamic_pointer_cast<Sensor>(make(train_cfg_));
+  if (seg_cfg_) segmenter_ = std::dynamic_pointer_cast<Segmenter>(make(seg_cfg_));
+  if (feat_cfg_) features_ = std::dynamic_pointer_cast<Features>(make(feat_cfg_));
+  if (voter_cfg_) voter_ = std::dynamic_pointer_cast<Voter>(make(voter_cfg_));
+  for (const auto* f : fitter_cfgs_) fitters_.push_back(std::dynamic_pointer_cast<Fitter>(make(f)));
+}
+
+std::vector<std::string> Pipeline::MissingStages() const {
+  std::vector<std::string> m;
+  if (!input_) m.push_back("sensor (scan reader)");
+  if (!segmenter_) m.push_back("segmenter");
+  if (!features_) m.push_back("features");
+  if (!voter_) m.push_back("voter");
+  if (fitters_.empty()) m.push_back("fitter");
+  return m;
+}
+
+TrainedModel Pipeline::Train(const Catalog& catalog, const RunContext& ctx) {
+  if (!training_) throw InputError(graph_.path + ":/training/sensor: the graph names no training sensor");
+  if (!segmenter_ || !features_ || !voter_)
+    throw InputError(graph_.path + ": training needs a segmenter, a features and a voter stage");
+  if (catalog.models.empty()) throw InputError(catalog.path + ": no usable models to train from");
+  std::vector<TrainingView> views;
+  double t_sim = 0, t_seg = 0, t_feat = 0;
+  std::map<std::string, std::pair<int, int>> per_class;  // class -> (views, parts)
+  Progress progress("train: scanning models", catalog.models.size());
+  for (const auto& model : catalog.models) {
+    SensorRequest req;
+    req.objects.push_back({&model, Eigen::Isometry3f::Identity()});
+    Stopwatch sw;
+    std::vector<Scan> scans = Call(*train_cfg_, [&] { return training_->Acquire(req, ctx); });
+    t_sim += sw.Ms();
+    for (size_t v = 0; v < scans.size(); ++v) {
+      if (scans[v].points.size() < 3) continue;
+      TrainingView tv;
+      tv.cls = model.cls;
+      tv.model_id = model.id;
+      tv.view = static_cast<int>(v);
+      tv.object_size = model.size;
+      tv.scan = std::move(scans[v]);
+      Eigen::Vector3d c = Eigen::Vector3d::Zero();
+      for (const auto& p : tv.scan.points) c += p.cast<double>();
+      tv.object_centroid = (c / static_cast<double>(tv.scan.points.size())).cast<float>();
+      Stopwatch s2;
+      tv.segmentation = Call(*seg_cfg_, [&] { return segmenter_->Segment(tv.scan, ctx); });
+      t_seg += s2.Ms();
+      Stopwatch s3;
+      tv.features = Call(*feat_cfg_, [&] { return features_->Compute(tv.scan, tv.segmentation, ctx); });
+      t_feat += s3.Ms();
+      if (tv.features.values.rows() != static_cast<Eigen::Index>(tv.segmentation.parts.size()))
+        throw StageError("stage '" + feat_cfg_->tag + "': returned " + std::to_string(tv.features.values.rows()) +
+                         " rows for " + std::to_string(tv.segmentation.parts.size()) + " parts", false);
+      per_class[model.cls].first++;
+      per_class[model.cls].second += static_cast<int>(tv.segmentation.parts.size());
+      views.push_back(std::move(tv));
+    }
+    progress.Tick();
+  }
+  progress.Done();
+  std::vector<const FeatureMatrix*> fm;
+  for (const auto& v : views) fm.push_back(&v.features);
+  TrainedModel m;
+  m.normaliser = Normaliser::Fit(fm);
+  if (m.normaliser.min.size() == 0) throw StageError("training produced no parts: check the segmenter parameters", true);
+  for (auto& v : views) m.normaliser.Apply(v.features);
+  Stopwatch sv;
+  m.voter_model = Call(*voter_cfg_, [&] { return voter_->Train(views, ctx); });
+  const double t_vote = sv.Ms();
+  m.training_config = TrainingKey(graph_);
+  m.catalog_hash = catalog.hash;
+  m.voter_type = voter_cfg_->type;
+  nlohmann::json classes = nlohmann::json::object();
+  size_t parts = 0;
+  for (const auto& [c, vp] : per_class) {
+    classes[c] = {{"views", vp.first}, {"parts", vp.second}};
+    parts += vp.second;
+  }
+  m.summary = {{"models", catalog.models.size()},
+               {"views", views.size()},
+               {"parts", parts},
+               {"classes", classes},
+               {"time_ms", {{"simulate", t_sim}, {"segment", t_seg}, {"features", t_feat}, {"voter", t_vote}}}};
+  voter_->Load(m.voter_model);
+  loaded_model_id_ = m.catalog_hash + TrainingKey(graph_).dump();
+  return m;
+}
+
+Pipeline::Result Pipeline::Detect(const std::vector<SceneInput>& scenes, const TrainedModel* model,
+                                  const Catalog* catalog, const RunContext& ctx) {
+  if (!input_) throw InputError(graph_.path + ": the graph has no input sensor stage (e.g. sensors.scan_file)");
+  Result r;
+  auto timed = [&](const std::string& tag, double ms) {
+    for (auto& t : r.timings_ms)
+      if (t.first == tag) { t.second += ms; return; }
+    r.timings_ms.emplace_back(tag, ms);
+  };
+  for (const auto& sc : scenes) {
+    SensorRequest req;
+    req.path = sc.path;
+    req.origin = sc.origin;
+    Stopwatch sw;
+    auto got = Call(*input_cfg_, [&] { return input_->Acquire(req, ctx); });
+    timed(input_cfg_->tag, sw.Ms());
+    for (auto& s : got) {
+      s.pose = sc.pose;
+      r.scans.push_back(std::move(s));
+    }
+  }
+  if (!segmenter_) return r;
+  for (const auto& scan : r.scans) {
+    Stopwatch sw;
+    r.segmentations.push_back(Call(*seg_cfg_, [&] { return segmenter_->Segment(scan, ctx); }));
+    timed(seg_cfg_->tag, sw.Ms());
+    spdlog::info("{}: {} points -> {} parts ({} points discarded)", scan.source, scan.points.size(),
+                 r.segmentations.back().parts.size(), r.segmentations.back().discarded_points);
+  }
+  if (!features_) return r;
+  for (size_t i = 0; i < r.scans.size(); ++i) {
+    Stopwatch sw;
+    r.features.push_back(Call(*feat_cfg_, [&] { return features_->Compute(r.scans[i], r.segmentations[i], ctx); }));
+    timed(feat_cfg_->tag, sw.Ms());
+    if (r.features.back().values.rows() != static_cast<Eigen::Index>(r.segmentations[i].parts.size()))
+      throw StageError("stage '" + feat_cfg_->tag + "': feature rows do not match the parts", false);
+    if (model) r.clamped_features += model->normaliser.Apply(r.features.back());
+  }
+  if (r.clamped_features) spdlog::info("features: {} values outside the training range were clamped", r.clamped_features);
+  if (!voter_ || !model) return r;
+  const std::string id = model->catalog_hash + model->training_config.dump();
+  if (loaded_model_id_ != id) {
+    Call(*voter_cfg_, [&] { voter_->Load(model->voter_model); return 0; });
+    loaded_model_id_ = id;
+  }
+  std::vector<SceneParts> parts;
+  for (size_t i = 0; i < r.scans.size(); ++i) parts.push_back({&r.scans[i], &r.segmentations[i], &r.features[i]});
+  Stopwatch sv;
+  r.votes = Call(*voter_cfg_, [&] { return voter_->Vote(parts, ctx); });
+  timed(voter_cfg_->tag, sv.Ms());
+  r.voted = true;
+  for (const auto& h : r.votes.hypotheses) {
+    Detection d;
+    d.cls = h.cls;
+    d.center = h.center;
+    d.score = h.score;
+    d.support = h.support;
+    r.detections.push_back(d);
+  }
+  if (fitters_.empty() || !catalog) return r;
+  FitContext fc;
+  fc.scenes = parts;
+  for (const auto& m : catalog->models) fc.catalog.push_back(&m);
+  fc.run = ctx;
+  for (size_t i = 0; i < fitters_.size(); ++i) {
+    Stopwatch sw;
+    r.detections = Call(*fitter_cfgs_[i], [&] { return fitters_[i]->Fit(r.detections, fc); });
+    timed(fitter_cfgs_[i]->tag, sw.Ms());
+  }
+  r.fitted = true;
+  return r;
+}
+
+TrainedModel EnsureModel(Pipeline& p, const Catalog& catalog, const RunContext& ctx, bool force) {
+  const std::string cache = p.Graph().model_cache;
+  if (!force && !cache.empty() && fs::exists(cache)) {
+    try {
+      TrainedModel m = LoadModel(cache);
+      std::string why = Incompatibility(m, p.Graph(), catalog.hash);
+      if (why.empty()) {
+        spdlog::info("model: using cached {}", cache);
+        return m;
+      }
+      spdlog::warn("model: cached {} is stale: {}; retraining", cache, why);
+    } catch (const InputError& e) {
+      spdlog::warn("model: {}; retraining", e.what());
+    }
+  }
+  spdlog::info("model: training from {} ({} models)", catalog.path, catalog.models.size());
+  Stopwatch sw;
+  TrainedModel m = p.Train(catalog, ctx);
+  spdlog::info("model: trained in {:.1f} s: {}", sw.Ms() / 1000.0, m.summary.dump());
+  if (!cache.empty()) {
+    SaveModel(cache, m);
+    spdlog::info("model: written to {}", cache);
+  }
+  return m;
+}
+
+nlohmann::json DetectionToJson(const Detection& d) {
+  nlohmann::json j = {{"class", d.cls},
+                      {"center", {d.center.x(), d.center.y(), d.center.z()}},
+                      {"yaw", d.yaw},
+                      {"yaw_deg", d.yaw * 180.0 / M_PI},
+                      {"score", d.score},
+                      {"model", d.model.empty() ? nlohmann::json(nullptr) : nlohmann::json(d.model)},
+                      {"verified", d.verified ? nlohmann::json(*d.verified) : nlohmann::json(nullptr)}};
+  if (d.coverage >= 0) j["coverage"] = d.coverage;
+  j["free_space_ratio"] = d.free_space_ratio >= 0 ? nlohmann::json(d.free_space_ratio) : nlohmann::json(nullptr);
+  if (d.rms >= 0) j["rms_m"] = d.rms;
+  if (d.iterations) j["iterations"] = d.iterations;
+  if (!d.rejection.empty()) j["rejection"] = d.rejection;
+  if (!d.notes.empty()) j["notes"] = d.notes;
+  nlohmann::json sup = nlohmann::json::array();
+  for (const auto& s : d.support) sup.push_back({{"scene", s.scene}, {"part", s.part}, {"weight", s.weight}});
+  j["supporting_parts"] = sup;
+  return j;
+}
+
+}  // namespace furnihost

@@ -1,0 +1,61 @@
+// sensors.scan_file — reads a scan from a file (PCD, PLY, XYZ) for detection, with optional
+// voxel downsampling so real scans can be matched to the training views' density.
+#include <spdlog/spdlog.h>
+
+#include "furnihost/geometry.hpp"
+#include "furnihost/io.hpp"
+#include "furnihost/plugin.hpp"
+
+namespace furnihost {
+
+class ScanFile : public Sensor {
+ public:
+  static ParamSchema Schema() {
+    return ParamSchema()
+        .Number("voxel_m", 0.0, 0.0, 1.0, "voxel-grid downsampling edge [m]; 0 keeps every point")
+        .Int("max_points", 20000000, 1, 2e9, "refuse scans with more points than this (memory guard)")
+        .NumberList("origin", {}, -1e6, 1e6,
+                    "sensor origin [x, y, z] in the scan frame when the file has none (empty = unknown)");
+  }
+  explicit ScanFile(const nlohmann::json& p)
+      : voxel_(p.at("voxel_m").get<float>()), max_points_(p.at("max_points").get<size_t>()) {
+    auto o = p.at("origin").get<std::vector<double>>();
+    if (!o.empty() && o.size() != 3) throw InputError("origin: expected 3 numbers, got " + std::to_string(o.size()));
+    if (o.size() == 3) origin_ = Eigen::Vector3f(o[0], o[1], o[2]);
+  }
+
+  std::vector<Scan> Acquire(const SensorRequest& req, const RunContext&) override {
+    if (req.path.empty()) throw InputError("sensors.scan_file reads files: no path given");
+    Scan scan = ReadScan(req.path, nullptr, max_points_);
+    if (req.origin) scan.origin = req.origin;  // the command line wins over the file
+    else if (!scan.origin && origin_) scan.origin = origin_;
+    if (voxel_ > 0) {
+      std::vector<int> kept;
+      const size_t before = scan.points.size();
+      scan.points = VoxelDownsample(scan.points, voxel_, &kept);
+      // Per-point attributes follow the first point of each voxel.
+      for (auto& [name, values] : scan.attributes) {
+        std::vector<int32_t> v(kept.size());
+        for (size_t i = 0; i < kept.size(); ++i) v[i] = values[kept[i]];
+        values.swap(v);
+      }
+      if (!scan.colors.empty()) {
+        std::vector<std::array<uint8_t, 3>> c(kept.size());
+        for (size_t i = 0; i < kept.size(); ++i) c[i] = scan.colors[kept[i]];
+        scan.colors.swap(c);
+      }
+      spdlog::info("{}: voxel {} m: {} -> {} points", req.path, voxel_, before, scan.points.size());
+    }
+    return {std::move(scan)};
+  }
+
+ private:
+  float voxel_;
+  size_t max_points_;
+  std::optional<Eigen::Vector3f> origin_;
+};
+
+}  // namespace furnihost
+
+FURNIHOST_PLUGIN(furnihost::ScanFile, "sensors.scan_file", "1.0.0",
+                 "reads a scan from a .pcd/.ply/.xyz file (VIEWPOINT = sensor origin), optional voxel downsampling")

@@ -1,0 +1,140 @@
+// The furnihost binary: exit codes and one-line errors on bad input.
+#include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+
+#include "furnihost/io.hpp"
+#include "test_support.hpp"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Run {
+  int code = -1;
+  std::string out, err;
+};
+
+Run Furnihost(const std::string& args) {
+  auto dir = furnihost::testing::TempDir("cli");
+  const std::string err_file = dir + "/stderr.txt";
+  const std::string cmd = std::string(FURNIHOST_TEST_BINARY) + " " + args + " 2>" + err_file + " </dev/null";
+  Run r;
+  FILE* p = popen(cmd.c_str(), "r");
+  std::array<char, 4096> buf{};
+  size_t n;
+  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.out.append(buf.data(), n);
+  int status = pclose(p);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  std::ifstream e(err_file);
+  r.err.assign(std::istreambuf_iterator<char>(e), std::istreambuf_iterator<char>());
+  return r;
+}
+
+// Error lines only (log lines start with '[').
+std::vector<std::string> ErrorLines(const std::string& err) {
+  std::vector<std::string> lines;
+  std::istringstream in(err);
+  std::string l;
+  while (std::getline(in, l))
+    if (!l.empty() && l[0] != '[') lines.push_back(l);
+  return lines;
+}
+
+const char* kGraph = R"({"stages": {"input": {"type": "sensors.scan_file"},
+  "feat_unused": {"type": "features.centroid", "inputs": ["seg"]},
+  "seg": {"type": "segmenters.throws", "inputs": ["input"]}}})";
+
+std::string PluginArgs() {
+  return "--plugin-path " + (fs::path(furnihost::testing::PluginDir()).parent_path() / "test_plugins" / "bad").string();
+}
+
+}  // namespace
+
+TEST(Cli, HelpAndVersion) {
+  auto r = Furnihost("--help");
+  EXPECT_EQ(r.code, 0);
+  EXPECT_NE(r.out.find("furnihost train"), std::string::npos);
+  EXPECT_EQ(Furnihost("plugins --help").code, 0);
+  EXPECT_EQ(Furnihost("detect --help").code, 0);
+  EXPECT_EQ(Furnihost("").code, 2);
+  EXPECT_EQ(Furnihost("frobnicate").code, 2);
+}
+
+TEST(Cli, PluginsListsEveryKindFound) {
+  auto r = Furnihost("plugins");
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("sensors.scan_file"), std::string::npos);
+  EXPECT_NE(r.out.find("features.centroid"), std::string::npos);
+  auto j = Furnihost("plugins --json");
+  ASSERT_EQ(j.code, 0);
+  auto parsed = nlohmann::json::parse(j.out);
+  EXPECT_GE(parsed["plugins"].size(), 2u);
+}
+
+TEST(Cli, BadInputsExitTwoWithOneLine) {
+  auto dir = furnihost::testing::TempDir("cli_bad");
+  furnihost::AtomicWriteText(dir + "/g.json", kGraph);
+  furnihost::AtomicWriteText(dir + "/empty.pcd", "");
+  {
+    std::ofstream(dir + "/empty.pcd").close();
+  }
+  furnihost::AtomicWriteText(dir + "/corrupt.pcd", "VERSION .7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\n"
+                                                    "WIDTH 99\nHEIGHT 1\nPOINTS 99\nDATA binary\nxx");
+  furnihost::AtomicWriteText(dir + "/unknown_param.json",
+                             R"({"stages": {"input": {"type": "sensors.scan_file", "params": {"voxel": 1}}}})");
+  const std::string g = "--graph " + dir + "/g.json " + PluginArgs() + " ";
+  struct Case {
+    std::string args, needle;
+  } cases[] = {
+      {g + dir + "/missing.pcd", "missing.pcd: no such scan file"},
+      {g + dir, "is a directory"},
+      {g + dir + "/empty.pcd", "empty.pcd: is empty"},
+      {g + dir + "/corrupt.pcd", "corrupt.pcd"},
+      {"--graph " + dir + "/unknown_param.json " + dir + "/corrupt.pcd", "/stages/input/params/voxel: unknown parameter"},
+      {"--graph " + dir + "/nothere.json x.pcd", "nothere.json: no such JSON file"},
+      {"validate --graph " + dir + "/unknown_param.json", "unknown parameter"},
+      {"detect --graph", "--graph"},
+  };
+  for (const auto& c : cases) {
+    auto r = Furnihost(c.args);
+    EXPECT_EQ(r.code, 2) << c.args << "\n" << r.err;
+    auto lines = ErrorLines(r.err);
+    ASSERT_EQ(lines.size(), 1u) << c.args << "\n" << r.err;
+    EXPECT_NE(lines[0].find(c.needle), std::string::npos) << lines[0];
+  }
+}
+
+TEST(Cli, StageExceptionNamesTagAndType) {
+  auto dir = furnihost::testing::TempDir("cli_throw");
+  furnihost::AtomicWriteText(dir + "/g.json", kGraph);
+  furnihost::Scan s;
+  s.points = {{0, 0, 0}, {1, 1, 1}};
+  furnihost::WriteScan(dir + "/s.ply", s);
+  auto r = Furnihost("--graph " + dir + "/g.json " + PluginArgs() + " --out " + dir + "/out " + dir + "/s.ply");
+  EXPECT_EQ(r.code, 1) << r.err;
+  auto lines = ErrorLines(r.err);
+  ASSERT_EQ(lines.size(), 1u) << r.err;
+  EXPECT_NE(lines[0].find("stage 'seg' (segmenters.throws): segment always throws"), std::string::npos) << lines[0];
+  EXPECT_FALSE(fs::exists(dir + "/out/detections.json"));
+}
+
+TEST(Cli, DetectWithoutVoterWritesPartsAndSaysSo) {
+  auto dir = furnihost::testing::TempDir("cli_partial");
+  furnihost::AtomicWriteText(dir + "/g.json", R"({"stages": {"input": {"type": "sensors.scan_file"}}})");
+  furnihost::Scan s;
+  s.points = {{0, 0, 0}, {1, 1, 1}};
+  furnihost::WriteScan(dir + "/s.pcd", s);
+  auto r = Furnihost("--graph " + dir + "/g.json --out " + dir + "/out " + dir + "/s.pcd");
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("no segmenter"), std::string::npos);
+  auto j = furnihost::ReadJson(dir + "/out/detections.json");
+  EXPECT_EQ(j["points"], 2);
+  EXPECT_TRUE(j["detections"].empty());
+  EXPECT_FALSE(j["missing_stages"].empty());
+}

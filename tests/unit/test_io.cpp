@@ -1,0 +1,200 @@
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "furnihost/geometry.hpp"
+#include "furnihost/io.hpp"
+#include "test_support.hpp"
+
+namespace fs = std::filesystem;
+using namespace furnihost;
+
+namespace {
+
+Scan SampleScan() {
+  Scan s;
+  for (int i = 0; i < 100; ++i) s.points.emplace_back(0.01f * i, -0.5f + 0.02f * i, 1e3f + 0.003f * i);
+  s.origin = Eigen::Vector3f(1, 2, 1.5f);
+  return s;
+}
+
+void WriteText(const std::string& path, const std::string& text) {
+  std::ofstream out(path, std::ios::binary);
+  out << text;
+}
+
+std::string ErrorOf(const std::string& path) {
+  try {
+    ReadScan(path);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+}  // namespace
+
+TEST(Io, PcdRoundTripKeepsViewpoint) {
+  auto dir = furnihost::testing::TempDir("io");
+  auto s = SampleScan();
+  const std::string p = dir + "/a.pcd";
+  WritePcd(p, s);
+  auto r = ReadScan(p);
+  ASSERT_EQ(r.points.size(), s.points.size());
+  for (size_t i = 0; i < s.points.size(); ++i) EXPECT_EQ(r.points[i], s.points[i]);
+  ASSERT_TRUE(r.origin.has_value());
+  EXPECT_TRUE(r.origin->isApprox(*s.origin));
+}
+
+TEST(Io, PcdAsciiAndCompressedViaPcl) {
+  auto dir = furnihost::testing::TempDir("io");
+  const std::string p = dir + "/ascii.pcd";
+  WriteText(p, "VERSION .7\nFIELDS x y z rgb\nSIZE 4 4 4 4\nTYPE F F F F\nCOUNT 1 1 1 1\nWIDTH 3\nHEIGHT 1\n"
+               "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 3\nDATA ascii\n1 2 3 0\nnan nan nan 0\n4 5 6 0\n");
+  ReadStats st;
+  auto r = ReadScan(p, &st);
+  EXPECT_EQ(st.read, 3u);
+  EXPECT_EQ(st.non_finite, 1u);
+  ASSERT_EQ(r.points.size(), 2u);
+  EXPECT_EQ(r.points[1], Eigen::Vector3f(4, 5, 6));
+  EXPECT_FALSE(r.origin.has_value());  // PCL's default viewpoint means "unknown"
+}
+
+TEST(Io, PlyBinaryWithColourAndExtraProperties) {
+  auto dir = furnihost::testing::TempDir("io");
+  const std::string p = dir + "/b.ply";
+  {
+    std::ofstream out(p, std::ios::binary);
+    out << "ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+           "property float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\n"
+           "property ushort label\nproperty int instance\nelement face 0\nproperty list uchar int vertex_indices\nend_header\n";
+    auto put = [&](float x, float y, float z, uint8_t c, uint16_t l, int32_t in) {
+      out.write(reinterpret_cast<char*>(&x), 4);
+      out.write(reinterpret_cast<char*>(&y), 4);
+      out.write(reinterpret_cast<char*>(&z), 4);
+      for (int k = 0; k < 3; ++k) out.write(reinterpret_cast<char*>(&c), 1);
+      out.write(reinterpret_cast<char*>(&l), 2);
+      out.write(reinterpret_cast<char*>(&in), 4);
+    };
+    put(1, 2, 3, 200, 5, 7);
+    put(4, 5, 6, 10, 7, 9);
+  }
+  auto r = ReadScan(p);
+  ASSERT_EQ(r.points.size(), 2u);
+  EXPECT_EQ(r.points[1], Eigen::Vector3f(4, 5, 6));
+  ASSERT_EQ(r.colors.size(), 2u);
+  EXPECT_EQ(r.colors[0][0], 200);
+  EXPECT_EQ(r.attributes.at("label"), std::vector<int32_t>({5, 7}));
+  EXPECT_EQ(r.attributes.at("instance"), std::vector<int32_t>({7, 9}));
+}
+
+TEST(Io, PlyAndXyzRoundTrip) {
+  auto dir = furnihost::testing::TempDir("io");
+  auto s = SampleScan();
+  WriteScan(dir + "/c.ply", s);
+  WriteScan(dir + "/c.xyz", s);
+  auto a = ReadScan(dir + "/c.ply");
+  auto b = ReadScan(dir + "/c.xyz");
+  ASSERT_EQ(a.points.size(), s.points.size());
+  ASSERT_EQ(b.points.size(), s.points.size());
+  for (size_t i = 0; i < s.points.size(); ++i) {
+    EXPECT_EQ(a.points[i], s.points[i]);
+    EXPECT_LT((b.points[i] - s.points[i]).norm(), 1e-2f);  // %.6g text
+  }
+  WriteText(dir + "/ascii.ply", "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+                                "property float z\nend_header\n1 2 3\n4 5 inf\n");
+  ReadStats st;
+  auto c = ReadScan(dir + "/ascii.ply", &st);
+  EXPECT_EQ(c.points.size(), 1u);
+  EXPECT_EQ(st.non_finite, 1u);
+}
+
+TEST(Io, BadFilesGiveOneLineErrorsNamingTheFile) {
+  auto dir = furnihost::testing::TempDir("io_bad");
+  EXPECT_NE(ErrorOf(dir + "/missing.pcd").find("missing.pcd: no such scan file"), std::string::npos);
+  EXPECT_NE(ErrorOf(dir).find("is a directory"), std::string::npos);
+  WriteText(dir + "/empty.pcd", "");
+  EXPECT_NE(ErrorOf(dir + "/empty.pcd").find("empty.pcd: is empty"), std::string::npos);
+  WriteText(dir + "/corrupt.pcd", "VERSION .7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 1000\n"
+                                  "HEIGHT 1\nPOINTS 1000\nDATA binary\nabc");
+  EXPECT_NE(ErrorOf(dir + "/corrupt.pcd").find("corrupt.pcd"), std::string::npos);
+  WriteText(dir + "/garbage.pcd", "hello world\n");
+  EXPECT_NE(ErrorOf(dir + "/garbage.pcd").find("garbage.pcd"), std::string::npos);
+  WriteText(dir + "/short.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 1000\nproperty float x\n"
+                                "property float y\nproperty float z\nend_header\n0123");
+  EXPECT_NE(ErrorOf(dir + "/short.ply").find("declares 1000 vertices"), std::string::npos);
+  WriteText(dir + "/neg.ply", "ply\nformat ascii 1.0\nelement vertex -5\nproperty float x\nend_header\n");
+  EXPECT_NE(ErrorOf(dir + "/neg.ply").find("bad count"), std::string::npos);
+  WriteText(dir + "/bad.xyz", "1 2 3\n4 five 6\n");
+  EXPECT_NE(ErrorOf(dir + "/bad.xyz").find("bad.xyz:2: expected x y z"), std::string::npos);
+  WriteText(dir + "/x.obj", "v 1 2 3\n");
+  EXPECT_NE(ErrorOf(dir + "/x.obj").find("unknown scan format"), std::string::npos);
+  WriteText(dir + "/nan.xyz", "nan 1 2\n");
+  EXPECT_NE(ErrorOf(dir + "/nan.xyz").find("no finite points"), std::string::npos);
+  // The cap refuses before reading everything.
+  WriteScan(dir + "/big.ply", SampleScan());
+  EXPECT_THROW(ReadScan(dir + "/big.ply", nullptr, 10), InputError);
+}
+
+TEST(Io, AtomicWriteLeavesNoPartialFile) {
+  auto dir = furnihost::testing::TempDir("io_atomic");
+  const std::string p = dir + "/out.json";
+  WriteJson(p, {{"a", 1}});
+  EXPECT_THROW(AtomicWrite(p, [](const std::string& tmp) {
+                 std::ofstream(tmp) << "half";
+                 throw InputError("interrupted");
+               }),
+               InputError);
+  EXPECT_EQ(ReadJson(p)["a"], 1);  // the old content survives
+  for (const auto& e : fs::directory_iterator(dir)) EXPECT_EQ(e.path().filename(), "out.json");
+}
+
+TEST(Io, JsonErrorsAndGroundTruth) {
+  auto dir = furnihost::testing::TempDir("io_json");
+  WriteText(dir + "/bad.json", "{\"a\": [1, 2,}\n");
+  try {
+    ReadJson(dir + "/bad.json");
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("bad.json: not valid JSON"), std::string::npos) << e.what();
+  }
+  WriteText(dir + "/deep.json", std::string(1000, '[') + std::string(1000, ']'));
+  EXPECT_THROW(ReadJson(dir + "/deep.json"), InputError);
+  GroundTruthObject g;
+  g.cls = "chair";
+  g.center = {1, 2, 0.4f};
+  g.size = {0.5f, 0.5f, 0.8f};
+  g.yaw = 0.5f;
+  WriteJson(dir + "/x.gt.json", GroundTruthToJson({g}));
+  auto back = ReadGroundTruth(dir + "/x.gt.json");
+  ASSERT_EQ(back.size(), 1u);
+  EXPECT_EQ(back[0].cls, "chair");
+  EXPECT_TRUE(back[0].center.isApprox(g.center));
+  EXPECT_FLOAT_EQ(*back[0].yaw, 0.5f);
+}
+
+TEST(Io, ReadsSharedScanNetPly) {
+  const std::string data = furnihost::testing::SharedDataDir();
+  ASSERT_FALSE(data.empty());
+  auto s = ReadScan(data + "/scannet_votenet50k/scene0001_00.ply");
+  EXPECT_EQ(s.points.size(), 50000u);
+  EXPECT_EQ(s.attributes.at("label").size(), 50000u);
+  EXPECT_EQ(s.colors.size(), 50000u);
+}
+
+TEST(Geometry, VoxelDownsampleAndSampling) {
+  Points p = {{0.01f, 0.01f, 0.01f}, {0.02f, 0.02f, 0.02f}, {0.5f, 0, 0}};
+  std::vector<int> kept;
+  auto d = VoxelDownsample(p, 0.1f, &kept);
+  ASSERT_EQ(d.size(), 2u);
+  EXPECT_TRUE(d[0].isApprox(Eigen::Vector3f(0.015f, 0.015f, 0.015f)));
+  EXPECT_EQ(kept, std::vector<int>({0, 2}));
+  Mesh m;
+  m.vertices = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {1, 1, 0}};
+  m.triangles = {{0, 1, 2}, {1, 3, 2}};
+  auto s = SampleSurface(m, 10000, 1);
+  EXPECT_NEAR(static_cast<double>(s.size()), 10000.0, 5.0);
+  for (const auto& q : s) EXPECT_TRUE(q.x() >= 0 && q.x() <= 1 && q.y() >= 0 && q.y() <= 1 && q.z() == 0);
+  EXPECT_EQ(SampleSurface(m, 100, 7), SampleSurface(m, 100, 7));
+}

@@ -1,0 +1,89 @@
+#include <gtest/gtest.h>
+
+#include "furnihost/normaliser.hpp"
+#include "furnihost/params.hpp"
+
+using furnihost::InputError;
+using furnihost::ParamSchema;
+using nlohmann::json;
+
+namespace {
+
+ParamSchema Schema() {
+  return ParamSchema()
+      .Number("angle_deg", 40, 0, 180, "angle")
+      .Int("min_points", 10, 1, 1e6, "points")
+      .Bool("flag", false, "flag")
+      .Enum("mode", "a", {"a", "b"}, "mode")
+      .NumberList("origin", {}, -10, 10, "origin")
+      .String("name", "x", "name")
+      .Object("thresholds", json{{"chair", 0.6}}, "per class");
+}
+
+std::string ErrorOf(const json& given) {
+  try {
+    Schema().Resolve(given, "g.json:/stages/seg/params");
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+}  // namespace
+
+TEST(Params, DefaultsAreFilled) {
+  json r = Schema().Resolve(json::object(), "w");
+  EXPECT_EQ(r["angle_deg"], 40);
+  EXPECT_EQ(r["min_points"], 10);
+  EXPECT_EQ(r["mode"], "a");
+  EXPECT_EQ(r["thresholds"]["chair"], 0.6);
+  EXPECT_EQ(Schema().Resolve(nullptr, "w"), r);
+  EXPECT_EQ(Schema().Resolve({{"angle_deg", 30}}, "w")["angle_deg"], 30);
+}
+
+TEST(Params, EachErrorNamesThePointer) {
+  EXPECT_EQ(ErrorOf({{"angle_deg", "forty"}}),
+            "g.json:/stages/seg/params/angle_deg: expected a number in [0, 180], got \"forty\"");
+  EXPECT_NE(ErrorOf({{"angle_deg", 200}}).find("in [0, 180], got 200"), std::string::npos);
+  EXPECT_NE(ErrorOf({{"min_points", 2.5}}).find("/min_points: expected an integer"), std::string::npos);
+  EXPECT_NE(ErrorOf({{"flag", 1}}).find("/flag: expected true or false"), std::string::npos);
+  EXPECT_NE(ErrorOf({{"mode", "c"}}).find("/mode: expected one of a, b"), std::string::npos);
+  EXPECT_NE(ErrorOf({{"origin", {1, "x"}}}).find("/origin: expected a list of numbers"), std::string::npos);
+  EXPECT_NE(ErrorOf({{"origin", {1, 20}}}).find("/origin"), std::string::npos);
+  EXPECT_NE(ErrorOf({{"name", 3}}).find("/name: expected a string"), std::string::npos);
+  EXPECT_NE(ErrorOf({{"thresholds", 3}}).find("/thresholds: expected an object"), std::string::npos);
+  const std::string unknown = ErrorOf({{"angel_deg", 3}});
+  EXPECT_NE(unknown.find("/angel_deg: unknown parameter; valid: angle_deg, min_points"), std::string::npos) << unknown;
+  EXPECT_NE(ErrorOf(json::array()).find("expected an object of parameters"), std::string::npos);
+}
+
+TEST(Params, SchemaJsonListsRanges) {
+  json j = Schema().ToJson();
+  ASSERT_EQ(j.size(), 7u);
+  EXPECT_EQ(j[0]["name"], "angle_deg");
+  EXPECT_EQ(j[0]["max"], 180);
+  EXPECT_EQ(j[3]["choices"], json({"a", "b"}));
+}
+
+TEST(Normaliser, RoundTripAndClamping) {
+  furnihost::FeatureMatrix a, b;
+  a.values.resize(2, 2);
+  a.values << 0, 10, 2, 20;
+  b.values.resize(1, 2);
+  b.values << 1, 30;
+  auto n = furnihost::Normaliser::Fit({&a, &b});
+  EXPECT_FLOAT_EQ(n.min[1], 10);
+  EXPECT_FLOAT_EQ(n.max[1], 30);
+  auto n2 = furnihost::Normaliser::FromJson(n.ToJson());
+  furnihost::FeatureMatrix t;
+  t.values.resize(2, 2);
+  t.values << 1, 20, 4, std::nanf("");
+  EXPECT_EQ(n2.Apply(t), 2u);  // 4 > max, NaN
+  EXPECT_FLOAT_EQ(t.values(0, 0), 0.5f);
+  EXPECT_FLOAT_EQ(t.values(0, 1), 0.5f);
+  EXPECT_FLOAT_EQ(t.values(1, 0), 1.f);
+  EXPECT_FLOAT_EQ(t.values(1, 1), 0.f);
+  furnihost::FeatureMatrix wrong;
+  wrong.values.resize(1, 3);
+  EXPECT_THROW(n2.Apply(wrong), InputError);
+}

@@ -1,0 +1,177 @@
+#include <gtest/gtest.h>
+
+#include <filesystem>
+
+#include "furnihost/config.hpp"
+#include "furnihost/io.hpp"
+#include "test_support.hpp"
+
+namespace fs = std::filesystem;
+using namespace furnihost;
+
+namespace {
+std::string TestPluginDir(const std::string& which) {
+  return (fs::path(furnihost::testing::PluginDir()).parent_path() / "test_plugins" / which).string();
+}
+std::string ReasonFor(const Registry& reg, const std::string& file_part) {
+  for (const auto& r : reg.Refusals())
+    if (r.path.find(file_part) != std::string::npos) return r.reason;
+  return "";
+}
+}  // namespace
+
+TEST(Registry, LoadsShippedPlugins) {
+  auto reg = furnihost::testing::MakeRegistry();
+  ASSERT_NE(reg->Find("sensors.scan_file"), nullptr);
+  ASSERT_NE(reg->Find("features.centroid"), nullptr);
+  EXPECT_EQ(reg->Find("features.centroid")->kind, StageKind::Features);
+  EXPECT_TRUE(reg->Refusals().empty());
+  auto f = reg->CreateAs<Features>("features.centroid",
+                                   reg->Find("features.centroid")->params.Resolve(nlohmann::json::object(), "t"));
+  Scan s;
+  s.points = {{0, 0, 0}, {1, 0, 1}};
+  Segmentation seg;
+  seg.parts.push_back({{0, 1}, {0.5f, 0, 0.5f}});
+  auto m = f->Compute(s, seg, {});
+  ASSERT_EQ(m.values.rows(), 1);
+  EXPECT_FLOAT_EQ(m.values(0, 0), 0.5f);
+  EXPECT_FLOAT_EQ(m.values(0, 4), 1.f);
+}
+
+TEST(Registry, RefusesBadLibrariesAndKeepsGoing) {
+  Registry reg({furnihost::testing::PluginDir(), TestPluginDir("bad")});
+  EXPECT_NE(ReasonFor(reg, "bad_abi").find("ABI version 999"), std::string::npos);
+  EXPECT_NE(ReasonFor(reg, "no_factory").find("no factory"), std::string::npos);
+  EXPECT_NE(ReasonFor(reg, "not_a_library").find("not a loadable shared library"), std::string::npos);
+  EXPECT_NE(ReasonFor(reg, "duplicate").find("duplicate type features.centroid"), std::string::npos);
+  // The good plugins are still there, and the first features.centroid wins.
+  ASSERT_NE(reg.Find("features.centroid"), nullptr);
+  EXPECT_EQ(reg.Find("features.centroid")->version, "1.0.0");
+  ASSERT_NE(reg.Find("sensors.scan_file"), nullptr);
+  ASSERT_NE(reg.Find("segmenters.throws"), nullptr);  // loads; fails only when called
+}
+
+TEST(Registry, PluginExceptionsAreCaughtWhileTheLibraryIsLoaded) {
+  Registry reg({TestPluginDir("bad")});
+  const auto* e = reg.Find("segmenters.throws");
+  ASSERT_NE(e, nullptr);
+  try {
+    reg.Create("segmenters.throws", e->params.Resolve({{"throw_in_constructor", true}}, "t"));
+    FAIL();
+  } catch (const StageError& err) {
+    EXPECT_NE(std::string(err.what()).find("segmenters.throws: constructor refuses"), std::string::npos) << err.what();
+  }
+  auto seg = reg.CreateAs<Segmenter>("segmenters.throws", e->params.Resolve(nullptr, "t"));
+  EXPECT_THROW(seg->Segment(Scan{}, {}), std::logic_error);
+  EXPECT_THROW(reg.Create("segmenters.nope", {}), InputError);
+}
+
+TEST(Registry, OutsidePluginFoundThroughSearchPath) {
+  Registry reg({TestPluginDir("outside")});
+  ASSERT_NE(reg.Find("features.outside_example"), nullptr);
+  auto f = reg.CreateAs<Features>("features.outside_example", {{"scale", 2.0}});
+  Segmentation seg;
+  seg.parts.push_back({{0, 1, 2}, Eigen::Vector3f::Zero()});
+  EXPECT_FLOAT_EQ(f->Compute(Scan{}, seg, {}).values(0, 0), 6.f);
+}
+
+// ---- graph configs ----------------------------------------------------------------------
+namespace {
+const char* kGood = R"({
+  "seed": 7,
+  "stages": {
+    "input": {"type": "sensors.scan_file"},
+    "segment": {"type": "segmenters.throws", "inputs": ["input"]},
+    "feat": {"type": "features.centroid", "inputs": ["segment"], "params": {"log_count": false}}
+  }
+})";
+
+std::string ConfigError(const std::string& text, const std::string& name = "g.json") {
+  Registry reg({furnihost::testing::PluginDir(), TestPluginDir("bad"), TestPluginDir("outside")});
+  auto dir = furnihost::testing::TempDir("cfg");
+  const std::string p = dir + "/" + name;
+  AtomicWriteText(p, text);
+  try {
+    LoadGraph(p, reg);
+  } catch (const InputError& e) {
+    std::string w = e.what();
+    auto pos = w.find(name);
+    return pos == std::string::npos ? w : w.substr(pos);
+  }
+  return "";
+}
+
+nlohmann::json Good() { return nlohmann::json::parse(kGood); }
+std::string With(const nlohmann::json& patch) { return MergePatch(Good(), patch).dump(); }
+}  // namespace
+
+TEST(Config, ValidGraphResolvesDefaultsInOrder) {
+  EXPECT_EQ(ConfigError(kGood), "");
+  Registry reg({furnihost::testing::PluginDir(), TestPluginDir("bad")});
+  auto dir = furnihost::testing::TempDir("cfg");
+  AtomicWriteText(dir + "/g.json", kGood);
+  auto g = LoadGraph(dir + "/g.json", reg);
+  EXPECT_EQ(g.seed, 7u);
+  ASSERT_EQ(g.stages.size(), 3u);
+  EXPECT_EQ(g.stages[0].tag, "input");
+  EXPECT_EQ(g.stages[2].tag, "feat");
+  EXPECT_EQ(g.stages[2].params["log_count"], false);
+  EXPECT_EQ(g.resolved["stages"]["input"]["params"]["voxel_m"], 0.0);
+}
+
+TEST(Config, EachErrorNamesFileAndPointer) {
+  EXPECT_EQ(ConfigError(With({{"stages", {{"feat", {{"params", {{"log_count", "yes"}}}}}}}})),
+            "g.json:/stages/feat/params/log_count: expected true or false, got \"yes\"");
+  EXPECT_NE(ConfigError(With({{"stages", {{"feat", {{"params", {{"bogus", 1}}}}}}}}))
+                .find("g.json:/stages/feat/params/bogus: unknown parameter; valid: log_count"),
+            std::string::npos);
+  const std::string unknown = ConfigError(With({{"stages", {{"vote", {{"type", "voters.nope"}, {"inputs", {"feat"}}}}}}}));
+  EXPECT_NE(unknown.find("g.json:/stages/vote/type: missing plugin voters.nope; known: "), std::string::npos) << unknown;
+  EXPECT_NE(unknown.find("features.centroid"), std::string::npos);
+  EXPECT_NE(ConfigError(With({{"stages", {{"feat", {{"inputs", {"input"}}}}}}})).find("kind mismatch"), std::string::npos);
+  EXPECT_NE(ConfigError(With({{"stages", {{"feat", {{"inputs", {"nowhere"}}}}}}})).find("unknown stage 'nowhere'"),
+            std::string::npos);
+  EXPECT_NE(ConfigError(With({{"stagez", 1}})).find("g.json:/stagez: unknown key"), std::string::npos);
+  EXPECT_NE(ConfigError(With({{"seed", "x"}})).find("/seed: expected a non-negative integer"), std::string::npos);
+  EXPECT_NE(ConfigError(With({{"stages", {{"feat", {{"type", 5}}}}}})).find("/stages/feat/type"), std::string::npos);
+  EXPECT_NE(ConfigError(With({{"stages", {{"feat", {{"type", "gizmos.x"}}}}}})).find("is not <kind>s.<name>"),
+            std::string::npos);
+  EXPECT_NE(ConfigError("[1, 2]").find("expected a JSON object"), std::string::npos);
+  EXPECT_NE(ConfigError("{\"stages\": ").find("not valid JSON"), std::string::npos);
+  EXPECT_NE(ConfigError(With({{"stages", {{"input2", {{"type", "sensors.scan_file"}}}}}})).find("more than one sensor"),
+            std::string::npos);
+  EXPECT_NE(ConfigError(With({{"training", {{"sensor", "feat"}}}})).find("is a features, not a sensor"),
+            std::string::npos);
+}
+
+TEST(Config, ExtendsMergePatchLoopsAndMissingBases) {
+  Registry reg({furnihost::testing::PluginDir(), TestPluginDir("bad")});
+  auto dir = furnihost::testing::TempDir("cfg_ext");
+  AtomicWriteText(dir + "/base.json", kGood);
+  AtomicWriteText(dir + "/variant.json",
+                  R"({"extends": "base.json", "stages": {"feat": {"params": {"log_count": true}}}})");
+  auto g = LoadGraph(dir + "/variant.json", reg);
+  EXPECT_EQ(g.Find("feat")->params["log_count"], true);
+  EXPECT_EQ(g.seed, 7u);
+  AtomicWriteText(dir + "/drop.json", R"({"extends": "base.json", "stages": {"feat": null}})");
+  EXPECT_EQ(LoadGraph(dir + "/drop.json", reg).stages.size(), 2u);
+  AtomicWriteText(dir + "/loop_a.json", R"({"extends": "loop_b.json"})");
+  AtomicWriteText(dir + "/loop_b.json", R"({"extends": "loop_a.json"})");
+  try {
+    LoadGraph(dir + "/loop_a.json", reg);
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("extends loop"), std::string::npos);
+  }
+  AtomicWriteText(dir + "/orphan.json", R"({"extends": "nothere.json"})");
+  EXPECT_NE(ConfigError(R"({"extends": "nothere.json"})").find("unknown base config"), std::string::npos);
+}
+
+TEST(Config, FitterCycleIsRefused) {
+  auto text = With({{"stages",
+                     {{"f1", {{"type", "fitters.passthrough"}, {"inputs", {"f2"}}}},
+                      {"f2", {{"type", "fitters.passthrough"}, {"inputs", {"f1"}}}}}}});
+  EXPECT_NE(ConfigError(text).find("cycle in connections"), std::string::npos) << ConfigError(text);
+  auto two = With({{"stages", {{"f1", {{"type", "fitters.passthrough"}, {"inputs", {"feat"}}}}}}});
+  EXPECT_NE(ConfigError(two).find("kind mismatch: fitter 'f1' cannot take features"), std::string::npos);
+}
