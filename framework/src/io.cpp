@@ -478,12 +478,14 @@ std::vector<GroundTruthObject> ReadGroundTruth(const std::string& path) {
 }
 
 nlohmann::json GroundTruthToJson(const std::vector<GroundTruthObject>& objects) {
+  // Round to 0.1 mm / 1e-6 rad so floats print as 1.55, not 1.5499999523.
+  auto r = [](float v, double q) { return std::round(static_cast<double>(v) / q) * q; };
   nlohmann::json arr = nlohmann::json::array();
   for (const auto& g : objects) {
     nlohmann::json o = {{"class", g.cls},
-                        {"center", {g.center.x(), g.center.y(), g.center.z()}},
-                        {"size", {g.size.x(), g.size.y(), g.size.z()}}};
-    if (g.yaw) o["yaw"] = *g.yaw;
+                        {"center", {r(g.center.x(), 1e-4), r(g.center.y(), 1e-4), r(g.center.z(), 1e-4)}},
+                        {"size", {r(g.size.x(), 1e-4), r(g.size.y(), 1e-4), r(g.size.z(), 1e-4)}}};
+    if (g.yaw) o["yaw"] = r(*g.yaw, 1e-6);
     if (!g.model.empty()) o["model"] = g.model;
     arr.push_back(o);
   }

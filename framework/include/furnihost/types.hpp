@@ -17,7 +17,7 @@ namespace furnihost {
 using Points = std::vector<Eigen::Vector3f>;
 
 // A triangle mesh, metres, z up. Triangles index `vertices`.
-struct Mesh {
+struct FURNIHOST_API Mesh {
   Points vertices;
   std::vector<Eigen::Vector3i> triangles;
   Eigen::AlignedBox3f Bounds() const;

@@ -1,0 +1,320 @@
+// CAD catalogs: catalog.json parsing, mesh import with assimp, normalisation to the project
+// frame (metres, z up, bounding-box bottom centre at the origin).
+//
+// Units and axes: the catalog's `up` and scale fields are defined relative to assimp's DEFAULT
+// import (the "frame" text of ../shared/data/cad_catalog/catalog.json). For most formats that
+// is the file's own axes and units, but the Collada importer of assimp 5.2 bakes the file's
+// <unit meter="..."> into the root node (-> metres) and turns <up_axis>Z_UP</up_axis> files
+// y up. We therefore pin the importer properties that change axes or units to their default
+// values and never request aiProcess_GlobalScale, so an assimp configuration elsewhere in the
+// process cannot silently change what a catalog entry means.
+#include "furnihost/catalog.hpp"
+
+#include <assimp/Importer.hpp>
+#include <assimp/config.h>
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+#include <spdlog/spdlog.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include "furnihost/io.hpp"
+
+namespace fs = std::filesystem;
+
+namespace furnihost {
+
+namespace {
+
+constexpr uint64_t kFnvOffset = 1469598103934665603ull;
+constexpr uint64_t kFnvPrime = 1099511628211ull;
+
+void Fnv1a(uint64_t& h, const char* data, size_t n) {
+  for (size_t i = 0; i < n; ++i) {
+    h ^= static_cast<unsigned char>(data[i]);
+    h *= kFnvPrime;
+  }
+}
+
+// Hashes a whole file; returns false when it cannot be read.
+bool HashFile(uint64_t& h, const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return false;
+  char buf[1 << 16];
+  while (in) {
+    in.read(buf, sizeof(buf));
+    Fnv1a(h, buf, static_cast<size_t>(in.gcount()));
+  }
+  return true;
+}
+
+std::string Hex64(uint64_t v) {
+  char s[17];
+  std::snprintf(s, sizeof(s), "%016llx", static_cast<unsigned long long>(v));
+  return s;
+}
+
+std::string Fmt3(const Eigen::Vector3f& v) {
+  std::ostringstream o;
+  o.precision(4);
+  o << "[" << v.x() << ", " << v.y() << ", " << v.z() << "]";
+  return o.str();
+}
+
+// Rotation turning the named mesh axis into +z. Mesh x stays the width and y the depth
+// wherever the up axis allows it (for +y: (x, y, z) -> (x, -z, y), as the catalog's frame says).
+std::optional<Eigen::Matrix3f> UpRotation(const std::string& up) {
+  Eigen::Matrix3f r;
+  if (up == "+z") {
+    r.setIdentity();
+  } else if (up == "-z") {
+    r << 1, 0, 0, 0, -1, 0, 0, 0, -1;
+  } else if (up == "+y") {
+    r << 1, 0, 0, 0, 0, -1, 0, 1, 0;
+  } else if (up == "-y") {
+    r << 1, 0, 0, 0, 0, 1, 0, -1, 0;
+  } else if (up == "+x") {
+    r << 0, 0, -1, 0, 1, 0, 1, 0, 0;
+  } else if (up == "-x") {
+    r << 0, 0, 1, 0, 1, 0, -1, 0, 0;
+  } else {
+    return std::nullopt;
+  }
+  return r;
+}
+
+const std::set<std::string>& KnownKeys() {
+  static const std::set<std::string> keys = {
+      "id", "class", "subclass", "mesh", "up", "scale", "height_m", "size_m",
+      // descriptive metadata carried by catalogs from the web; not interpreted
+      "license", "source", "creator", "notes", "description", "url"};
+  return keys;
+}
+
+// An entry checked and its mesh loaded and normalised; `reason` set when invalid.
+struct EntryResult {
+  std::string id;
+  std::string reason;
+  CatalogModel model;
+};
+
+bool PositiveFinite(const nlohmann::json& v) {
+  return v.is_number() && std::isfinite(v.get<double>()) && v.get<double>() > 0.0;
+}
+
+EntryResult LoadEntry(const nlohmann::json& e, size_t index, const fs::path& dir) {
+  EntryResult r;
+  r.id = "#" + std::to_string(index);
+  if (!e.is_object()) {
+    r.reason = "entry is not a JSON object";
+    return r;
+  }
+  if (e.contains("id") && e["id"].is_string() && !e["id"].get<std::string>().empty()) {
+    r.id = e["id"].get<std::string>();
+  } else {
+    r.reason = "missing or empty \"id\"";
+    return r;
+  }
+  auto fail = [&](std::string why) {
+    r.reason = std::move(why);
+    return r;
+  };
+  if (!e.contains("class") || !e["class"].is_string() || e["class"].get<std::string>().empty())
+    return fail("missing or empty \"class\"");
+  if (e.contains("subclass") && !e["subclass"].is_string())
+    return fail("\"subclass\" must be a string");
+  if (!e.contains("mesh") || !e["mesh"].is_string() || e["mesh"].get<std::string>().empty())
+    return fail("missing or empty \"mesh\"");
+  if (!e.contains("up") || !e["up"].is_string())
+    return fail("missing \"up\" (one of +x, -x, +y, -y, +z, -z)");
+  const std::string up = e["up"].get<std::string>();
+  const auto rot = UpRotation(up);
+  if (!rot) return fail("bad \"up\" \"" + up + "\" (expected one of +x, -x, +y, -y, +z, -z)");
+
+  std::vector<std::string> scale_keys;
+  for (const char* k : {"scale", "height_m", "size_m"})
+    if (e.contains(k)) scale_keys.push_back(k);
+  if (scale_keys.empty()) return fail("needs exactly one of \"scale\", \"height_m\", \"size_m\"");
+  if (scale_keys.size() > 1)
+    return fail("has both \"" + scale_keys[0] + "\" and \"" + scale_keys[1] +
+                "\" (give exactly one of \"scale\", \"height_m\", \"size_m\")");
+  const std::string& sk = scale_keys[0];
+  if (sk == "size_m") {
+    const auto& s = e["size_m"];
+    if (!s.is_array() || s.size() != 3 || !PositiveFinite(s[0]) || !PositiveFinite(s[1]) ||
+        !PositiveFinite(s[2]))
+      return fail("\"size_m\" must be [width, depth, height] of three positive numbers (m)");
+  } else if (!PositiveFinite(e[sk])) {
+    return fail("\"" + sk + "\" must be a positive number, got " + e[sk].dump());
+  }
+
+  fs::path mesh = fs::path(e["mesh"].get<std::string>());
+  if (mesh.is_relative()) mesh = dir / mesh;
+  mesh = mesh.lexically_normal();
+  std::error_code ec;
+  if (!fs::exists(mesh, ec)) return fail("mesh file not found: " + mesh.string());
+  if (!fs::is_regular_file(mesh, ec)) return fail("mesh is not a regular file: " + mesh.string());
+
+  Mesh m;
+  try {
+    m = LoadMeshFile(mesh.string());
+  } catch (const InputError& err) {
+    return fail(std::string("unreadable mesh: ") + err.what());
+  }
+
+  // Turn z up; bounds in the rotated (still unscaled) frame.
+  Eigen::AlignedBox3f box;
+  for (auto& v : m.vertices) {
+    v = (*rot) * v;
+    box.extend(v);
+  }
+  const Eigen::Vector3f ext = box.sizes();
+  Eigen::Vector3f scale = Eigen::Vector3f::Ones();
+  if (sk == "scale") {
+    scale.setConstant(e["scale"].get<float>());
+  } else if (sk == "height_m") {
+    if (!(ext.z() > 0.f)) return fail("zero-size model: height 0 in mesh units, cannot fit \"height_m\"");
+    scale.setConstant(e["height_m"].get<float>() / ext.z());
+  } else {
+    for (int a = 0; a < 3; ++a) {
+      if (!(ext[a] > 0.f))
+        return fail("zero-size model: extents " + Fmt3(ext) +
+                    " in mesh units (z up), cannot fit \"size_m\"");
+      scale[a] = e["size_m"][a].get<float>() / ext[a];
+    }
+  }
+  const Eigen::Vector3f size = ext.cwiseProduct(scale);
+  // A model needs a height and some footprint to be scanned; 1 mm is far below any furniture.
+  constexpr float kMinExtent = 1e-3f;
+  if (!(size.z() > kMinExtent) || !(std::max(size.x(), size.y()) > kMinExtent))
+    return fail("zero-size model: extents " + Fmt3(size) + " m after scaling");
+
+  const Eigen::Vector3f lo = box.min().cwiseProduct(scale);
+  const Eigen::Vector3f hi = box.max().cwiseProduct(scale);
+  const Eigen::Vector3f bottom_centre(0.5f * (lo.x() + hi.x()), 0.5f * (lo.y() + hi.y()), lo.z());
+  for (auto& v : m.vertices) v = v.cwiseProduct(scale) - bottom_centre;
+
+  r.model.id = r.id;
+  r.model.cls = e["class"].get<std::string>();
+  r.model.subclass = e.value("subclass", std::string());
+  r.model.mesh_path = fs::absolute(mesh).string();
+  r.model.mesh = std::move(m);
+  r.model.size = size;
+  return r;
+}
+
+}  // namespace
+
+FURNIHOST_API const CatalogModel* Catalog::Find(const std::string& id) const {
+  for (const auto& m : models)
+    if (m.id == id) return &m;
+  return nullptr;
+}
+
+FURNIHOST_API std::vector<std::string> Catalog::Classes() const {
+  std::set<std::string> s;
+  for (const auto& m : models) s.insert(m.cls);
+  return {s.begin(), s.end()};
+}
+
+Mesh LoadMeshFile(const std::string& path) {
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) throw InputError(path + ": no such mesh file");
+  Assimp::Importer importer;
+  // Pinned to assimp's defaults on purpose (see the file comment): catalogs are written
+  // against the default import.
+  importer.SetPropertyBool(AI_CONFIG_IMPORT_COLLADA_IGNORE_UP_DIRECTION, false);
+  importer.SetPropertyBool(AI_CONFIG_FBX_CONVERT_TO_M, false);
+  importer.SetPropertyFloat(AI_CONFIG_GLOBAL_SCALE_FACTOR_KEY, 1.0f);
+  // Points and lines carry no surface for a ray to hit.
+  importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
+  const unsigned flags = aiProcess_Triangulate | aiProcess_JoinIdenticalVertices |
+                         aiProcess_PreTransformVertices | aiProcess_SortByPType;
+  const aiScene* scene = importer.ReadFile(path, flags);
+  if (!scene || (scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE) || !scene->mRootNode)
+    throw InputError(path + ": " + (importer.GetErrorString()[0] ? importer.GetErrorString()
+                                                                 : "assimp could not read it"));
+  Mesh out;
+  for (unsigned mi = 0; mi < scene->mNumMeshes; ++mi) {
+    const aiMesh* am = scene->mMeshes[mi];
+    if (!(am->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) continue;
+    const int base = static_cast<int>(out.vertices.size());
+    out.vertices.reserve(out.vertices.size() + am->mNumVertices);
+    for (unsigned v = 0; v < am->mNumVertices; ++v) {
+      const aiVector3D& p = am->mVertices[v];
+      if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+        throw InputError(path + ": non-finite vertex coordinate in mesh " + std::to_string(mi));
+      out.vertices.emplace_back(p.x, p.y, p.z);
+    }
+    for (unsigned f = 0; f < am->mNumFaces; ++f) {
+      const aiFace& face = am->mFaces[f];
+      if (face.mNumIndices != 3) continue;
+      out.triangles.emplace_back(base + static_cast<int>(face.mIndices[0]),
+                                 base + static_cast<int>(face.mIndices[1]),
+                                 base + static_cast<int>(face.mIndices[2]));
+    }
+  }
+  if (out.triangles.empty()) throw InputError(path + ": no triangles in the file");
+  return out;
+}
+
+Catalog LoadCatalog(const std::string& path, bool strict) {
+  Catalog cat;
+  cat.path = fs::absolute(path).lexically_normal().string();
+  const nlohmann::json j = ReadJson(path);
+  if (!j.is_object() || !j.contains("models") || !j["models"].is_array())
+    throw InputError(path + ": not a catalog (expected an object with a \"models\" array)");
+  if (j.contains("furnihost_catalog") &&
+      !(j["furnihost_catalog"].is_number_integer() && j["furnihost_catalog"].get<int>() == 1))
+    throw InputError(path + ": unsupported \"furnihost_catalog\" version " +
+                     j["furnihost_catalog"].dump() + " (this build reads version 1)");
+  const fs::path dir = fs::path(cat.path).parent_path();
+  const auto& entries = j["models"];
+
+  std::vector<EntryResult> results(entries.size());
+  tbb::parallel_for(size_t(0), entries.size(),
+                    [&](size_t i) { results[i] = LoadEntry(entries[i], i, dir); });
+
+  uint64_t h = kFnvOffset;
+  if (!HashFile(h, path)) throw InputError(path + ": cannot read the file");
+  std::map<std::string, size_t> first_index;
+  for (size_t i = 0; i < results.size(); ++i) {
+    auto& r = results[i];
+    // Every mesh that exists is hashed, valid or not, so fixing a file changes the key.
+    if (entries[i].is_object() && entries[i].contains("mesh") && entries[i]["mesh"].is_string()) {
+      fs::path mesh = fs::path(entries[i]["mesh"].get<std::string>());
+      if (mesh.is_relative()) mesh = dir / mesh;
+      HashFile(h, mesh.string());
+    }
+    if (r.reason.empty()) {
+      auto [it, fresh] = first_index.emplace(r.id, i);
+      if (!fresh) r.reason = "duplicate id (first defined at entry #" + std::to_string(it->second) + ")";
+    }
+    if (!r.reason.empty()) {
+      if (strict) throw InputError(path + ": model " + r.id + ": " + r.reason);
+      spdlog::warn("{}: model {}: {} (skipped)", path, r.id, r.reason);
+      cat.skipped.push_back({r.id, r.reason});
+      continue;
+    }
+    for (const auto& [k, v] : entries[i].items())
+      if (!KnownKeys().count(k)) spdlog::warn("{}: model {}: unknown key \"{}\" ignored", path, r.id, k);
+    cat.models.push_back(std::move(r.model));
+  }
+  cat.hash = Hex64(h);
+  if (!cat.skipped.empty())
+    spdlog::warn("{}: {} model(s) loaded, {} skipped", path, cat.models.size(), cat.skipped.size());
+  else
+    spdlog::info("{}: {} model(s) loaded", path, cat.models.size());
+  return cat;
+}
+
+}  // namespace furnihost

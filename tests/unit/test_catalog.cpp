@@ -1,0 +1,238 @@
+// Catalog loading: up-axis / unit normalisation of every shared model, and the documented
+// errors for broken entries.
+#include <filesystem>
+#include <fstream>
+#include <map>
+
+#include "furnihost/catalog.hpp"
+#include "furnihost/io.hpp"
+#include "test_support.hpp"
+
+namespace furnihost {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+// Plausible real-world heights per class [m] (ranges, not tuned to any one file):
+// chairs 0.7-1.3 (dining to high-back office), tables 0.3-0.9 (coffee to dining), stools
+// 0.4-0.9 (low to bar stool), armchairs and sofas 0.6-1.1, desks 0.6-2.0 (with hutch),
+// cabinets 0.4-2.4 (nightstand to wardrobe / tall bookshelf).
+const std::map<std::string, std::pair<float, float>> kHeight = {
+    {"chair", {0.7f, 1.3f}},    {"table", {0.3f, 0.9f}}, {"stool", {0.4f, 0.9f}},
+    {"armchair", {0.6f, 1.1f}}, {"sofa", {0.6f, 1.1f}},  {"desk", {0.6f, 2.0f}},
+    {"cabinet", {0.4f, 2.4f}}};
+
+TEST(Catalog, EverySharedModelLoadsWithAPlausibleSize) {
+  const std::string data = testing::SharedDataDir();
+  ASSERT_FALSE(data.empty());
+  const std::string path = data + "/cad_catalog/catalog.json";
+  const json raw = json::parse(std::ifstream(path));
+  const Catalog cat = LoadCatalog(path, /*strict=*/true);
+  EXPECT_TRUE(cat.skipped.empty());
+  ASSERT_EQ(cat.models.size(), raw["models"].size());
+  EXPECT_EQ(cat.hash.size(), 16u);
+  for (const auto& m : cat.models) {
+    SCOPED_TRACE(m.id);
+    ASSERT_TRUE(kHeight.count(m.cls)) << "class without a stated range: " << m.cls;
+    const auto [lo, hi] = kHeight.at(m.cls);
+    EXPECT_GE(m.size.z(), lo);
+    EXPECT_LE(m.size.z(), hi);
+    // Footprint: nothing in a room is under 20 cm or over 3 m wide/deep.
+    EXPECT_GE(m.size.x(), 0.2f);
+    EXPECT_GE(m.size.y(), 0.2f);
+    EXPECT_LE(m.size.x(), 3.0f);
+    EXPECT_LE(m.size.y(), 3.0f);
+    // Standing with its bounding-box bottom centre at the origin, size = its bounds.
+    Eigen::AlignedBox3f b;
+    for (const auto& v : m.mesh.vertices) b.extend(v);
+    EXPECT_NEAR(b.min().z(), 0.f, 1e-4f);
+    EXPECT_NEAR(b.center().x(), 0.f, 1e-4f);
+    EXPECT_NEAR(b.center().y(), 0.f, 1e-4f);
+    EXPECT_LT((b.sizes() - m.size).norm(), 1e-4f);
+    EXPECT_FALSE(m.mesh.triangles.empty());
+    EXPECT_TRUE(fs::exists(m.mesh_path));
+  }
+  // size_m entries fit all three axes exactly: width = x, depth = y, height = z.
+  const CatalogModel* chair = cat.Find("sh3d_chair");
+  ASSERT_NE(chair, nullptr);
+  EXPECT_LT((chair->size - Eigen::Vector3f(0.4f, 0.42f, 0.9f)).norm(), 1e-4f);
+  EXPECT_EQ(cat.Find("no_such_model"), nullptr);
+  const auto classes = cat.Classes();
+  EXPECT_TRUE(std::is_sorted(classes.begin(), classes.end()));
+  EXPECT_EQ(classes.size(), kHeight.size());
+}
+
+// A tiny temporary catalog folder.
+struct TempCatalog {
+  fs::path dir;
+  explicit TempCatalog(const std::string& name) : dir(testing::TempDir("catalog_" + name)) {}
+  ~TempCatalog() {
+    std::error_code ec;
+    fs::remove_all(dir, ec);
+  }
+  void Write(const std::string& rel, const std::string& text) const {
+    fs::create_directories((dir / rel).parent_path());
+    std::ofstream(dir / rel, std::ios::binary) << text;
+  }
+  std::string Catalog(const json& models) const {
+    Write("catalog.json", json{{"furnihost_catalog", 1}, {"models", models}}.dump(1));
+    return (dir / "catalog.json").string();
+  }
+};
+
+// An OBJ box [0, w] x [0, h] x [0, d] (y up, file units).
+std::string ObjBox(float w, float h, float d) {
+  std::string s = "# box\n";
+  for (int i = 0; i < 8; ++i)
+    s += "v " + std::to_string(i & 1 ? w : 0.f) + " " + std::to_string(i & 2 ? h : 0.f) + " " +
+         std::to_string(i & 4 ? d : 0.f) + "\n";
+  s += "f 1 3 4 2\nf 5 6 8 7\nf 1 2 6 5\nf 3 7 8 4\nf 1 5 7 3\nf 2 4 8 6\n";
+  return s;
+}
+
+TEST(Catalog, UnitsAndUpAxesAreNormalised) {
+  TempCatalog t("units");
+  t.Write("mm.obj", ObjBox(500.f, 900.f, 400.f));  // millimetres, y up
+  t.Write("zup.obj", ObjBox(2.f, 1.f, 3.f));       // z up: height 3
+  // Collada in centimetres, Z_UP: assimp's default import gives metres, y up; the catalog
+  // (like ../shared/data/cad_catalog) therefore says up "+y", scale 1.
+  t.Write("cm.dae", R"(<?xml version="1.0" encoding="utf-8"?>
+<COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1">
+  <asset><unit meter="0.01" name="centimeter"/><up_axis>Z_UP</up_axis></asset>
+  <library_geometries><geometry id="g"><mesh>
+    <source id="p"><float_array id="pa" count="12">0 0 0 100 0 0 100 50 0 0 50 200</float_array>
+      <technique_common><accessor source="#pa" count="4" stride="3">
+        <param name="X" type="float"/><param name="Y" type="float"/><param name="Z" type="float"/>
+      </accessor></technique_common></source>
+    <vertices id="v"><input semantic="POSITION" source="#p"/></vertices>
+    <triangles count="2"><input semantic="VERTEX" source="#v" offset="0"/><p>0 1 2 0 2 3</p></triangles>
+  </mesh></geometry></library_geometries>
+  <library_visual_scenes><visual_scene id="s"><node id="n">
+    <instance_geometry url="#g"/></node></visual_scene></library_visual_scenes>
+  <scene><instance_visual_scene url="#s"/></scene>
+</COLLADA>
+)");
+  const std::string path = t.Catalog(json::array({
+      {{"id", "mm"}, {"class", "chair"}, {"mesh", "mm.obj"}, {"up", "+y"}, {"scale", 0.001}},
+      {{"id", "zup"}, {"class", "table"}, {"mesh", "zup.obj"}, {"up", "+z"}, {"height_m", 0.75}},
+      {{"id", "fit"}, {"class", "table"}, {"mesh", "mm.obj"}, {"up", "+y"}, {"size_m", {1.2, 0.8, 0.7}}},
+      {{"id", "cm"}, {"class", "cabinet"}, {"mesh", "cm.dae"}, {"up", "+y"}, {"scale", 1.0}},
+  }));
+  const Catalog cat = LoadCatalog(path, true);
+  ASSERT_EQ(cat.models.size(), 4u);
+  auto size = [&](const char* id) { return cat.Find(id)->size; };
+  EXPECT_LT((size("mm") - Eigen::Vector3f(0.5f, 0.4f, 0.9f)).norm(), 1e-4f);
+  EXPECT_LT((size("zup") - Eigen::Vector3f(0.5f, 0.25f, 0.75f)).norm(), 1e-4f);
+  EXPECT_LT((size("fit") - Eigen::Vector3f(1.2f, 0.8f, 0.7f)).norm(), 1e-4f);
+  EXPECT_LT((size("cm") - Eigen::Vector3f(1.0f, 0.5f, 2.0f)).norm(), 1e-4f)
+      << "assimp's Collada unit / up-axis handling changed: " << size("cm").transpose();
+  // y up turned z up keeps handedness: the OBJ's +z (depth) becomes -y.
+  const auto& mm = cat.Find("mm")->mesh;
+  Eigen::AlignedBox3f b;
+  for (const auto& v : mm.vertices) b.extend(v);
+  EXPECT_NEAR(b.min().z(), 0.f, 1e-6f);
+  EXPECT_NEAR(b.center().x(), 0.f, 1e-6f);
+}
+
+TEST(Catalog, BrokenEntriesAreReportedWithTheirId) {
+  TempCatalog t("broken");
+  t.Write("ok.obj", ObjBox(1.f, 1.f, 1.f));
+  t.Write("garbage.obj", "this is not a mesh\n\x01\x02\x03");
+  t.Write("flat.obj", ObjBox(1.f, 0.f, 1.f));  // no height
+  const std::vector<std::pair<json, std::string>> broken = {
+      {{{"id", "missing"}, {"class", "chair"}, {"mesh", "nope.obj"}, {"up", "+y"}, {"scale", 1}},
+       "mesh file not found"},
+      {{{"id", "garbage"}, {"class", "chair"}, {"mesh", "garbage.obj"}, {"up", "+y"}, {"scale", 1}},
+       "unreadable mesh"},
+      {{{"id", "flat"}, {"class", "chair"}, {"mesh", "flat.obj"}, {"up", "+y"}, {"scale", 1}},
+       "zero-size model"},
+      {{{"id", "two"}, {"class", "chair"}, {"mesh", "ok.obj"}, {"up", "+y"}, {"scale", 1}, {"height_m", 0.8}},
+       "has both \"scale\" and \"height_m\""},
+      {{{"id", "badup"}, {"class", "chair"}, {"mesh", "ok.obj"}, {"up", "y"}, {"scale", 1}},
+       "bad \"up\" \"y\""},
+      {{{"id", "noscale"}, {"class", "chair"}, {"mesh", "ok.obj"}, {"up", "+y"}}, "needs exactly one of"},
+      {{{"id", "negative"}, {"class", "chair"}, {"mesh", "ok.obj"}, {"up", "+y"}, {"scale", -2}},
+       "\"scale\" must be a positive number"},
+  };
+  const json good = {{"id", "good"}, {"class", "chair"}, {"mesh", "ok.obj"}, {"up", "+y"}, {"height_m", 0.8}};
+  for (const auto& [entry, reason] : broken) {
+    SCOPED_TRACE(entry.dump());
+    const std::string path = t.Catalog(json::array({good, entry}));
+    // Lenient: skipped with id and reason, the good model still loads.
+    const Catalog cat = LoadCatalog(path, false);
+    ASSERT_EQ(cat.models.size(), 1u);
+    EXPECT_EQ(cat.models[0].id, "good");
+    ASSERT_EQ(cat.skipped.size(), 1u);
+    EXPECT_EQ(cat.skipped[0].id, entry["id"].get<std::string>());
+    EXPECT_NE(cat.skipped[0].reason.find(reason), std::string::npos) << cat.skipped[0].reason;
+    // Strict: InputError "<catalog path>: model <id>: <reason>".
+    try {
+      LoadCatalog(path, true);
+      ADD_FAILURE() << "strict load accepted a broken entry";
+    } catch (const InputError& e) {
+      const std::string prefix = path + ": model " + entry["id"].get<std::string>() + ": ";
+      EXPECT_EQ(std::string(e.what()).rfind(prefix, 0), 0u) << e.what();
+      EXPECT_NE(std::string(e.what()).find(reason), std::string::npos) << e.what();
+    }
+  }
+  // Duplicate ids: the second is skipped.
+  const Catalog dup = LoadCatalog(t.Catalog(json::array({good, good})), false);
+  EXPECT_EQ(dup.models.size(), 1u);
+  ASSERT_EQ(dup.skipped.size(), 1u);
+  EXPECT_NE(dup.skipped[0].reason.find("duplicate id"), std::string::npos);
+  // Not a catalog at all.
+  t.Write("other.json", R"({"objects": []})");
+  EXPECT_THROW(LoadCatalog((t.dir / "other.json").string()), InputError);
+  EXPECT_THROW(LoadMeshFile((t.dir / "nope.obj").string()), InputError);
+}
+
+TEST(Catalog, HashCoversTheCatalogAndEveryMesh) {
+  TempCatalog t("hash");
+  t.Write("a.obj", ObjBox(1.f, 1.f, 1.f));
+  const json models = json::array(
+      {{{"id", "a"}, {"class", "chair"}, {"mesh", "a.obj"}, {"up", "+y"}, {"height_m", 0.8}}});
+  const std::string path = t.Catalog(models);
+  const std::string h1 = LoadCatalog(path).hash;
+  EXPECT_EQ(LoadCatalog(path).hash, h1);
+  t.Write("a.obj", ObjBox(1.f, 1.f, 1.5f));  // the mesh changes, catalog.json does not
+  const std::string h2 = LoadCatalog(path).hash;
+  EXPECT_NE(h2, h1);
+  t.Catalog(json::array({{{"id", "a"}, {"class", "chair"}, {"mesh", "a.obj"}, {"up", "+y"}, {"height_m", 0.9}}}));
+  EXPECT_NE(LoadCatalog(path).hash, h2);
+}
+
+// data/: the bundled catalogs load, hold only redistributable models, and the demo scene
+// uses models the training catalog does not contain.
+TEST(Catalog, BundledDataIsRedistributableAndTheDemoIsHeldOut) {
+  const std::string root = testing::SourceDir() + "/data";
+  const Catalog train = LoadCatalog(root + "/catalog/catalog.json", true);
+  const Catalog demo = LoadCatalog(root + "/demo/catalog.json", true);
+  for (const char* cls : {"chair", "table", "cabinet", "armchair"}) {
+    const auto c = train.Classes();
+    EXPECT_TRUE(std::count(c.begin(), c.end(), cls)) << "training catalog lacks " << cls;
+  }
+  for (const std::string file : {"/catalog/catalog.json", "/demo/catalog.json"}) {
+    for (const auto& e : json::parse(std::ifstream(root + file))["models"]) {
+      const std::string lic = e.value("license", "");
+      EXPECT_TRUE(lic.rfind("MIT-0", 0) == 0 || lic.rfind("CC-BY-3.0", 0) == 0)
+          << file << ": " << e["id"] << " has licence \"" << lic << "\"";
+    }
+  }
+  for (const auto& m : demo.models) EXPECT_EQ(train.Find(m.id), nullptr) << m.id << " is in both";
+  const auto truth = ReadGroundTruth(root + "/demo/room.gt.json");
+  ASSERT_FALSE(truth.empty());
+  for (const auto& t : truth) {
+    const CatalogModel* m = demo.Find(t.model);
+    ASSERT_NE(m, nullptr) << t.model;
+    EXPECT_EQ(t.cls, m->cls);
+    EXPECT_EQ(train.Find(t.model), nullptr);
+  }
+  const Scan scan = ReadScan(root + "/demo/room.pcd");
+  EXPECT_GT(scan.points.size(), 50000u);
+  ASSERT_TRUE(scan.origin.has_value());
+  EXPECT_LT((*scan.origin - Eigen::Vector3f(3.f, 2.5f, 1.5f)).norm(), 1e-5f);
+}
+
+}  // namespace
+}  // namespace furnihost
