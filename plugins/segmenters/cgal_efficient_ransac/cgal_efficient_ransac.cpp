@@ -1,0 +1,356 @@
+// segmenters.cgal_efficient_ransac — CGAL 5.5 Efficient RANSAC (Schnabel et al. 2007) as a
+// swappable alternative of segmenters.region_growing: planes (and optionally cylinders) are
+// detected one after another, each shape keeping its largest connected component
+// (`cluster_epsilon_m`); the points no shape explains are grouped by distance (`distance_m`,
+// the paper's 5 cm) and groups of at least `min_points` become parts too, so legs and other
+// small pieces are not lost. Smaller groups are counted in Segmentation::discarded_points.
+//
+// Normals as in segmenters.cgal_region_growing (jet order 2 or PCA in a radius; NaN output
+// where the radius holds fewer than 3 points); curvature is the surface variation
+// lambda0 / (lambda0 + lambda1 + lambda2) in the same radius.
+// Deterministic: CGAL draws from its thread-local default generator, which is reseeded from
+// RunContext::seed before each detection.
+// Frames: scan frame throughout; the points are shifted by their bounding-box centre.
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Random.h>
+#include <CGAL/Shape_detection/Efficient_RANSAC.h>
+#include <CGAL/jet_estimate_normals.h>
+#include <CGAL/pca_estimate_normals.h>
+#include <CGAL/property_map.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <tuple>
+#include <unordered_map>
+
+#include "furnihost/log.hpp"
+#include "furnihost/plugin.hpp"
+
+namespace {
+
+using furnihost::ParamSchema;
+using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
+using Point3 = Kernel::Point_3;
+using Vector3 = Kernel::Vector_3;
+// Efficient RANSAC reorders its input: each point carries its local index along.
+using Pni = std::tuple<Point3, Vector3, std::size_t>;
+using PniVector = std::vector<Pni>;
+using PointMap = CGAL::Nth_of_tuple_property_map<0, Pni>;
+using NormalMap = CGAL::Nth_of_tuple_property_map<1, Pni>;
+using Traits = CGAL::Shape_detection::Efficient_RANSAC_traits<Kernel, PniVector, PointMap, NormalMap>;
+using Ransac = CGAL::Shape_detection::Efficient_RANSAC<Traits>;
+
+struct CgalEfficientRansacOptions {
+  std::string normals = "jet";        // "jet" | "pca"
+  double normal_radius_m = 0.03;      // normal/curvature radius [m] (paper: 3 cm)
+  std::string shapes = "planes_cylinders";  // "planes" | "planes_cylinders"
+  double probability = 0.05;          // chance of missing the largest candidate shape
+  int min_shape_points = 100;         // smallest shape RANSAC may accept
+  double epsilon_m = 0.01;            // max point-to-shape distance [m]
+  double cluster_epsilon_m = 0.03;    // max gap inside one shape [m] (>= sampling spacing)
+  double angle_deg = 25.0;            // max angle between point normal and shape normal [deg]
+  bool attach_leftovers = true;       // leftover points on an adjacent shape join it
+  double distance_m = 0.05;           // grouping distance of the leftover points [m] (paper: 5 cm)
+  int min_points = 10;                // smaller leftover groups are discarded (paper: 10)
+
+  void Check() const {
+    if (!(normal_radius_m > 0) || !(epsilon_m > 0) || !(cluster_epsilon_m > 0) || !(distance_m > 0))
+      throw furnihost::StageError("normal_radius_m, epsilon_m, cluster_epsilon_m and distance_m must be > 0");
+  }
+};
+
+// Radius neighbourhoods on a hashed voxel grid (cell >= radius).
+class VoxelGrid {
+ public:
+  VoxelGrid(const std::vector<Eigen::Vector3f>& pts, float cell) : pts_(pts), inv_(1.f / cell) {
+    order_.resize(pts.size());
+    std::iota(order_.begin(), order_.end(), 0);
+    std::vector<uint64_t> keys(pts.size());
+    for (size_t i = 0; i < pts.size(); ++i) keys[i] = Key(Cell(pts[i]));
+    std::sort(order_.begin(), order_.end(), [&](int a, int b) {
+      return keys[a] != keys[b] ? keys[a] < keys[b] : a < b;
+    });
+    cells_.reserve(pts.size() / 4 + 1);
+    for (size_t b = 0; b < order_.size();) {
+      size_t e = b;
+      while (e < order_.size() && keys[order_[e]] == keys[order_[b]]) ++e;
+      cells_.emplace(keys[order_[b]], std::make_pair(uint32_t(b), uint32_t(e)));
+      b = e;
+    }
+  }
+  template <class F>
+  void Radius(const Eigen::Vector3f& q, float r, F&& f) const {
+    const Eigen::Vector3i c = Cell(q);
+    const float r2 = r * r;
+    for (int dx = -1; dx <= 1; ++dx)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dz = -1; dz <= 1; ++dz) {
+          auto it = cells_.find(Key(c + Eigen::Vector3i(dx, dy, dz)));
+          if (it == cells_.end()) continue;
+          for (uint32_t k = it->second.first; k < it->second.second; ++k)
+            if ((pts_[order_[k]] - q).squaredNorm() <= r2) f(order_[k]);
+        }
+  }
+
+ private:
+  Eigen::Vector3i Cell(const Eigen::Vector3f& p) const {
+    return (p * inv_).array().floor().cast<int>();
+  }
+  static uint64_t Key(const Eigen::Vector3i& c) {
+    auto u = [](int v) { return uint64_t(uint32_t(v + (1 << 20)) & 0x1fffff); };
+    return u(c.x()) | (u(c.y()) << 21) | (u(c.z()) << 42);
+  }
+  const std::vector<Eigen::Vector3f>& pts_;
+  float inv_;
+  std::vector<int> order_;
+  std::unordered_map<uint64_t, std::pair<uint32_t, uint32_t>> cells_;
+};
+
+class CgalEfficientRansac : public furnihost::Segmenter {
+ public:
+  static ParamSchema Schema() {
+    ParamSchema s;
+    s.Enum("normals", "jet", {"jet", "pca"},
+           "normal estimator: CGAL jet fitting (order 2, the paper's polynomial) or PCA");
+    s.Number("normal_radius_m", 0.03, 0.001, 10.0, "radius of the normal and curvature neighbourhood [m] (paper: 0.03)");
+    s.Enum("shapes", "planes_cylinders", {"planes", "planes_cylinders"}, "shape types RANSAC looks for");
+    s.Number("probability", 0.05, 1e-6, 1.0, "probability of missing the largest candidate (lower = more thorough)");
+    s.Int("min_shape_points", 100, 3, 1e9, "smallest shape RANSAC accepts");
+    s.Number("epsilon_m", 0.01, 1e-5, 1.0, "max distance of a point to its shape [m]");
+    s.Number("cluster_epsilon_m", 0.03, 1e-5, 1.0, "max gap between neighbouring points of one shape [m]");
+    s.Number("angle_deg", 25.0, 0.0, 90.0, "max angle between a point's normal and its shape's normal [deg]");
+    s.Bool("attach_leftovers", true,
+           "a leftover point within epsilon_m of a shape that has points within cluster_epsilon_m joins it");
+    s.Number("distance_m", 0.05, 1e-4, 10.0, "points no shape explains are grouped at this distance [m] (paper: 0.05)");
+    s.Int("min_points", 10, 1, 1e9, "leftover groups with fewer points are discarded (paper: 10)");
+    return s;
+  }
+
+  explicit CgalEfficientRansac(const nlohmann::json& p) {
+    o_.normals = p.at("normals").get<std::string>();
+    o_.normal_radius_m = p.at("normal_radius_m").get<double>();
+    o_.shapes = p.at("shapes").get<std::string>();
+    o_.probability = p.at("probability").get<double>();
+    o_.min_shape_points = p.at("min_shape_points").get<int>();
+    o_.epsilon_m = p.at("epsilon_m").get<double>();
+    o_.cluster_epsilon_m = p.at("cluster_epsilon_m").get<double>();
+    o_.angle_deg = p.at("angle_deg").get<double>();
+    o_.attach_leftovers = p.at("attach_leftovers").get<bool>();
+    o_.distance_m = p.at("distance_m").get<double>();
+    o_.min_points = p.at("min_points").get<int>();
+    o_.Check();
+  }
+
+  furnihost::Segmentation Segment(const furnihost::Scan& scan,
+                                  const furnihost::RunContext& ctx) override {
+    const size_t n = scan.points.size();
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    furnihost::Segmentation seg;
+    seg.normals.assign(n, Eigen::Vector3f::Constant(nan));
+    seg.curvature.assign(n, nan);
+
+    std::vector<int> ids;  // local -> scan index
+    ids.reserve(n);
+    Eigen::AlignedBox3d box;
+    for (size_t i = 0; i < n; ++i)
+      if (scan.points[i].allFinite()) {
+        ids.push_back(int(i));
+        box.extend(scan.points[i].cast<double>());
+      }
+    if (ids.size() < 6) {  // jet fitting needs 6 points
+      seg.discarded_points = int(n);
+      return seg;
+    }
+    const Eigen::Vector3d shift = box.center();
+    const size_t m = ids.size();
+    std::vector<Eigen::Vector3f> local(m);
+    PniVector pts(m);
+    for (size_t k = 0; k < m; ++k) {
+      const Eigen::Vector3d q = scan.points[ids[k]].cast<double>() - shift;
+      local[k] = q.cast<float>();
+      pts[k] = Pni(Point3(q.x(), q.y(), q.z()), Vector3(0, 0, 1), k);
+    }
+
+    tbb::task_arena arena(ctx.threads > 0 ? ctx.threads : tbb::task_arena::automatic);
+    std::vector<float> curvature(m, nan);
+    std::vector<char> enough(m, 0);
+    arena.execute([&] {
+      const auto np = CGAL::parameters::point_map(PointMap()).normal_map(NormalMap())
+                          .neighbor_radius(o_.normal_radius_m);
+      if (o_.normals == "jet")
+        CGAL::jet_estimate_normals<CGAL::Parallel_if_available_tag>(pts, 0, np.degree_fitting(2));
+      else
+        CGAL::pca_estimate_normals<CGAL::Parallel_if_available_tag>(pts, 0, np);
+
+      const VoxelGrid grid(local, float(o_.normal_radius_m));
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, m, 256), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t k = r.begin(); k != r.end(); ++k) {
+          Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+          int cnt = 0;
+          grid.Radius(local[k], float(o_.normal_radius_m), [&](int j) {
+            mean += local[j].cast<double>();
+            ++cnt;
+          });
+          if (cnt < 3) continue;
+          mean /= cnt;
+          Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+          grid.Radius(local[k], float(o_.normal_radius_m), [&](int j) {
+            const Eigen::Vector3d d = local[j].cast<double>() - mean;
+            cov.noalias() += d * d.transpose();
+          });
+          const Eigen::Vector3d ev = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov, Eigen::EigenvaluesOnly).eigenvalues();
+          const double tr = ev.sum();
+          curvature[k] = tr > 0 ? float(std::max(0.0, ev[0]) / tr) : 0.f;
+          enough[k] = 1;
+        }
+      });
+    });
+
+    // Towards the sensor when known, else towards the scan frame's origin (as PCL does).
+    const Eigen::Vector3d eye =
+        (scan.origin ? Eigen::Vector3d(scan.origin->cast<double>()) : Eigen::Vector3d(Eigen::Vector3d::Zero())) -
+        shift;
+    for (auto& t : pts) {
+      const std::size_t k = std::get<2>(t);
+      const Vector3& nv = std::get<1>(t);
+      Eigen::Vector3d v(nv.x(), nv.y(), nv.z());
+      const double len = v.norm();
+      if (!(len > 0) || !v.allFinite()) {
+        std::get<1>(t) = Vector3(0, 0, 1);  // keep CGAL's input valid; reported as NaN
+        enough[k] = 0;
+        continue;
+      }
+      v /= len;
+      if (v.dot(eye - local[k].cast<double>()) < 0) v = -v;
+      std::get<1>(t) = Vector3(v.x(), v.y(), v.z());
+      if (enough[k]) {
+        seg.normals[ids[k]] = v.cast<float>();
+        seg.curvature[ids[k]] = curvature[k];
+      }
+    }
+
+    // Shapes.
+    Ransac ransac;
+    ransac.set_input(pts);
+    ransac.add_shape_factory<CGAL::Shape_detection::Plane<Traits>>();
+    if (o_.shapes == "planes_cylinders") ransac.add_shape_factory<CGAL::Shape_detection::Cylinder<Traits>>();
+    Ransac::Parameters rp;
+    rp.probability = o_.probability;
+    rp.min_points = std::size_t(o_.min_shape_points);
+    rp.epsilon = o_.epsilon_m;
+    rp.cluster_epsilon = o_.cluster_epsilon_m;
+    rp.normal_threshold = std::cos(o_.angle_deg * M_PI / 180.0);
+    CGAL::get_default_random() = CGAL::Random(unsigned(ctx.seed ^ (ctx.seed >> 32)));
+    ransac.detect(rp);
+
+    // owner[k]: index of the shape holding local point k, -1 if none.
+    std::vector<int> owner(m, -1);
+    std::vector<const CGAL::Shape_detection::Shape_base<Traits>*> shape_list;
+    int planes = 0, cylinders = 0;
+    for (const auto& shape : ransac.shapes()) {
+      for (std::size_t r : shape->indices_of_assigned_points())
+        owner[std::get<2>(pts[r])] = int(shape_list.size());  // `r` indexes the reordered input
+      if (dynamic_cast<const CGAL::Shape_detection::Plane<Traits>*>(shape.get())) ++planes; else ++cylinders;
+      shape_list.push_back(shape.get());
+    }
+
+    // CGAL refuses points near a shape's border whose normal leans (box edges: ~45 deg),
+    // which would leave a wire frame of leftovers around every planar part. A leftover that
+    // lies within epsilon_m of a shape owning a point within cluster_epsilon_m joins the
+    // nearest such shape. Rings: each pass sees only the previous passes' result, so the
+    // outcome does not depend on the point order.
+    if (o_.attach_leftovers && !shape_list.empty()) {
+      const VoxelGrid grid(local, float(o_.cluster_epsilon_m));
+      const double eps2 = o_.epsilon_m * o_.epsilon_m;
+      for (bool changed = true; changed;) {
+        changed = false;
+        std::vector<int> next = owner;
+        for (size_t k = 0; k < m; ++k) {
+          if (owner[k] >= 0) continue;
+          const Point3 pk(local[k].x(), local[k].y(), local[k].z());
+          double best = eps2;
+          grid.Radius(local[k], float(o_.cluster_epsilon_m), [&](int j) {
+            if (owner[j] < 0) return;
+            const double d2 = CGAL::to_double(shape_list[owner[j]]->squared_distance(pk));
+            if (d2 < best || (d2 == best && next[k] >= 0 && owner[j] < next[k])) {
+              best = d2;
+              next[k] = owner[j];
+            }
+          });
+          changed |= next[k] >= 0;
+        }
+        owner.swap(next);
+      }
+    }
+
+    std::vector<std::vector<int>> groups(shape_list.size());  // local indices
+    std::vector<char> assigned(m, 0);
+    for (size_t k = 0; k < m; ++k)
+      if (owner[k] >= 0) {
+        groups[owner[k]].push_back(int(k));
+        assigned[k] = 1;
+      }
+
+    // Leftovers grouped by distance (breadth-first over the radius graph, index order).
+    std::vector<Eigen::Vector3f> rest;
+    std::vector<int> rest_ids;
+    for (size_t k = 0; k < m; ++k)
+      if (!assigned[k]) {
+        rest.push_back(local[k]);
+        rest_ids.push_back(int(k));
+      }
+    const VoxelGrid rest_grid(rest, float(o_.distance_m));
+    std::vector<char> seen(rest.size(), 0);
+    size_t small = 0;
+    for (size_t s = 0; s < rest.size(); ++s) {
+      if (seen[s]) continue;
+      std::vector<int> comp{int(s)};
+      seen[s] = 1;
+      for (size_t h = 0; h < comp.size(); ++h)
+        rest_grid.Radius(rest[comp[h]], float(o_.distance_m), [&](int j) {
+          if (!seen[j]) {
+            seen[j] = 1;
+            comp.push_back(j);
+          }
+        });
+      if (int(comp.size()) < o_.min_points) {
+        small += comp.size();
+        continue;
+      }
+      std::vector<int> g;
+      for (int j : comp) g.push_back(rest_ids[j]);
+      std::sort(g.begin(), g.end());
+      groups.push_back(std::move(g));
+    }
+
+    size_t total = 0;
+    for (const auto& g : groups) {
+      furnihost::Part part;
+      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+      for (int k : g) {
+        part.indices.push_back(ids[k]);
+        sum += scan.points[ids[k]].cast<double>();
+      }
+      part.centroid = (sum / double(g.size())).cast<float>();
+      total += g.size();
+      seg.parts.push_back(std::move(part));
+    }
+    seg.discarded_points = int(n - total);
+    spdlog::debug("cgal_efficient_ransac: {} points, {} planes, {} cylinders, {} leftover groups, {} in small groups",
+                  n, planes, cylinders, groups.size() - size_t(planes + cylinders), small);
+    return seg;
+  }
+
+ private:
+  CgalEfficientRansacOptions o_;
+};
+
+}  // namespace
+
+FURNIHOST_PLUGIN(CgalEfficientRansac, "segmenters.cgal_efficient_ransac", "1.0.0",
+                 "CGAL 5.5 Efficient RANSAC planes (+ cylinders), leftovers grouped by distance")
