@@ -1,0 +1,326 @@
+#include "birdseye.hpp"
+
+#include <cairo-svg.h>
+#include <cairo.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <map>
+#include <memory>
+
+#include "furnihost/error.hpp"
+#include "furnihost/io.hpp"
+
+namespace furnihost::app {
+
+namespace {
+
+constexpr double kTwoPi = 6.283185307179586;
+// Density cells below this share of their class maximum are not drawn (alpha < ~0.1).
+constexpr float kVisible = 0.02f;
+
+struct Rgb {
+  double r, g, b;
+};
+
+// Fixed colours for the paper's classes (Fig. 1), then a palette in order of appearance.
+class Colours {
+ public:
+  Rgb Of(const std::string& cls) {
+    static const std::map<std::string, Rgb> fixed = {{"chair", {0.10, 0.35, 0.95}},
+                                                     {"table", {0.90, 0.12, 0.12}},
+                                                     {"cabinet", {0.95, 0.78, 0.05}},
+                                                     {"sideboard", {0.95, 0.78, 0.05}}};
+    static const std::array<Rgb, 6> palette = {{{0.10, 0.65, 0.25},
+                                                {0.55, 0.20, 0.75},
+                                                {0.95, 0.50, 0.05},
+                                                {0.05, 0.70, 0.75},
+                                                {0.85, 0.20, 0.65},
+                                                {0.50, 0.33, 0.15}}};
+    if (auto it = fixed.find(cls); it != fixed.end()) return it->second;
+    auto it = other_.find(cls);
+    if (it == other_.end()) it = other_.emplace(cls, palette[other_.size() % palette.size()]).first;
+    return it->second;
+  }
+
+ private:
+  std::map<std::string, Rgb> other_;
+};
+
+using SurfacePtr = std::unique_ptr<cairo_surface_t, decltype(&cairo_surface_destroy)>;
+using ContextPtr = std::unique_ptr<cairo_t, decltype(&cairo_destroy)>;
+
+// World window [lo, hi] mapped to pixels with `ppm` pixels per metre, y flipped.
+struct View {
+  Eigen::Vector2d lo, hi;
+  double ppm = 100.0;
+  double margin = 40.0, legend = 170.0;
+  double PlotWidth() const { return (hi.x() - lo.x()) * ppm; }
+  double PlotHeight() const { return (hi.y() - lo.y()) * ppm; }
+  int Width() const { return static_cast<int>(std::ceil(PlotWidth() + 2 * margin + legend)); }
+  int Height() const { return static_cast<int>(std::ceil(std::max(PlotHeight() + 2 * margin, 260.0))); }
+  double X(double x) const { return margin + (x - lo.x()) * ppm; }
+  double Y(double y) const { return margin + (hi.y() - y) * ppm; }
+};
+
+View MakeView(const std::vector<const Scan*>& scans, const VoteResult& votes,
+              const std::vector<Detection>& detections) {
+  Eigen::AlignedBox2d box;
+  for (const Scan* s : scans) {
+    if (!s) continue;
+    const Eigen::Isometry3f pose = s->pose;
+    for (const auto& p : s->points) {
+      const Eigen::Vector3f w = pose * p;
+      if (w.allFinite()) box.extend(w.head<2>().cast<double>());
+    }
+  }
+  for (const auto& h : votes.hypotheses) box.extend(h.center.head<2>().cast<double>());
+  for (const auto& d : detections) box.extend(d.center.head<2>().cast<double>());
+  // Visible density cells (see DrawGrid) are part of the picture too.
+  for (const auto& g : votes.grids) {
+    if (g.width <= 0 || g.height <= 0 || g.values.size() != static_cast<size_t>(g.width) * g.height) continue;
+    const float vmax = *std::max_element(g.values.begin(), g.values.end());
+    for (int iy = 0; iy < g.height; ++iy)
+      for (int ix = 0; ix < g.width; ++ix)
+        if (g.values[static_cast<size_t>(iy) * g.width + ix] > kVisible * vmax) {
+          const Eigen::Vector2f c = g.origin + g.cell * Eigen::Vector2f(ix, iy);
+          box.extend(c.cast<double>());
+          box.extend((c + Eigen::Vector2f::Constant(g.cell)).cast<double>());
+        }
+  }
+  if (box.isEmpty()) box = Eigen::AlignedBox2d(Eigen::Vector2d(-0.5, -0.5), Eigen::Vector2d(0.5, 0.5));
+  View v;
+  const Eigen::Vector2d pad = Eigen::Vector2d::Constant(0.25);
+  v.lo = box.min() - pad;
+  v.hi = box.max() + pad;
+  // About 1000 px along the longer side, at most 200 px/m (small scenes stay small).
+  const double ext = std::max(v.hi.x() - v.lo.x(), v.hi.y() - v.lo.y());
+  v.ppm = std::min(200.0, 1000.0 / ext);
+  return v;
+}
+
+// Scan points as one grey raster (embedded as an image in the SVG, not 50k shapes).
+SurfacePtr PointsRaster(const std::vector<const Scan*>& scans, const View& v) {
+  const int w = std::max(1, static_cast<int>(std::ceil(v.PlotWidth())));
+  const int h = std::max(1, static_cast<int>(std::ceil(v.PlotHeight())));
+  SurfacePtr img(cairo_image_surface_create(CAIRO_FORMAT_ARGB32, w, h), cairo_surface_destroy);
+  cairo_surface_flush(img.get());
+  unsigned char* data = cairo_image_surface_get_data(img.get());
+  const int stride = cairo_image_surface_get_stride(img.get());
+  for (const Scan* s : scans) {
+    if (!s || !data) continue;
+    for (const auto& p : s->points) {
+      const Eigen::Vector3f wp = s->pose * p;
+      if (!wp.allFinite()) continue;
+      const int x = static_cast<int>(std::floor(v.X(wp.x()) - v.margin));
+      const int y = static_cast<int>(std::floor(v.Y(wp.y()) - v.margin));
+      if (x < 0 || y < 0 || x >= w || y >= h) continue;
+      auto* px = reinterpret_cast<uint32_t*>(data + static_cast<size_t>(y) * stride) + x;
+      *px = 0xFFBEBEBEu;  // opaque light grey (premultiplied ARGB)
+    }
+  }
+  cairo_surface_mark_dirty(img.get());
+  return img;
+}
+
+// One class's density as translucent cells: alpha grows with sqrt(value / class maximum).
+void DrawGrid(cairo_t* cr, const VoteGrid& g, Rgb c, const View& v) {
+  if (g.width <= 0 || g.height <= 0 || g.values.size() != static_cast<size_t>(g.width) * g.height) return;
+  const float vmax = *std::max_element(g.values.begin(), g.values.end());
+  if (!(vmax > 0.f)) return;
+  SurfacePtr img(cairo_image_surface_create(CAIRO_FORMAT_ARGB32, g.width, g.height), cairo_surface_destroy);
+  cairo_surface_flush(img.get());
+  unsigned char* data = cairo_image_surface_get_data(img.get());
+  if (!data) return;
+  const int stride = cairo_image_surface_get_stride(img.get());
+  for (int iy = 0; iy < g.height; ++iy)
+    for (int ix = 0; ix < g.width; ++ix) {
+      const float value = g.values[static_cast<size_t>(iy) * g.width + ix];
+      if (!(value > kVisible * vmax)) continue;
+      const double a = 0.75 * std::sqrt(value / vmax);
+      auto ch = [&](double x) { return static_cast<uint32_t>(std::lround(255.0 * x * a)); };
+      reinterpret_cast<uint32_t*>(data + static_cast<size_t>(iy) * stride)[ix] =
+          (static_cast<uint32_t>(std::lround(255.0 * a)) << 24) | (ch(c.r) << 16) | (ch(c.g) << 8) | ch(c.b);
+    }
+  cairo_surface_mark_dirty(img.get());
+  cairo_save(cr);
+  // Image row iy is world y = origin.y + iy * cell, which runs up: flip.
+  cairo_translate(cr, v.X(g.origin.x()), v.Y(g.origin.y()));
+  cairo_scale(cr, g.cell * v.ppm, -g.cell * v.ppm);
+  cairo_set_source_surface(cr, img.get(), 0, 0);
+  cairo_pattern_set_filter(cairo_get_source(cr), CAIRO_FILTER_NEAREST);
+  cairo_paint(cr);
+  cairo_restore(cr);
+}
+
+double Radius(float score, float max_score, const View& v) {
+  // Area proportional to score; the strongest is 0.3 m across, none below 5 px.
+  const double r = 0.15 * std::sqrt(std::max(0.f, score) / std::max(max_score, 1e-6f)) * v.ppm;
+  return std::max(5.0, r);
+}
+
+void Text(cairo_t* cr, double x, double y, const std::string& s, double size = 12.0) {
+  cairo_select_font_face(cr, "sans-serif", CAIRO_FONT_SLANT_NORMAL, CAIRO_FONT_WEIGHT_NORMAL);
+  cairo_set_font_size(cr, size);
+  cairo_move_to(cr, x, y);
+  cairo_show_text(cr, s.c_str());
+}
+
+void Draw(cairo_t* cr, const std::vector<const Scan*>& scans, const VoteResult& votes,
+          const std::vector<Detection>& detections, const View& v) {
+  Colours colours;
+  cairo_set_source_rgb(cr, 1, 1, 1);
+  cairo_paint(cr);
+
+  // Everything of the scene stays inside the plot rectangle; the legend is beside it.
+  cairo_save(cr);
+  cairo_rectangle(cr, v.margin, v.margin, v.PlotWidth(), v.PlotHeight());
+  cairo_clip(cr);
+  SurfacePtr points = PointsRaster(scans, v);
+  cairo_set_source_surface(cr, points.get(), v.margin, v.margin);
+  cairo_paint(cr);
+
+  std::vector<std::string> classes;
+  auto note_class = [&](const std::string& c) {
+    if (std::find(classes.begin(), classes.end(), c) == classes.end()) classes.push_back(c);
+  };
+  for (const auto& g : votes.grids) {
+    DrawGrid(cr, g, colours.Of(g.cls), v);
+    note_class(g.cls);
+  }
+
+  float max_score = 0.f;
+  for (const auto& h : votes.hypotheses) max_score = std::max(max_score, h.score);
+  for (const auto& d : detections) max_score = std::max(max_score, d.score);
+
+  cairo_set_line_width(cr, 1.5);
+  for (const auto& h : votes.hypotheses) {
+    const Rgb c = colours.Of(h.cls);
+    note_class(h.cls);
+    cairo_new_path(cr);
+    cairo_arc(cr, v.X(h.center.x()), v.Y(h.center.y()), Radius(h.score, max_score, v), 0, kTwoPi);
+    cairo_set_source_rgb(cr, c.r, c.g, c.b);
+    cairo_stroke(cr);
+  }
+  for (const auto& d : detections) {
+    const Rgb c = colours.Of(d.cls);
+    note_class(d.cls);
+    const bool rejected = d.verified.has_value() && !*d.verified;
+    const double x = v.X(d.center.x()), y = v.Y(d.center.y()), r = Radius(d.score, max_score, v);
+    cairo_new_path(cr);
+    cairo_arc(cr, x, y, r, 0, kTwoPi);
+    cairo_set_source_rgba(cr, c.r, c.g, c.b, rejected ? 0.15 : 0.6);
+    cairo_fill_preserve(cr);
+    cairo_set_source_rgb(cr, c.r * 0.6, c.g * 0.6, c.b * 0.6);
+    cairo_set_line_width(cr, 2.0);
+    const double dash[] = {4.0, 3.0};
+    cairo_set_dash(cr, dash, rejected ? 2 : 0, 0);
+    cairo_stroke(cr);
+    cairo_set_dash(cr, nullptr, 0, 0);
+    char label[32];
+    std::snprintf(label, sizeof label, "%.2f", d.score);
+    cairo_set_source_rgb(cr, 0.1, 0.1, 0.1);
+    Text(cr, x + r + 2, y + 4, label, 10);
+  }
+
+  cairo_restore(cr);
+  cairo_set_line_width(cr, 1.0);
+  cairo_set_source_rgb(cr, 0.6, 0.6, 0.6);
+  cairo_rectangle(cr, v.margin, v.margin, v.PlotWidth(), v.PlotHeight());
+  cairo_stroke(cr);
+
+  // Scale bar: 1 m, bottom left.
+  const double bx = v.margin, by = v.Height() - v.margin / 2;
+  cairo_set_source_rgb(cr, 0, 0, 0);
+  cairo_set_line_width(cr, 2.0);
+  cairo_move_to(cr, bx, by);
+  cairo_line_to(cr, bx + v.ppm, by);
+  cairo_move_to(cr, bx, by - 5);
+  cairo_line_to(cr, bx, by + 5);
+  cairo_move_to(cr, bx + v.ppm, by - 5);
+  cairo_line_to(cr, bx + v.ppm, by + 5);
+  cairo_stroke(cr);
+  Text(cr, bx + v.ppm + 6, by + 4, "1 m");
+
+  // Legend, right of the plot.
+  double lx = v.margin + v.PlotWidth() + 20, ly = v.margin;
+  cairo_set_source_rgb(cr, 0, 0, 0);
+  Text(cr, lx, ly, "top view (x right, y up)", 11);
+  ly += 22;
+  for (const auto& cls : classes) {
+    const Rgb c = colours.Of(cls);
+    cairo_rectangle(cr, lx, ly - 10, 14, 12);
+    cairo_set_source_rgba(cr, c.r, c.g, c.b, 0.75);
+    cairo_fill(cr);
+    cairo_set_source_rgb(cr, 0, 0, 0);
+    Text(cr, lx + 20, ly, cls);
+    ly += 18;
+  }
+  ly += 6;
+  cairo_set_source_rgb(cr, 0.3, 0.3, 0.3);
+  cairo_set_line_width(cr, 1.5);
+  cairo_new_path(cr);
+  cairo_arc(cr, lx + 7, ly - 4, 6, 0, kTwoPi);
+  cairo_stroke(cr);
+  Text(cr, lx + 20, ly, "hypothesis");
+  ly += 18;
+  cairo_new_path(cr);
+  cairo_arc(cr, lx + 7, ly - 4, 6, 0, kTwoPi);
+  cairo_fill(cr);
+  Text(cr, lx + 20, ly, "detection");
+  ly += 18;
+  const double dash[] = {3.0, 2.0};
+  cairo_set_dash(cr, dash, 2, 0);
+  cairo_new_path(cr);
+  cairo_arc(cr, lx + 7, ly - 4, 6, 0, kTwoPi);
+  cairo_stroke(cr);
+  cairo_set_dash(cr, nullptr, 0, 0);
+  Text(cr, lx + 20, ly, "rejected");
+  ly += 18;
+  cairo_rectangle(cr, lx, ly - 10, 14, 12);
+  cairo_set_source_rgb(cr, 0.745, 0.745, 0.745);
+  cairo_fill(cr);
+  cairo_set_source_rgb(cr, 0, 0, 0);
+  Text(cr, lx + 20, ly, "scan points");
+  ly += 18;
+  Text(cr, lx, ly + 6, "circle area ~ score", 10);
+}
+
+void Check(cairo_status_t st, const std::string& path) {
+  if (st != CAIRO_STATUS_SUCCESS)
+    throw InputError(path + ": cannot write (" + cairo_status_to_string(st) + ")");
+}
+
+}  // namespace
+
+void WriteBirdsEye(const std::string& stem, const std::vector<const Scan*>& scans,
+                   const VoteResult& votes, const std::vector<Detection>& detections) {
+  const View v = MakeView(scans, votes, detections);
+  AtomicWrite(stem + ".svg", [&](const std::string& tmp) {
+    SurfacePtr s(cairo_svg_surface_create(tmp.c_str(), v.Width(), v.Height()), cairo_surface_destroy);
+    Check(cairo_surface_status(s.get()), stem + ".svg");
+    {
+      ContextPtr cr(cairo_create(s.get()), cairo_destroy);
+      Draw(cr.get(), scans, votes, detections, v);
+      Check(cairo_status(cr.get()), stem + ".svg");
+    }
+    cairo_surface_finish(s.get());  // flushes the file
+    Check(cairo_surface_status(s.get()), stem + ".svg");
+  });
+  AtomicWrite(stem + ".png", [&](const std::string& tmp) {
+    SurfacePtr s(cairo_image_surface_create(CAIRO_FORMAT_ARGB32, v.Width(), v.Height()),
+                 cairo_surface_destroy);
+    Check(cairo_surface_status(s.get()), stem + ".png");
+    {
+      ContextPtr cr(cairo_create(s.get()), cairo_destroy);
+      Draw(cr.get(), scans, votes, detections, v);
+      Check(cairo_status(cr.get()), stem + ".png");
+    }
+    Check(cairo_surface_write_to_png(s.get(), tmp.c_str()), stem + ".png");
+  });
+}
+
+}  // namespace furnihost::app

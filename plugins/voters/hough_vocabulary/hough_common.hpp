@@ -1,0 +1,160 @@
+// Code shared by voters.hough_vocabulary and voters.nearest_neighbor (compiled into both
+// modules; hidden visibility keeps the two copies apart).
+//
+// Frames and units: metres, z up. A training shape vector d = p - s is computed in the
+// training view's scan frame and stored in the view's viewing frame: rotated about z so that
+// +x is the horizontal direction from the sensor (Scan::origin) to the object centroid (kept
+// as is when the view has no origin). Scene part centroids l are in their scan frame and
+// mapped to the world by Scan::pose; a vote lands at x_v = pose * l + Rz(yaw) * d, where yaw
+// is the rotation of Scan::pose about +z (training views are upright, so only the heading of
+// the scene scan frame is applied to d; as the words hold d from all around the object, the
+// votes of a part form a ring of candidate centres whatever that heading is).
+//
+// Vote weights (paper eq. 4, 5): a part with feature f activates its `activations` nearest
+// words A_i with p(A_i|f) = w_i / sum_j w_j, w = 1 / (||f - mean(A_i)|| + 1e-6); each element
+// a of A_i of class o votes with weight p(A_i|f) / #(A_i, o). Hence every part contributes at
+// most a mass of 1 per class, and the score below is measured in "parts' worth of evidence".
+//
+// Score (the quantity compared to the thresholds): for a hypothesis of class o at floor
+// position c, score = sum of the weights of all class-o votes whose (x, y) lies within
+// distance window_scale * width(o) / 2 of c (a disc, raw votes, not the smoothed grid). With
+// several fused scans the votes of all scans add up, as in the paper's Sect. VII-C.
+// Because each part brings a mass <= 1 per class whatever the vocabulary or the number of
+// training models, the paper's thresholds (chair 0.6, table 1.0, sideboard 1.4) keep their
+// meaning ("this much part evidence near the centre"), but how much of a part's mass lands in
+// the window depends on the spread of the d vectors of our catalog, so they are re-derived:
+//
+// Re-deriving the thresholds: selection at threshold t equals the selection at threshold 0
+// filtered to score >= t (maxima do not depend on t, and the footprint check is greedy in
+// descending score, so its decisions on the hypotheses above t only involve hypotheses above
+// t). So run the dev set once with {"thresholds": {}, "default_threshold": 0}, match the
+// hypotheses to the ground truth (true positive: centre within half the class width, Sect.
+// VII-A), sweep t over the sorted scores per class to get recall / precision, and put the
+// chosen working point in the config.
+#pragma once
+#include <Eigen/Core>
+#include <map>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "furnihost/params.hpp"
+#include "furnihost/stage.hpp"
+#include "furnihost/types.hpp"
+
+namespace furnihost::voters {
+
+using RowMatrixXf = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+struct ClassModel {
+  std::string name;
+  float width = 0.f;  // median over the class's models of max(size.x, size.y) [m]
+  int models = 0;     // training models of the class
+  int parts = 0;      // training parts of the class
+};
+
+// Words plus the shape-model elements of each word. Elements of word k are the index range
+// [element_begin[k], element_begin[k + 1]).
+struct Codebook {
+  std::vector<std::string> feature_names;  // one per column of `words`
+  RowMatrixXf words;                       // K x D word means (normalised feature space)
+  std::vector<ClassModel> classes;
+  std::vector<std::string> models;         // training model ids
+  std::vector<int> element_begin;          // K + 1
+  std::vector<Eigen::Vector3f> d;          // object centroid minus part centroid [m]
+  std::vector<int> element_class;          // index into classes
+  std::vector<int> element_model;          // index into models
+  std::vector<int> element_view;           // TrainingView::view
+  std::vector<float> element_norm;         // 1 / #(A_i, o) of the element's word and class
+
+  int Words() const { return static_cast<int>(words.rows()); }
+  int Dim() const { return static_cast<int>(words.cols()); }
+  // Fills element_norm from element_begin / element_class.
+  void ComputeNorms();
+  // Compact JSON (flat float arrays) tagged with `format`; FromJson checks the tag.
+  nlohmann::json ToJson(const std::string& format) const;
+  static Codebook FromJson(const nlohmann::json& j, const std::string& format);
+};
+
+// All parts of the training views, flattened.
+struct TrainingParts {
+  RowMatrixXf features;  // N x D, normalised
+  std::vector<std::string> feature_names;
+  std::vector<Eigen::Vector3f> d;
+  std::vector<int> cls, model, view;
+  std::vector<ClassModel> classes;
+  std::vector<std::string> models;
+};
+
+// Collects parts and per-class widths; throws StageError on inconsistent views. Parts with
+// non-finite features are skipped (and counted in the log).
+TrainingParts CollectTrainingParts(const std::vector<TrainingView>& views);
+
+struct KMeansOptions {
+  int k = 40;
+  int max_iterations = 100;
+  int restarts = 3;
+};
+
+struct KMeansResult {
+  RowMatrixXf centers;      // K x D (K <= requested k: empty clusters are dropped)
+  std::vector<int> labels;  // per row of the data, index into centers
+  double inertia = 0.0;     // sum of squared distances to the assigned centre
+  int iterations = 0;       // Lloyd iterations of the kept restart
+};
+
+// k-means++ seeding then Lloyd iterations; best of `restarts` by inertia. Deterministic for
+// `seed` (own uniform draws from std::mt19937_64, no std distributions).
+KMeansResult KMeans(const RowMatrixXf& data, const KMeansOptions& opt, uint64_t seed);
+
+// Builds a codebook whose word k holds the training parts with label k.
+Codebook BuildCodebook(const TrainingParts& parts, const RowMatrixXf& words,
+                       const std::vector<int>& labels);
+
+// Options of activation, accumulation and hypothesis selection (shared parameter block).
+struct SelectionOptions {
+  int activations = 2;          // words activated per part (paper: 2)
+  float max_distance = 0.f;     // feature distance beyond which a word is not activated (0 = off)
+  bool unit_weight = false;     // NN baseline: weight 1 per vote instead of eq. 4/5
+  bool inverse_distance = false;// NN baseline: weight 1 / (1 + feature distance)
+  float cell = 0.05f;           // grid cell [m]
+  float smoothing = 0.08f;      // Gaussian sigma of the density [m] (0 = none)
+  float window_scale = 1.f;     // search window = window_scale * class width
+  float refine_radius = 0.15f;  // mean-shift radius refining a grid maximum [m] (0 = off)
+  std::string footprint = "circle";  // "circle" or "square" (axis-aligned), side = scale*width
+  float footprint_scale = 1.f;
+  std::map<std::string, float> thresholds;
+  float default_threshold = 1.f;
+  std::vector<std::string> classes;  // empty = all
+  long long max_grid_cells = 4000000;
+
+  // Declares the shared parameters (paper defaults) on `schema`.
+  static void Declare(ParamSchema& schema);
+  // Reads resolved params; throws InputError naming the bad field.
+  static SelectionOptions FromParams(const nlohmann::json& p);
+  void Check() const;
+  float ThresholdFor(const std::string& cls) const;
+};
+
+// kd-tree over the words of a codebook (nanoflann). Keeps its own copy of the words.
+// `leaf_size`: points per leaf (larger leaves pay off for thousands of points in 24-D).
+class WordIndex {
+ public:
+  explicit WordIndex(const RowMatrixXf& words, int leaf_size = 10);
+  ~WordIndex();
+  WordIndex(const WordIndex&) = delete;
+  WordIndex& operator=(const WordIndex&) = delete;
+  // Nearest `k` words of `query` (D floats): indices and squared distances, nearest first.
+  int Nearest(const float* query, int k, long* indices, float* dist_sq) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// Votes with every scene part and selects hypotheses (Sect. VI-A, VI-B).
+VoteResult VoteAndSelect(const Codebook& book, const WordIndex& index,
+                         const std::vector<SceneParts>& scenes, const SelectionOptions& opt);
+
+}  // namespace furnihost::voters

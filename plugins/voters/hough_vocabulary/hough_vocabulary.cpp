@@ -1,0 +1,74 @@
+// voters.hough_vocabulary — the paper's voter (Sect. V-B, VI-A, VI-B): a k-means vocabulary of
+// part features, a shape model per training part, probabilistic Hough voting on the floor
+// plane and hypothesis selection. See hough_common.hpp for frames, weights and the score.
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <memory>
+
+#include "furnihost/plugin.hpp"
+#include "hough_common.hpp"
+
+namespace furnihost::voters {
+
+namespace {
+constexpr const char* kFormat = "voters.hough_vocabulary/1";
+}
+
+class HoughVocabularyVoter : public Voter {
+ public:
+  static ParamSchema Schema() {
+    ParamSchema s;
+    s.Int("k", 40, 1, 100000, "vocabulary size: k-means clusters over training part features (paper: 40)")
+        .Int("max_iterations", 100, 1, 100000, "Lloyd iterations per k-means run")
+        .Int("restarts", 3, 1, 1000, "k-means runs from different k-means++ seeds; the lowest inertia wins")
+        .Int("activations", 2, 1, 1000, "words activated per scene part (paper: 2)");
+    SelectionOptions::Declare(s);
+    return s;
+  }
+
+  explicit HoughVocabularyVoter(const nlohmann::json& p) : opt_(SelectionOptions::FromParams(p)) {
+    km_.k = p.at("k").get<int>();
+    km_.max_iterations = p.at("max_iterations").get<int>();
+    km_.restarts = p.at("restarts").get<int>();
+    opt_.activations = p.at("activations").get<int>();
+    opt_.Check();
+  }
+
+  nlohmann::json Train(const std::vector<TrainingView>& views, const RunContext& ctx) override {
+    const auto t0 = std::chrono::steady_clock::now();
+    const TrainingParts parts = CollectTrainingParts(views);
+    const KMeansResult km = KMeans(parts.features, km_, ctx.seed);
+    nlohmann::json model = BuildCodebook(parts, km.centers, km.labels).ToJson(kFormat);
+    const double ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    spdlog::info("hough_vocabulary: {} words from {} parts of {} views ({} iterations, inertia {:.3f}, {:.0f} ms)",
+                 km.centers.rows(), parts.d.size(), views.size(), km.iterations, km.inertia, ms);
+    // Installing through Load keeps Train-then-Vote identical to a save/load round trip.
+    Load(model);
+    return model;
+  }
+
+  void Load(const nlohmann::json& model) override {
+    auto book = std::make_unique<Codebook>(Codebook::FromJson(model, kFormat));
+    index_ = std::make_unique<WordIndex>(book->words);
+    book_ = std::move(book);
+  }
+
+  VoteResult Vote(const std::vector<SceneParts>& scenes, const RunContext& ctx) override {
+    (void)ctx;
+    if (!book_) throw StageError("voter has no model: Train or Load it first", false);
+    return VoteAndSelect(*book_, *index_, scenes, opt_);
+  }
+
+ private:
+  KMeansOptions km_;
+  SelectionOptions opt_;
+  std::unique_ptr<Codebook> book_;
+  std::unique_ptr<WordIndex> index_;
+};
+
+}  // namespace furnihost::voters
+
+FURNIHOST_PLUGIN(furnihost::voters::HoughVocabularyVoter, "voters.hough_vocabulary", "1.0.0",
+                 "k-means vocabulary of parts + probabilistic Hough voting (Mozos et al. Sect. V-VI)")

@@ -1,0 +1,118 @@
+// furnihost::app::WriteBirdsEye: both files written atomically, classes in their colours at
+// the right places (x right, y up), scan points grey, errors on unwritable paths.
+#include <cairo.h>
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "birdseye.hpp"
+#include "test_support.hpp"
+
+namespace furnihost {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Pixel {
+  int r, g, b;
+};
+
+TEST(BirdsEye, WritesSvgAndPngWithClassColoursWhereTheObjectsAre) {
+  const std::string dir = testing::TempDir("birdseye");
+  const std::string stem = dir + "/votes";
+
+  // A wall of points along x = 0 seen by a scan shifted by +0.5 m in x (pose applied).
+  Scan scan;
+  for (int i = 0; i <= 300; ++i) scan.points.emplace_back(-0.5f, 0.01f * i, 1.f);
+  scan.pose = Eigen::Translation3f(0.5f, 0.f, 0.f) * Eigen::Isometry3f::Identity();
+
+  VoteResult votes;
+  votes.classes = {"chair", "table"};
+  VoteGrid g;
+  g.cls = "chair";
+  g.origin = Eigen::Vector2f(0.f, 0.f);
+  g.cell = 0.1f;
+  g.width = 40;
+  g.height = 30;
+  g.values.assign(static_cast<size_t>(g.width) * g.height, 0.f);
+  g.values[10 * g.width + 10] = 2.f;  // cell around (1.05, 1.05)
+  votes.grids.push_back(g);
+  Hypothesis h;
+  h.cls = "chair";
+  h.center = Eigen::Vector3f(1.f, 1.f, 0.4f);
+  h.score = 2.f;
+  votes.hypotheses.push_back(h);
+
+  Detection chair;
+  chair.cls = "chair";
+  chair.center = Eigen::Vector3f(1.f, 1.f, 0.4f);
+  chair.score = 2.f;
+  Detection table;
+  table.cls = "table";
+  table.center = Eigen::Vector3f(3.f, 2.5f, 0.4f);
+  table.score = 2.f;
+  app::WriteBirdsEye(stem, {&scan}, votes, {chair, table});
+
+  ASSERT_TRUE(fs::is_regular_file(stem + ".svg"));
+  ASSERT_TRUE(fs::is_regular_file(stem + ".png"));
+  for (const auto& e : fs::directory_iterator(dir))
+    EXPECT_EQ(e.path().string().find(".tmp."), std::string::npos) << "left over: " << e.path();
+  std::ifstream svg(stem + ".svg");
+  std::stringstream text;
+  text << svg.rdbuf();
+  EXPECT_NE(text.str().find("<svg"), std::string::npos);
+
+  cairo_surface_t* png = cairo_image_surface_create_from_png((stem + ".png").c_str());
+  ASSERT_EQ(cairo_surface_status(png), CAIRO_STATUS_SUCCESS);
+  const int w = cairo_image_surface_get_width(png), hgt = cairo_image_surface_get_height(png);
+  const int stride = cairo_image_surface_get_stride(png);
+  const unsigned char* data = cairo_image_surface_get_data(png);
+  auto at = [&](int x, int y) {
+    const uint32_t p = reinterpret_cast<const uint32_t*>(data + static_cast<size_t>(y) * stride)[x];
+    return Pixel{static_cast<int>((p >> 16) & 255), static_cast<int>((p >> 8) & 255), static_cast<int>(p & 255)};
+  };
+  // Centroids of bluish, reddish and exactly grey pixels left of the legend (the legend
+  // column is the rightmost 190 px).
+  const int plot_right = w - 200;
+  double bx = 0, by = 0, rx = 0, ry = 0, gx = 0;
+  int nb = 0, nr = 0, ng = 0;
+  for (int y = 0; y < hgt; ++y)
+    for (int x = 0; x < plot_right; ++x) {
+      const Pixel p = at(x, y);
+      if (p.b > 120 && p.b > p.r + 60 && p.b > p.g + 60) bx += x, by += y, ++nb;
+      if (p.r > 120 && p.r > p.g + 60 && p.r > p.b + 60) rx += x, ry += y, ++nr;
+      if (p.r == 190 && p.g == 190 && p.b == 190) gx += x, ++ng;
+    }
+  ASSERT_GT(nb, 20);
+  ASSERT_GT(nr, 20);
+  ASSERT_GT(ng, 100);
+  bx /= nb, by /= nb, rx /= nr, ry /= nr, gx /= ng;
+  EXPECT_LT(bx, rx);  // chair (x = 1) left of the table (x = 3)
+  EXPECT_GT(by, ry);  // chair (y = 1) below the table (y = 2.5): y axis up
+  EXPECT_LT(gx, bx);  // the wall (world x = 0) left of both
+  // Metric check: world distance chair -> table is sqrt(2^2 + 1.5^2) = 2.5 m; the wall is
+  // 3 m long in y. The pixel ratio must agree (same scale in x and y), within 5 %.
+  const double d_px = std::hypot(rx - bx, ry - by);
+  int ymin = hgt, ymax = -1;
+  for (int y = 0; y < hgt; ++y)
+    for (int x = 0; x < plot_right; ++x) {
+      const Pixel p = at(x, y);
+      if (p.r == 190 && p.g == 190 && p.b == 190) ymin = std::min(ymin, y), ymax = std::max(ymax, y);
+    }
+  EXPECT_NEAR(d_px / (ymax - ymin), 2.5 / 3.0, 0.05 * 2.5 / 3.0);
+  cairo_surface_destroy(png);
+  fs::remove_all(dir);
+}
+
+TEST(BirdsEye, EmptyInputStillDrawsAndUnwritablePathThrows) {
+  const std::string dir = testing::TempDir("birdseye_empty");
+  EXPECT_NO_THROW(app::WriteBirdsEye(dir + "/empty", {}, VoteResult{}, {}));
+  EXPECT_TRUE(fs::is_regular_file(dir + "/empty.png"));
+  fs::remove_all(dir);
+  EXPECT_THROW(app::WriteBirdsEye("/dev/null/not_a_dir/votes", {}, VoteResult{}, {}), InputError);
+}
+
+}  // namespace
+}  // namespace furnihost
