@@ -13,5 +13,7 @@ int RunPlugins(const std::vector<std::string>& args);   // furnihost plugins
 int RunValidate(const std::vector<std::string>& args);  // furnihost validate
 int RunTrain(const std::vector<std::string>& args);     // furnihost train
 int RunSimulate(const std::vector<std::string>& args);  // furnihost simulate
+int RunEval(const std::vector<std::string>& args);      // furnihost eval (A/B evaluation)
+int RunCompare(const std::vector<std::string>& args);   // furnihost compare RUN_A RUN_B
 
 }  // namespace furnihost::app

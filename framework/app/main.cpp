@@ -1,4 +1,5 @@
 // furnihost — learn furniture from CAD catalogs, find it in 3D scans.
+#include <filesystem>
 #include <iostream>
 #include <map>
 #include <string>
@@ -18,11 +19,37 @@ usage:
   furnihost simulate --catalog C.json --scene S.json --out room.pcd
                                                          synthetic room scan with ground truth
   furnihost validate --graph G.json [--print]            validate a graph config
+  furnihost eval --graph A.json [--graph B.json ...] --dataset D.json [--out DIR] [--seeds N]
+                                                         A/B evaluation: PR curves, AP, timings, report
+  furnihost compare RUN_A.json RUN_B.json                A | B | B - A table of two eval run records
   furnihost plugins  [--json]                            list the plugins found
 
 Run `furnihost <command> --help` (or `furnihost detect --help`) for the options of each.
 Exit codes: 0 success, 2 usage/config/input error, 1 internal error.
 )";
+
+// The error is one line whatever it quotes (file names, parser excerpts of binary files):
+// control characters become spaces and bytes that are not UTF-8 become '?'.
+std::string OneLine(const std::string& s) {
+  std::string out;
+  for (size_t i = 0; i < s.size();) {
+    const auto c = static_cast<unsigned char>(s[i]);
+    const int len = c < 0x80 ? 1 : (c >> 5) == 0x6 ? 2 : (c >> 4) == 0xE ? 3 : (c >> 3) == 0x1E ? 4 : 0;
+    bool ok = len > 0 && i + len <= s.size();
+    for (int k = 1; ok && k < len; ++k) ok = (static_cast<unsigned char>(s[i + k]) & 0xC0) == 0x80;
+    if (!ok) {
+      out += '?';
+      ++i;
+    } else if (len == 1) {
+      out += (c < 0x20 || c == 0x7F) ? ' ' : static_cast<char>(c);
+      ++i;
+    } else {
+      out.append(s, i, len);
+      i += len;
+    }
+  }
+  return out;
+}
 
 }  // namespace
 
@@ -32,7 +59,8 @@ int main(int argc, char** argv) {
   std::vector<std::string> args(argv + 1, argv + argc);
   const std::map<std::string, int (*)(const std::vector<std::string>&)> commands = {
       {"detect", app::RunDetect},     {"train", app::RunTrain},       {"simulate", app::RunSimulate},
-      {"validate", app::RunValidate}, {"plugins", app::RunPlugins}};
+      {"validate", app::RunValidate}, {"plugins", app::RunPlugins},   {"eval", app::RunEval},
+      {"compare", app::RunCompare}};
   try {
     if (args.empty() || args[0] == "-h" || args[0] == "--help" || args[0] == "help") {
       std::cout << kUsage;
@@ -46,21 +74,25 @@ int main(int argc, char** argv) {
     if (it != commands.end()) return it->second(std::vector<std::string>(args.begin() + 1, args.end()));
     if (args[0].rfind("-", 0) != 0 && args[0].find('.') == std::string::npos && args[0].find('/') == std::string::npos) {
       std::cerr << "furnihost: error: unknown command '" << args[0]
-                << "' (commands: detect, train, simulate, validate, plugins; see --help)\n";
+                << "' (commands: detect, train, simulate, validate, eval, compare, plugins; see --help)\n";
       return 2;
     }
     return app::RunDetect(args);
   } catch (const InputError& e) {
-    std::cerr << "furnihost: error: " << e.what() << "\n";
+    std::cerr << "furnihost: error: " << OneLine(e.what()) << "\n";
     return 2;
   } catch (const StageError& e) {
-    std::cerr << "furnihost: error: " << e.what() << "\n";
+    std::cerr << "furnihost: error: " << OneLine(e.what()) << "\n";
     return e.IsInputError() ? 2 : 1;
+  } catch (const std::filesystem::filesystem_error& e) {
+    // Output folders that are files, permissions, a full disk: the user's environment.
+    std::cerr << "furnihost: error: " << OneLine(e.what()) << "\n";
+    return 2;
   } catch (const std::bad_alloc&) {
     std::cerr << "furnihost: internal error: out of memory\n";
     return 1;
   } catch (const std::exception& e) {
-    std::cerr << "furnihost: internal error: " << e.what() << "\n";
+    std::cerr << "furnihost: internal error: " << OneLine(e.what()) << "\n";
     return 1;
   }
 }

@@ -1,0 +1,535 @@
+// `furnihost eval` (A/B evaluation of graph configs on a dataset manifest) and
+// `furnihost compare` (the same table from two run records written by eval).
+//
+// Seeds: the trained model is the graph's (its cache is keyed by the graph's "seed"), so
+// --seeds N varies the detection-time seed only (RunContext::seed = seed0 .. seed0 + N - 1,
+// seed0 = --seed or the graph's seed): the spread shows the randomised detection stages
+// (e.g. RANSAC fitting), not the variation of training.
+//
+// Parallelism: Pipeline::Detect is not thread-safe, so each worker thread owns a Pipeline
+// (stages created once per worker). The first scene of a run is processed alone to measure
+// its memory; --jobs 0 then runs as many workers as cores allow and half the available
+// memory holds. Stage timings of parallel scenes include contention: compare timings of runs
+// with the same --jobs (use --jobs 1 for clean per-stage times).
+#include <sys/resource.h>
+#include <sys/utsname.h>
+
+#include <atomic>
+#include <cctype>
+#include <cstdio>
+#include <ctime>
+#include <exception>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <mutex>
+#include <thread>
+
+#include "cli_common.hpp"
+#include "commands.hpp"
+#include "furnihost/catalog.hpp"
+#include "furnihost/evaluation.hpp"
+#include "furnihost/io.hpp"
+#include "furnihost/log.hpp"
+#include "furnihost/pipeline.hpp"
+#include "plots.hpp"
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace furnihost::app {
+
+namespace {
+
+// ---- process facts -------------------------------------------------------------------------
+
+// A "Vm..." line of /proc/self/status in MB, NaN when unavailable.
+double ProcStatusMb(const std::string& key) {
+  std::ifstream in("/proc/self/status");
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind(key + ":", 0) == 0) return std::strtod(line.c_str() + key.size() + 1, nullptr) / 1024.0;
+  return NAN;
+}
+
+double MemAvailableMb() {
+  std::ifstream in("/proc/meminfo");
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind("MemAvailable:", 0) == 0) return std::strtod(line.c_str() + 13, nullptr) / 1024.0;
+  return NAN;
+}
+
+// Resets the kernel's peak-RSS mark (VmHWM) to the current RSS so each run gets its own peak.
+// Returns false where /proc/self/clear_refs is not writable; then only the process-wide
+// ru_maxrss is available.
+bool ResetPeakRss() {
+  std::ofstream out("/proc/self/clear_refs");
+  if (!out) return false;
+  out << "5";
+  out.flush();
+  return static_cast<bool>(out);
+}
+
+double PeakRssMb(bool reset_ok) {
+  const double hwm = ProcStatusMb("VmHWM");
+  if (reset_ok && std::isfinite(hwm)) return hwm;
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return static_cast<double>(u.ru_maxrss) / 1024.0;  // Linux: kilobytes
+}
+
+std::string Shell(const std::string& cmd) {
+  std::string out;
+  if (FILE* p = ::popen(cmd.c_str(), "r")) {
+    char buf[256];
+    while (std::fgets(buf, sizeof(buf), p)) out += buf;
+    if (::pclose(p) != 0) return "";
+  }
+  while (!out.empty() && std::isspace(static_cast<unsigned char>(out.back()))) out.pop_back();
+  return out;
+}
+
+std::string Quote(const std::string& s) {
+  std::string q = "'";
+  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+// Git revision of the source checkout: $FURNIHOST_SOURCE_DIR, else the folder of the first
+// graph (configs/ lives in the checkout).
+json GitInfo(const std::string& near) {
+  std::vector<std::string> dirs;
+  if (const char* s = std::getenv("FURNIHOST_SOURCE_DIR")) dirs.push_back(s);
+  dirs.push_back(fs::absolute(fs::path(near)).parent_path().string());
+  for (const auto& d : dirs) {
+    const std::string rev = Shell("git -C " + Quote(d) + " rev-parse HEAD 2>/dev/null");
+    if (rev.size() != 40) continue;
+    const std::string dirty = Shell("git -C " + Quote(d) + " status --porcelain --untracked-files=no 2>/dev/null");
+    return {{"revision", rev}, {"dirty", !dirty.empty()}, {"dir", d}};
+  }
+  return {{"revision", "unknown"}, {"dirty", nullptr}};
+}
+
+json MachineInfo() {
+  json m;
+  utsname u{};
+  if (::uname(&u) == 0)
+    m["uname"] = std::string(u.sysname) + " " + u.release + " " + u.version + " " + u.machine;
+  m["nproc"] = std::thread::hardware_concurrency();
+  std::ifstream cpu("/proc/cpuinfo");
+  std::string line;
+  while (std::getline(cpu, line))
+    if (line.rfind("model name", 0) == 0) {
+      m["cpu"] = line.substr(line.find(':') + 2);
+      break;
+    }
+  std::ifstream mem("/proc/meminfo");
+  while (std::getline(mem, line))
+    if (line.rfind("MemTotal:", 0) == 0) {
+      m["memory_mb"] = std::strtod(line.c_str() + 9, nullptr) / 1024.0;
+      break;
+    }
+  return m;
+}
+
+std::string UtcNow() {
+  std::time_t t = std::time(nullptr);
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof(buf), "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buf;
+}
+
+std::string FileSafe(const std::string& s) {
+  std::string o;
+  for (char c : s) o += (std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.') ? c : '_';
+  return o.empty() ? "_" : o;
+}
+
+// ---- one config ----------------------------------------------------------------------------
+
+struct Loaded {
+  std::string name;
+  GraphConfig graph;
+  std::optional<Catalog> catalog;
+  std::optional<TrainedModel> model;
+};
+
+struct RunInput {
+  const Dataset* dataset;
+  const std::vector<std::vector<GroundTruthObject>>* truth;
+  WidthConvention width;
+  int jobs;  // 0 = auto
+};
+
+RunFigures RunOne(Loaded& cfg, const Registry& reg, const RunContext& ctx, const RunInput& in) {
+  const auto& scenes = in.dataset->scenes;
+  const size_t n = scenes.size();
+  const bool reset_ok = ResetPeakRss();
+  std::vector<Pipeline::Result> results(n);
+  std::vector<SceneRecord> records(n);
+  std::vector<std::unique_ptr<Pipeline>> pipelines;
+  pipelines.push_back(std::make_unique<Pipeline>(cfg.graph, reg));
+  Progress progress("eval " + cfg.name + " seed " + std::to_string(ctx.seed), n);
+  const TrainedModel* model = cfg.model ? &*cfg.model : nullptr;
+  const Catalog* catalog = cfg.catalog ? &*cfg.catalog : nullptr;
+
+  auto run_scene = [&](Pipeline& p, size_t i) {
+    Pipeline::SceneInput si;
+    si.path = scenes[i].scan;
+    si.origin = scenes[i].origin;
+    Stopwatch sw;
+    Pipeline::Result r;
+    // Name the scene: the stage's message alone does not say which of many scans failed.
+    try {
+      r = p.Detect({si}, model, catalog, ctx);
+    } catch (const InputError& e) {
+      throw InputError(scenes[i].scan + ": " + e.what());
+    } catch (const StageError& e) {
+      throw StageError(scenes[i].scan + ": " + e.what(), e.IsInputError());
+    }
+    records[i].scan = scenes[i].scan;
+    records[i].total_ms = sw.Ms();
+    records[i].detections = static_cast<int>(r.detections.size());
+    records[i].timings_ms = r.timings_ms;
+    // Keep only what the evaluation needs: scans and features of every scene would add up.
+    Pipeline::Result keep;
+    keep.detections = std::move(r.detections);
+    keep.fitted = r.fitted;
+    keep.voted = r.voted;
+    results[i] = std::move(keep);
+    progress.Tick();
+  };
+
+  Stopwatch wall;
+  const double rss0 = ProcStatusMb("VmRSS");
+  run_scene(*pipelines[0], 0);
+  int jobs = in.jobs;
+  if (jobs <= 0) {
+    const int cores = ctx.threads > 0 ? ctx.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+    // Memory one more worker costs: the growth of the peak while the first scene ran
+    // (includes this worker's pipeline and model load, so it over- rather than underestimates).
+    const double per_scene = std::max(1.0, ProcStatusMb("VmHWM") - rss0);
+    const double avail = MemAvailableMb();
+    const int by_memory = std::isfinite(avail) && reset_ok ? static_cast<int>(0.5 * avail / per_scene) : cores;
+    jobs = std::max(1, std::min(cores, by_memory));
+    spdlog::debug("eval: {} workers ({} cores, ~{:.0f} MB per scene, {:.0f} MB available)", jobs, cores, per_scene, avail);
+  }
+  jobs = static_cast<int>(std::min<size_t>(static_cast<size_t>(jobs), std::max<size_t>(n - 1, 1)));
+  if (n > 1) {
+    for (int w = 1; w < jobs; ++w) pipelines.push_back(std::make_unique<Pipeline>(cfg.graph, reg));
+    std::atomic<size_t> next{1};
+    std::atomic<bool> stop{false};
+    std::exception_ptr error;
+    std::mutex error_mu;
+    auto worker = [&](Pipeline* p) {
+      while (!stop) {
+        const size_t i = next++;
+        if (i >= n) break;
+        try {
+          run_scene(*p, i);
+        } catch (...) {
+          std::lock_guard<std::mutex> lock(error_mu);
+          if (!error) error = std::current_exception();
+          stop = true;
+        }
+      }
+    };
+    std::vector<std::thread> threads;
+    for (int w = 1; w < jobs; ++w) threads.emplace_back(worker, pipelines[w].get());
+    worker(pipelines[0].get());
+    for (auto& t : threads) t.join();
+    if (error) std::rethrow_exception(error);
+  }
+  progress.Done();
+
+  RunFigures f;
+  f.seed = ctx.seed;
+  f.wall_ms = wall.Ms();
+  f.jobs = jobs;
+  std::vector<SceneEval> evals(n);
+  for (size_t i = 0; i < n; ++i) {
+    evals[i].detections = std::move(results[i].detections);
+    evals[i].truth = (*in.truth)[i];
+    evals[i].fitted = results[i].fitted;
+    for (const auto& [tag, ms] : records[i].timings_ms) {
+      auto it = std::find_if(f.stage_ms.begin(), f.stage_ms.end(), [&](const auto& t) { return t.first == tag; });
+      if (it == f.stage_ms.end()) f.stage_ms.emplace_back(tag, ms);
+      else it->second += ms;
+    }
+  }
+  f.scenes = std::move(records);
+  f.metrics = Evaluate(evals, in.dataset->classes, in.width);
+  f.peak_rss_mb = PeakRssMb(reset_ok);
+  return f;
+}
+
+std::vector<std::string> Names(const std::vector<std::string>& graphs, const std::vector<std::string>& given) {
+  if (!given.empty() && given.size() != graphs.size())
+    throw InputError("--name: given " + std::to_string(given.size()) + " times for " + std::to_string(graphs.size()) + " graphs");
+  std::vector<std::string> names;
+  for (size_t i = 0; i < graphs.size(); ++i) {
+    std::string base = given.empty() ? fs::path(graphs[i]).stem().string() : given[i];
+    std::string name = base;
+    for (int k = 2; std::find(names.begin(), names.end(), name) != names.end(); ++k) name = base + "_" + std::to_string(k);
+    names.push_back(name);
+  }
+  return names;
+}
+
+std::vector<std::string> IgnoredNotes(const std::vector<ConfigSummary>& configs) {
+  std::map<std::string, int> gt, det;
+  for (const auto& c : configs) {
+    if (c.runs.empty()) continue;
+    for (const auto& [k, v] : c.runs[0].metrics.ignored_gt) gt[k] = v;  // the same in every run
+    for (const auto& r : c.runs)
+      for (const auto& [k, v] : r.metrics.ignored_detections) det[k] += v;
+  }
+  std::vector<std::string> notes;
+  auto list = [](const std::map<std::string, int>& m) {
+    std::string s;
+    for (const auto& [k, v] : m) s += (s.empty() ? "" : ", ") + k + " " + std::to_string(v);
+    return s;
+  };
+  if (!gt.empty()) notes.push_back("ground truth not evaluated (class not in the dataset's classes or mapped to null): " + list(gt));
+  if (!det.empty()) notes.push_back("detections not evaluated (class not in the dataset's classes), all configs and seeds: " + list(det));
+  return notes;
+}
+
+// One PR plot per class: a curve per config and seed (extra seeds lighter).
+std::vector<std::string> WritePlots(const std::string& dir, const std::vector<ConfigSummary>& configs,
+                                    const std::vector<std::string>& classes) {
+  std::vector<std::string> files;
+  for (const auto& cls : classes) {
+    std::vector<PlotSeries> series;
+    for (size_t c = 0; c < configs.size(); ++c) {
+      std::vector<double> aps;
+      for (const auto& r : configs[c].runs)
+        for (const auto& cm : r.metrics.classes)
+          if (cm.cls == cls) aps.push_back(cm.ap);
+      const MeanStd ap = MeanAndStd(aps);
+      for (size_t k = 0; k < configs[c].runs.size(); ++k) {
+        PlotSeries s;
+        s.color = static_cast<int>(c);
+        s.alpha = k == 0 ? 1.0 : 0.35;
+        if (k == 0) {
+          char buf[64];
+          std::snprintf(buf, sizeof(buf), " (AP %.3f)", ap.mean);
+          s.label = std::string(1, static_cast<char>('A' + c % 26)) + ": " + configs[c].name + (ap.n ? buf : " (AP n/a)");
+        }
+        for (const auto& cm : configs[c].runs[k].metrics.classes)
+          if (cm.cls == cls)
+            for (const auto& p : cm.curve) s.points.push_back({1.0 - p.precision, p.recall});
+        series.push_back(std::move(s));
+      }
+    }
+    const std::string stem = "pr_" + FileSafe(cls);
+    WritePrPlot((fs::path(dir) / stem).string(), cls + ": recall vs 1 - precision", series);
+    files.push_back(stem + ".png");
+  }
+  return files;
+}
+
+}  // namespace
+
+int RunEval(const std::vector<std::string>& args) {
+  CLI::App app{"A/B evaluation: run graph configs over a dataset manifest, match detections with ground truth\n"
+               "(paper Sect. VII-A), write summary.json, report.md, pr_<class>.svg/.png and run_<name>.json.\n"
+               "usage: furnihost eval --graph A.json [--graph B.json ...] --dataset D.json [--out DIR] [--seeds N]",
+               "eval"};
+  CommonOptions common;
+  std::vector<std::string> graphs, names;
+  std::string dataset_path, out = "furnihost-out/eval", width_text = "max";
+  int seeds = 1, jobs = 0;
+  bool retrain = false, strict = false;
+  common.Add(app);
+  app.add_option("--graph,-g", graphs, "graph config (repeat: the first is the baseline A)")->required();
+  app.add_option("--name", names, "label per graph, in --graph order (default: the file stem)");
+  app.add_option("--dataset,-d", dataset_path, "dataset manifest (JSON: scenes, class_map, classes)")->required();
+  app.add_option("--out,-o", out, "output folder (default furnihost-out/eval)");
+  app.add_option("--seeds", seeds, "detection seeds per config: seed0 .. seed0+N-1 (seed0 = --seed or the graph's); "
+                                   "the trained model is not retrained per seed")
+      ->check(CLI::Range(1, 1000));
+  app.add_option("--width", width_text, "ground-truth width for the match radius: max or min of the box's x/y size (default max)")
+      ->check(CLI::IsMember({"max", "min"}));
+  app.add_option("--jobs,-j", jobs, "scenes processed in parallel (0 = as cores and memory allow)")->check(CLI::Range(0, 1024));
+  app.add_flag("--retrain", retrain, "retrain each graph's model even if its cache is valid");
+  app.add_flag("--strict", strict, "invalid catalog entries are fatal instead of skipped");
+  if (auto rc = Parse(app, args)) return *rc;
+  common.Apply();
+  const WidthConvention width = *ParseWidthConvention(width_text);
+  auto reg = common.MakeRegistry();
+
+  // Everything that can be wrong with the inputs fails here, before any detection runs.
+  const Dataset dataset = LoadDataset(dataset_path);
+  std::vector<std::vector<GroundTruthObject>> truth;
+  for (const auto& s : dataset.scenes) truth.push_back(ReadGroundTruth(s.gt));
+  const std::string hash = HashDataset(dataset);
+  const std::vector<std::string> config_names = Names(graphs, names);
+  std::vector<Loaded> configs;
+  for (size_t i = 0; i < graphs.size(); ++i) configs.push_back({config_names[i], LoadGraph(graphs[i], *reg), {}, {}});
+  spdlog::info("eval: {} configs x {} seeds on {} ({} scenes, {})", configs.size(), seeds, dataset_path,
+               dataset.scenes.size(), hash);
+
+  const json git = GitInfo(graphs.front());
+  const json machine = MachineInfo();
+  const json dataset_json = {{"path", dataset_path},
+                             {"hash", hash},
+                             {"scenes", dataset.scenes.size()},
+                             {"classes", dataset.classes.classes},
+                             {"class_map", [&] {
+                                json m = json::object();
+                                for (const auto& [k, v] : dataset.classes.map) m[k] = v ? json(*v) : json(nullptr);
+                                return m;
+                              }()}};
+  const RunInput run_in{&dataset, &truth, width, jobs};
+  std::vector<ConfigSummary> summaries;
+  for (auto& cfg : configs) {
+    ConfigSummary summary;
+    summary.name = cfg.name;
+    summary.graph = cfg.graph.path;
+    const RunContext train_ctx = common.Context(cfg.graph.seed);
+    Stopwatch model_clock;
+    std::string model_source = "none";
+    {
+      Pipeline p(cfg.graph, *reg);
+      if (p.HasDetectionChain()) {
+        cfg.catalog = LoadCatalog(cfg.graph.catalog, strict);
+        const std::string cache = cfg.graph.model_cache;
+        std::optional<fs::file_time_type> before;
+        if (!cache.empty() && fs::exists(cache)) before = fs::last_write_time(cache);
+        RunContext c = train_ctx;
+        c.seed = cfg.graph.seed;  // the model is the graph's, whatever --seed says
+        cfg.model = EnsureModel(p, *cfg.catalog, c, retrain);
+        model_source = before && fs::exists(cache) && fs::last_write_time(cache) == *before ? "cache" : "trained";
+      } else {
+        std::string m;
+        for (const auto& s : p.MissingStages()) m += (m.empty() ? "" : ", ") + s;
+        spdlog::warn("{}: the graph has no {} stage: it makes no detections (recall 0)", cfg.graph.path, m);
+      }
+    }
+    const double model_ms = model_clock.Ms();
+    const uint64_t seed0 = train_ctx.seed;
+    for (int k = 0; k < seeds; ++k) {
+      RunContext ctx = train_ctx;
+      ctx.seed = seed0 + static_cast<uint64_t>(k);
+      RunFigures f = RunOne(cfg, *reg, ctx, run_in);
+      f.model_ms = model_ms;  // paid once per config; the same in every seed's figures
+      f.model_source = model_source;
+      spdlog::info("eval {} seed {}: mAP {:.3f}, {} detections, {:.1f} s, peak {:.0f} MB", cfg.name, ctx.seed,
+                   f.metrics.map, f.metrics.hypotheses.tp + f.metrics.hypotheses.fp, f.wall_ms / 1000, f.peak_rss_mb);
+      summary.runs.push_back(std::move(f));
+    }
+    // The run record: enough to reproduce this config's figures and compare with a later run.
+    json plugins = json::array();
+    for (const auto& s : cfg.graph.stages) {
+      const PluginEntry* e = reg->Find(s.type);
+      plugins.push_back({{"tag", s.tag}, {"type", s.type}, {"version", e ? e->version : "unknown"}});
+    }
+    json seeds_json = json::array();
+    for (const auto& r : summary.runs) seeds_json.push_back(r.seed);
+    const json record = {{"format", "furnihost-run-record"},
+                         {"format_version", 1},
+                         {"furnihost_version", FURNIHOST_APP_VERSION},
+                         {"created_utc", UtcNow()},
+                         {"name", cfg.name},
+                         {"graph", cfg.graph.path},
+                         {"config", cfg.graph.resolved},
+                         {"plugins", plugins},
+                         {"git", git},
+                         {"seed", summary.runs.front().seed},
+                         {"seeds", seeds_json},
+                         {"model_seed", cfg.graph.seed},
+                         {"width_convention", ToString(width)},
+                         {"dataset", dataset_json},
+                         {"machine", machine},
+                         {"figures", ToJson(summary)}};
+    WriteJson((fs::path(out) / ("run_" + FileSafe(cfg.name) + ".json")).string(), record);
+    summaries.push_back(std::move(summary));
+    cfg.model.reset();  // free the model before the next config
+    cfg.catalog.reset();
+  }
+
+  const std::vector<std::string> plots = WritePlots(out, summaries, dataset.classes.classes);
+  ReportInfo info;
+  info.dataset = dataset_path;
+  info.dataset_hash = hash;
+  info.scenes = static_cast<int>(dataset.scenes.size());
+  info.width = width;
+  info.plots = plots;
+  info.notes = IgnoredNotes(summaries);
+  info.notes.push_back("git " + git["revision"].get<std::string>() + (git["dirty"] == true ? " (uncommitted changes)" : "") +
+                       "; machine: " + machine.value("cpu", std::string("?")) + ", " +
+                       std::to_string(machine["nproc"].get<unsigned>()) + " threads");
+  const std::string report = RenderReport(summaries, info);
+  json configs_json = json::array();
+  for (const auto& s : summaries) {
+    json c = ToJson(s);
+    c["run_record"] = "run_" + FileSafe(s.name) + ".json";
+    configs_json.push_back(c);
+  }
+  WriteJson((fs::path(out) / "summary.json").string(),
+            {{"dataset", dataset_json},
+             {"width_convention", ToString(width)},
+             {"matching", "TP: mapped classes equal and floor-plane (x, y) centre distance < " + std::string(ToString(width)) +
+                              "(gt size x, y) / 2; greedy by descending score, each gt object matched at most once"},
+             {"average_precision", "all-point interpolated (VOC 2010+)"},
+             {"git", git},
+             {"machine", machine},
+             {"configs", configs_json}});
+  AtomicWriteText((fs::path(out) / "report.md").string(), report);
+  std::cout << report;
+  std::cout << "-> " << (fs::path(out) / "report.md").string() << ", summary.json, pr_<class>.svg/.png, run_<name>.json\n";
+  return 0;
+}
+
+int RunCompare(const std::vector<std::string>& args) {
+  CLI::App app{"Compare two run records written by `furnihost eval` (run_<name>.json): prints A | B | B - A.\n"
+               "usage: furnihost compare RUN_A.json RUN_B.json [--out report.md]",
+               "compare"};
+  std::string a, b, out;
+  app.add_option("run_a", a, "baseline run record (A)")->required();
+  app.add_option("run_b", b, "run record to compare (B)")->required();
+  app.add_option("--out,-o", out, "also write the Markdown to this file");
+  if (auto rc = Parse(app, args)) return *rc;
+  std::vector<ConfigSummary> configs;
+  std::vector<json> records;
+  for (const auto& path : {a, b}) {
+    json r = ReadJson(path);
+    if (!r.is_object() || r.value("format", "") != "furnihost-run-record")
+      throw InputError(path + ": not a furnihost run record (written by `furnihost eval` as run_<name>.json)");
+    if (!r.contains("figures")) throw InputError(path + ":/figures: missing");
+    configs.push_back(ConfigSummaryFromJson(r["figures"], path + ":/figures"));
+    records.push_back(std::move(r));
+  }
+  if (configs[0].name == configs[1].name) configs[1].name += " (B)";
+  ReportInfo info;
+  info.title = "furnihost compare";
+  const json& da = records[0]["dataset"];
+  const json& db = records[1]["dataset"];
+  info.dataset = da.value("path", "?");
+  info.dataset_hash = da.value("hash", "?");
+  info.scenes = da.value("scenes", 0);
+  info.width = ParseWidthConvention(records[0].value("width_convention", "max")).value_or(WidthConvention::Max);
+  if (da.value("hash", "") != db.value("hash", ""))
+    info.notes.push_back("WARNING: the runs used different datasets (B: `" + db.value("path", "?") + "`, hash `" +
+                         db.value("hash", "?") + "`): the figures are not comparable");
+  if (records[0].value("width_convention", "") != records[1].value("width_convention", ""))
+    info.notes.push_back("WARNING: the runs used different width conventions (B: " +
+                         records[1].value("width_convention", "?") + ")");
+  for (size_t i = 0; i < 2; ++i) {
+    const json& g = records[i]["git"];
+    info.notes.push_back(std::string(i == 0 ? "A" : "B") + ": git " +
+                         (g.is_object() ? g.value("revision", "unknown") : "unknown") + ", created " +
+                         records[i].value("created_utc", "?") + ", machine " +
+                         records[i]["machine"].value("cpu", std::string("?")));
+  }
+  const std::string report = RenderReport(configs, info);
+  std::cout << report;
+  if (!out.empty()) AtomicWriteText(out, report);
+  return 0;
+}
+
+}  // namespace furnihost::app

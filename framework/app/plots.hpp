@@ -1,0 +1,22 @@
+// Precision-recall plots for `furnihost eval` (cairo): recall (y) against 1 - precision (x),
+// the axes of the paper's Fig. 5/6, both fixed to [0, 1] so plots of different runs compare.
+#pragma once
+#include <array>
+#include <string>
+#include <vector>
+
+namespace furnihost::app {
+
+struct PlotSeries {
+  std::string label;                         // legend text ("" = no legend entry)
+  std::vector<std::array<double, 2>> points; // (1 - precision, recall), in threshold order
+  int color = 0;                             // palette index (one per config)
+  double alpha = 1.0;                        // < 1 for the extra seeds of a config
+};
+
+// Writes `<stem>.svg` and `<stem>.png` (640 x 480 plus one 20 px legend row per labelled
+// series below the plot), each atomically. InputError when a file
+// cannot be written.
+void WritePrPlot(const std::string& stem, const std::string& title, const std::vector<PlotSeries>& series);
+
+}  // namespace furnihost::app

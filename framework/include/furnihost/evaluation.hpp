@@ -1,0 +1,209 @@
+// Evaluation of detections against ground truth (paper Sect. VII-A) and the figures of an
+// A/B run: dataset manifests, the matcher, precision-recall curves, average precision,
+// operating points, error statistics, and the Markdown comparison report.
+//
+// Frames and units: world frame of the scan files (metres, z up, floor at z = 0). Matching
+// and centre errors are measured on the floor plane (x, y) only: a voter's hypothesis height
+// is the mean height of its votes, not the object's box centre.
+//
+// Dataset manifest (D.json), paths relative to the manifest:
+//   {"description"?: "...",
+//    "scenes": [{"scan": "a.ply", "gt": "a.gt.json", "origin"?: [x, y, z]}, ...],
+//    "class_map"?: {"desk": "table", "sofa": null},   // null = not evaluated
+//    "classes": ["chair", "table", "cabinet"]}
+// The class map is applied to ground truth AND detections; a class that is neither in
+// `classes` nor mapped into it is not evaluated (its ground truth is ignored and its
+// detections are counted as ignored, not as false positives).
+#pragma once
+#include <cmath>
+#include <cstdint>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "furnihost/types.hpp"
+
+namespace furnihost {
+
+// ---- dataset -----------------------------------------------------------------------------
+struct DatasetScene {
+  std::string scan;  // absolute path
+  std::string gt;    // absolute path of the *.gt.json
+  std::optional<Eigen::Vector3f> origin;  // sensor origin for scans without one [m]
+};
+
+struct ClassMap {
+  std::map<std::string, std::optional<std::string>> map;  // name -> evaluated class, nullopt = drop
+  std::vector<std::string> classes;                        // evaluated classes, in report order
+  // The evaluated class of a ground-truth or detected class name, nullopt when not evaluated.
+  FURNIHOST_API std::optional<std::string> Map(const std::string& cls) const;
+};
+
+struct Dataset {
+  std::string path;  // the manifest
+  std::string description;
+  std::vector<DatasetScene> scenes;
+  ClassMap classes;
+};
+
+// Throws InputError "<manifest>:/json/pointer: <what is wrong>" on a bad manifest, including
+// scan or gt files that are missing. Unknown keys are errors (a typo must not pass silently).
+FURNIHOST_API Dataset LoadDataset(const std::string& path);
+
+// 64-bit FNV-1a, continuing from `h` (start with kFnvOffset).
+constexpr uint64_t kFnvOffset = 14695981039346656037ull;
+FURNIHOST_API uint64_t Fnv1a(const void* data, size_t size, uint64_t h = kFnvOffset);
+// "fnv1a64:<16 hex digits>" over the bytes of the manifest, then each scene's scan and gt
+// file in manifest order. InputError when a file cannot be read.
+FURNIHOST_API std::string HashDataset(const Dataset& dataset);
+
+// ---- matching ----------------------------------------------------------------------------
+// Which horizontal extent of a ground-truth box is "the width of the object" (the paper does
+// not say): Max = max(size x, size y), Min = min(size x, size y). The match radius is half of it.
+enum class WidthConvention { Max, Min };
+FURNIHOST_API const char* ToString(WidthConvention w);  // "max" / "min"
+FURNIHOST_API std::optional<WidthConvention> ParseWidthConvention(const std::string& s);
+FURNIHOST_API float MatchRadius(const GroundTruthObject& gt, WidthConvention w);  // [m]
+
+// Result of matching the detections of one scene with its ground truth.
+struct SceneMatch {
+  static constexpr int kIgnored = -2;    // class not evaluated
+  static constexpr int kUnmatched = -1;
+  std::vector<int> det_to_gt;            // per detection: gt index, kUnmatched or kIgnored
+  std::vector<int> gt_to_det;            // per gt object: detection index, kUnmatched or kIgnored
+  std::vector<std::string> det_class;    // evaluated class per detection ("" when ignored)
+  std::vector<std::string> gt_class;     // evaluated class per gt object ("" when ignored)
+};
+
+// Paper Sect. VII-A: a detection is a true positive when its (mapped) class equals the gt
+// object's (mapped) class and its centre lies strictly within MatchRadius of the gt centre on
+// the floor plane. Detections are taken greedily by descending score (ties: lower index
+// first); each takes the nearest still unmatched eligible gt object, so each gt object
+// matches at most one detection and a second detection on it is a false positive. Because
+// the order is by score, the matching at any score threshold is the prefix of this one,
+// which is what makes the threshold sweep of the PR curve consistent.
+FURNIHOST_API SceneMatch MatchScene(const std::vector<Detection>& detections,
+                                    const std::vector<GroundTruthObject>& truth,
+                                    const ClassMap& classes, WidthConvention width);
+
+// ---- metrics -----------------------------------------------------------------------------
+struct PrPoint {
+  float score = 0.f;  // threshold: detections with score >= this are kept
+  int tp = 0, fp = 0;
+  double precision = 0, recall = 0;
+};
+
+// All-point interpolated average precision (PASCAL VOC 2010+): the precision envelope
+// p_i(r) = max precision at any recall >= r, integrated over recall:
+// AP = sum_k (r_k - r_{k-1}) * p_i(r_k), r_0 = 0. `recall` non-decreasing, same length as
+// `precision`. Returns 0 for an empty curve.
+FURNIHOST_API double AveragePrecision(const std::vector<double>& recall, const std::vector<double>& precision);
+
+struct ErrorStats {
+  int n = 0;
+  double median = NAN, p90 = NAN;  // linear interpolation between order statistics; NaN when n = 0
+};
+FURNIHOST_API ErrorStats Summarise(std::vector<double> values);
+
+// Counts at one operating point plus the errors of its true positives.
+struct OperatingPoint {
+  int tp = 0, fp = 0, fn = 0;
+  double precision = NAN, recall = NAN;  // NaN when undefined (no detections / no gt)
+  ErrorStats centre_error_m;             // floor-plane distance of TPs to the gt centre
+  ErrorStats yaw_error_deg;              // |yaw - gt yaw| in [0, 180] of fitted TPs with gt yaw
+};
+
+struct ClassMetrics {
+  std::string cls;
+  int gt = 0;          // evaluated gt objects
+  int detections = 0;  // evaluated detections (all scores)
+  std::vector<PrPoint> curve;  // one point per distinct score, descending score
+  double ap = NAN;             // NaN when the class has no gt object
+  // "hypotheses": everything the pipeline output (the voter already applied its threshold).
+  OperatingPoint hypotheses;
+  // "verified": only detections with verified != false, matched again on their own; present
+  // when a fitter ran.
+  std::optional<OperatingPoint> verified;
+};
+
+struct EvalMetrics {
+  std::vector<ClassMetrics> classes;  // in ClassMap::classes order
+  double map = NAN;                   // mean AP over classes with gt objects
+  OperatingPoint hypotheses, verified;  // micro totals over the classes (verified: fitted only)
+  bool fitted = false;
+  std::map<std::string, int> ignored_gt, ignored_detections;  // original class -> count
+};
+
+struct SceneEval {
+  std::vector<Detection> detections;
+  std::vector<GroundTruthObject> truth;
+  bool fitted = false;  // a fitter ran (Detection::verified is meaningful)
+};
+
+FURNIHOST_API EvalMetrics Evaluate(const std::vector<SceneEval>& scenes, const ClassMap& classes,
+                                   WidthConvention width);
+
+// ---- run figures and reports -----------------------------------------------------------
+struct SceneRecord {
+  std::string scan;
+  double total_ms = 0;
+  int detections = 0;
+  std::vector<std::pair<std::string, double>> timings_ms;  // stage tag -> ms
+};
+
+// One config run once (one seed) over the dataset.
+struct RunFigures {
+  uint64_t seed = 0;
+  EvalMetrics metrics;
+  std::vector<SceneRecord> scenes;
+  std::vector<std::pair<std::string, double>> stage_ms;  // stage tag -> ms summed over scenes
+  double wall_ms = 0;      // detection of all scenes, wall clock
+  double model_ms = 0;     // EnsureModel (load or train)
+  std::string model_source;  // "cache", "trained" or "none"
+  double peak_rss_mb = NAN;  // peak resident memory while this run was going
+  int jobs = 1;              // scenes processed in parallel
+};
+
+struct ConfigSummary {
+  std::string name;   // short label, e.g. the graph's file stem
+  std::string graph;  // graph file
+  std::vector<RunFigures> runs;  // one per seed
+};
+
+FURNIHOST_API nlohmann::json ToJson(const EvalMetrics& m);
+FURNIHOST_API nlohmann::json ToJson(const RunFigures& r);
+FURNIHOST_API nlohmann::json ToJson(const ConfigSummary& s);
+// Inverses (for `furnihost compare`); InputError "<where>: ..." on a malformed value.
+FURNIHOST_API EvalMetrics EvalMetricsFromJson(const nlohmann::json& j, const std::string& where);
+FURNIHOST_API RunFigures RunFiguresFromJson(const nlohmann::json& j, const std::string& where);
+FURNIHOST_API ConfigSummary ConfigSummaryFromJson(const nlohmann::json& j, const std::string& where);
+
+// Scalar figures of one run by key ("chair/ap", "chair/hypotheses/precision",
+// "all/map", "time/scene_ms", "time/stage/segment_ms", "memory/peak_rss_mb", ...).
+FURNIHOST_API std::map<std::string, double> FlatFigures(const RunFigures& r);
+
+struct MeanStd {
+  double mean = NAN, std = NAN;  // sample std (n - 1); 0 for one value; NaN values skipped
+  int n = 0;
+};
+FURNIHOST_API MeanStd MeanAndStd(const std::vector<double>& values);
+
+struct ReportInfo {
+  std::string title = "furnihost evaluation";
+  std::string dataset;       // manifest path
+  std::string dataset_hash;
+  int scenes = 0;
+  WidthConvention width = WidthConvention::Max;
+  std::vector<std::string> plots;  // image files to embed (relative to the report)
+  std::vector<std::string> notes;  // extra lines (warnings) printed under the header
+};
+
+// Markdown: a header (dataset, hash, width convention, seeds, configs), then per class and
+// for all classes a table `metric | A | B | B − A [| C | C − A ...]` (config 0 is the
+// baseline A), values "mean ± std" over seeds when there are several, then time and memory.
+FURNIHOST_API std::string RenderReport(const std::vector<ConfigSummary>& configs, const ReportInfo& info);
+
+}  // namespace furnihost

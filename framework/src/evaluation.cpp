@@ -1,0 +1,797 @@
+#include "furnihost/evaluation.hpp"
+
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <numeric>
+#include <set>
+#include <sstream>
+
+#include "furnihost/io.hpp"
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace furnihost {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+[[noreturn]] void Bad(const std::string& file, const std::string& pointer, const std::string& what) {
+  throw InputError(file + ":" + pointer + ": " + what);
+}
+
+void CheckKeys(const json& o, const std::set<std::string>& known, const std::string& file,
+               const std::string& pointer) {
+  if (!o.is_object()) Bad(file, pointer.empty() ? "/" : pointer, "expected an object");
+  for (const auto& item : o.items()) {
+    if (known.count(item.key())) continue;
+    std::string list;
+    for (const auto& n : known) list += (list.empty() ? "" : ", ") + n;
+    Bad(file, pointer + "/" + item.key(), "unknown key (known: " + list + ")");
+  }
+}
+
+std::string ResolvePath(const fs::path& base, const json& v, const std::string& file, const std::string& pointer,
+                        const std::string& what) {
+  if (!v.is_string() || v.get<std::string>().empty()) Bad(file, pointer, "expected a path (string), got " + v.dump());
+  fs::path p(v.get<std::string>());
+  if (p.is_relative()) p = base / p;
+  const std::string abs = p.lexically_normal().string();
+  try {
+    RequireRegularFile(abs, what);
+  } catch (const InputError& e) {
+    Bad(file, pointer, e.what());
+  }
+  return abs;
+}
+
+json Num(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+
+double GetNum(const json& j, const std::string& key, const std::string& where) {
+  if (!j.is_object() || !j.contains(key)) throw InputError(where + "/" + key + ": missing");
+  const json& v = j[key];
+  if (v.is_null()) return NAN;
+  if (!v.is_number()) throw InputError(where + "/" + key + ": expected a number or null, got " + v.dump());
+  return v.get<double>();
+}
+
+double SafeDiv(double a, double b) { return b > 0 ? a / b : NAN; }
+
+// Smallest absolute difference of two angles [rad], in degrees in [0, 180].
+double YawErrorDeg(double a, double b) {
+  double d = std::fmod(std::abs(a - b), 2 * kPi);
+  if (d > kPi) d = 2 * kPi - d;
+  return d * 180.0 / kPi;
+}
+
+float PlaneDistance(const Eigen::Vector3f& a, const Eigen::Vector3f& b) { return (a - b).head<2>().norm(); }
+
+// One evaluated detection after matching.
+struct Scored {
+  float score;
+  size_t scene, index;  // for a deterministic order among equal scores
+  bool tp;
+};
+
+struct ErrorAccumulator {
+  std::vector<double> centre, yaw;
+};
+
+// Counts TPs/FPs of one match and collects the errors of its TPs.
+void Accumulate(const std::vector<Detection>& dets, const std::vector<GroundTruthObject>& truth,
+                const SceneMatch& m, bool fitted, std::map<std::string, std::pair<int, int>>& tp_fp,
+                std::map<std::string, ErrorAccumulator>& errors) {
+  for (size_t i = 0; i < dets.size(); ++i) {
+    if (m.det_to_gt[i] == SceneMatch::kIgnored) continue;
+    auto& c = tp_fp[m.det_class[i]];
+    if (m.det_to_gt[i] == SceneMatch::kUnmatched) {
+      ++c.second;
+      continue;
+    }
+    ++c.first;
+    const GroundTruthObject& g = truth[m.det_to_gt[i]];
+    auto& e = errors[m.det_class[i]];
+    e.centre.push_back(PlaneDistance(dets[i].center, g.center));
+    // Only a fitter estimates yaw; a voter hypothesis' yaw is a placeholder 0.
+    if (fitted && !dets[i].model.empty() && g.yaw) e.yaw.push_back(YawErrorDeg(dets[i].yaw, *g.yaw));
+  }
+}
+
+OperatingPoint MakePoint(int tp, int fp, int gt, const ErrorAccumulator& e) {
+  OperatingPoint p;
+  p.tp = tp;
+  p.fp = fp;
+  p.fn = gt - tp;
+  p.precision = SafeDiv(tp, tp + fp);
+  p.recall = SafeDiv(tp, gt);
+  p.centre_error_m = Summarise(e.centre);
+  p.yaw_error_deg = Summarise(e.yaw);
+  return p;
+}
+
+json ToJson(const ErrorStats& e) { return {{"n", e.n}, {"median", Num(e.median)}, {"p90", Num(e.p90)}}; }
+ErrorStats ErrorStatsFromJson(const json& j, const std::string& where) {
+  ErrorStats e;
+  e.n = static_cast<int>(GetNum(j, "n", where));
+  e.median = GetNum(j, "median", where);
+  e.p90 = GetNum(j, "p90", where);
+  return e;
+}
+
+json ToJson(const OperatingPoint& p) {
+  return {{"tp", p.tp},
+          {"fp", p.fp},
+          {"fn", p.fn},
+          {"precision", Num(p.precision)},
+          {"recall", Num(p.recall)},
+          {"centre_error_m", ToJson(p.centre_error_m)},
+          {"yaw_error_deg", ToJson(p.yaw_error_deg)}};
+}
+OperatingPoint OperatingPointFromJson(const json& j, const std::string& where) {
+  OperatingPoint p;
+  p.tp = static_cast<int>(GetNum(j, "tp", where));
+  p.fp = static_cast<int>(GetNum(j, "fp", where));
+  p.fn = static_cast<int>(GetNum(j, "fn", where));
+  p.precision = GetNum(j, "precision", where);
+  p.recall = GetNum(j, "recall", where);
+  if (!j.contains("centre_error_m") || !j.contains("yaw_error_deg"))
+    throw InputError(where + ": missing centre_error_m / yaw_error_deg");
+  p.centre_error_m = ErrorStatsFromJson(j["centre_error_m"], where + "/centre_error_m");
+  p.yaw_error_deg = ErrorStatsFromJson(j["yaw_error_deg"], where + "/yaw_error_deg");
+  return p;
+}
+
+json TimingsToJson(const std::vector<std::pair<std::string, double>>& t) {
+  json a = json::array();
+  for (const auto& [tag, ms] : t) a.push_back({{"stage", tag}, {"ms", ms}});
+  return a;
+}
+std::vector<std::pair<std::string, double>> TimingsFromJson(const json& j, const std::string& where) {
+  if (!j.is_array()) throw InputError(where + ": expected a list of {stage, ms}");
+  std::vector<std::pair<std::string, double>> t;
+  for (size_t i = 0; i < j.size(); ++i) {
+    const std::string w = where + "/" + std::to_string(i);
+    if (!j[i].is_object() || !j[i].contains("stage") || !j[i]["stage"].is_string())
+      throw InputError(w + "/stage: expected a string");
+    t.emplace_back(j[i]["stage"].get<std::string>(), GetNum(j[i], "ms", w));
+  }
+  return t;
+}
+
+void AddPointFigures(std::map<std::string, double>& f, const std::string& prefix, const OperatingPoint& p) {
+  f[prefix + "/precision"] = p.precision;
+  f[prefix + "/recall"] = p.recall;
+  f[prefix + "/tp"] = p.tp;
+  f[prefix + "/fp"] = p.fp;
+  f[prefix + "/centre_error_median_m"] = p.centre_error_m.median;
+  f[prefix + "/centre_error_p90_m"] = p.centre_error_m.p90;
+  f[prefix + "/yaw_error_median_deg"] = p.yaw_error_deg.median;
+  f[prefix + "/yaw_error_p90_deg"] = p.yaw_error_deg.p90;
+}
+
+}  // namespace
+
+// ---- dataset -----------------------------------------------------------------------------
+
+std::optional<std::string> ClassMap::Map(const std::string& cls) const {
+  std::optional<std::string> to = cls;
+  auto it = map.find(cls);
+  if (it != map.end()) to = it->second;
+  if (!to || std::find(classes.begin(), classes.end(), *to) == classes.end()) return std::nullopt;
+  return to;
+}
+
+Dataset LoadDataset(const std::string& path) {
+  RequireRegularFile(path, "dataset manifest");
+  const json j = ReadJson(path);
+  if (!j.is_object()) throw InputError(path + ": expected a JSON object with \"scenes\" and \"classes\"");
+  CheckKeys(j, {"description", "scenes", "class_map", "classes"}, path, "");
+  Dataset d;
+  d.path = path;
+  const fs::path base = fs::absolute(fs::path(path)).parent_path();
+  if (j.contains("description")) {
+    if (!j["description"].is_string()) Bad(path, "/description", "expected a string");
+    d.description = j["description"].get<std::string>();
+  }
+
+  if (!j.contains("classes")) Bad(path, "/classes", "missing (the evaluated classes, e.g. [\"chair\", \"table\"])");
+  const json& cl = j["classes"];
+  if (!cl.is_array() || cl.empty()) Bad(path, "/classes", "expected a non-empty list of class names");
+  for (size_t i = 0; i < cl.size(); ++i) {
+    if (!cl[i].is_string() || cl[i].get<std::string>().empty())
+      Bad(path, "/classes/" + std::to_string(i), "expected a class name (string), got " + cl[i].dump());
+    const std::string c = cl[i].get<std::string>();
+    if (std::find(d.classes.classes.begin(), d.classes.classes.end(), c) != d.classes.classes.end())
+      Bad(path, "/classes/" + std::to_string(i), "duplicate class \"" + c + "\"");
+    d.classes.classes.push_back(c);
+  }
+
+  if (j.contains("class_map")) {
+    const json& cm = j["class_map"];
+    if (!cm.is_object()) Bad(path, "/class_map", "expected an object {\"name\": \"evaluated class\" or null}");
+    for (const auto& item : cm.items()) {
+      const std::string ptr = "/class_map/" + item.key();
+      if (item.value().is_null()) {
+        d.classes.map[item.key()] = std::nullopt;
+        continue;
+      }
+      if (!item.value().is_string()) Bad(path, ptr, "expected a class name or null, got " + item.value().dump());
+      const std::string to = item.value().get<std::string>();
+      if (std::find(d.classes.classes.begin(), d.classes.classes.end(), to) == d.classes.classes.end()) {
+        std::string list;
+        for (const auto& c : d.classes.classes) list += (list.empty() ? "" : ", ") + c;
+        Bad(path, ptr, "\"" + to + "\" is not one of the evaluated classes (" + list + "); use null to ignore a class");
+      }
+      d.classes.map[item.key()] = to;
+    }
+  }
+
+  if (!j.contains("scenes")) Bad(path, "/scenes", "missing (a list of {\"scan\", \"gt\"})");
+  const json& sc = j["scenes"];
+  if (!sc.is_array() || sc.empty()) Bad(path, "/scenes", "expected a non-empty list of {\"scan\", \"gt\"}");
+  for (size_t i = 0; i < sc.size(); ++i) {
+    const std::string ptr = "/scenes/" + std::to_string(i);
+    CheckKeys(sc[i], {"scan", "gt", "origin"}, path, ptr);
+    if (!sc[i].contains("scan")) Bad(path, ptr + "/scan", "missing (path of the scan file)");
+    if (!sc[i].contains("gt")) Bad(path, ptr + "/gt", "missing (path of the *.gt.json file)");
+    DatasetScene s;
+    s.scan = ResolvePath(base, sc[i]["scan"], path, ptr + "/scan", "scan file");
+    s.gt = ResolvePath(base, sc[i]["gt"], path, ptr + "/gt", "ground-truth file");
+    if (sc[i].contains("origin")) {
+      const json& o = sc[i]["origin"];
+      if (!o.is_array() || o.size() != 3 ||
+          !std::all_of(o.begin(), o.end(), [](const json& v) { return v.is_number() && std::isfinite(v.get<double>()); }))
+        Bad(path, ptr + "/origin", "expected [x, y, z] (3 finite numbers, metres), got " + o.dump());
+      s.origin = Eigen::Vector3f(o[0].get<float>(), o[1].get<float>(), o[2].get<float>());
+    }
+    d.scenes.push_back(s);
+  }
+  return d;
+}
+
+uint64_t Fnv1a(const void* data, size_t size, uint64_t h) {
+  const auto* p = static_cast<const unsigned char*>(data);
+  for (size_t i = 0; i < size; ++i) {
+    h ^= p[i];
+    h *= 1099511628211ull;
+  }
+  return h;
+}
+
+std::string HashDataset(const Dataset& d) {
+  uint64_t h = kFnvOffset;
+  auto add = [&](const std::string& file) {
+    std::ifstream in(file, std::ios::binary);
+    if (!in) throw InputError(file + ": cannot read (for the dataset hash)");
+    std::vector<char> buf(1 << 20);
+    while (in) {
+      in.read(buf.data(), static_cast<std::streamsize>(buf.size()));
+      h = Fnv1a(buf.data(), static_cast<size_t>(in.gcount()), h);
+    }
+  };
+  add(d.path);
+  for (const auto& s : d.scenes) {
+    add(s.scan);
+    add(s.gt);
+  }
+  char hex[17];
+  std::snprintf(hex, sizeof(hex), "%016llx", static_cast<unsigned long long>(h));
+  return std::string("fnv1a64:") + hex;
+}
+
+// ---- matching ----------------------------------------------------------------------------
+
+const char* ToString(WidthConvention w) { return w == WidthConvention::Max ? "max" : "min"; }
+
+std::optional<WidthConvention> ParseWidthConvention(const std::string& s) {
+  if (s == "max") return WidthConvention::Max;
+  if (s == "min") return WidthConvention::Min;
+  return std::nullopt;
+}
+
+float MatchRadius(const GroundTruthObject& g, WidthConvention w) {
+  const float sx = std::abs(g.size.x()), sy = std::abs(g.size.y());
+  return 0.5f * (w == WidthConvention::Max ? std::max(sx, sy) : std::min(sx, sy));
+}
+
+SceneMatch MatchScene(const std::vector<Detection>& dets, const std::vector<GroundTruthObject>& truth,
+                      const ClassMap& classes, WidthConvention width) {
+  SceneMatch m;
+  m.det_to_gt.assign(dets.size(), SceneMatch::kUnmatched);
+  m.gt_to_det.assign(truth.size(), SceneMatch::kUnmatched);
+  m.det_class.resize(dets.size());
+  m.gt_class.resize(truth.size());
+  for (size_t g = 0; g < truth.size(); ++g) {
+    auto c = classes.Map(truth[g].cls);
+    if (c) m.gt_class[g] = *c;
+    else m.gt_to_det[g] = SceneMatch::kIgnored;
+  }
+  std::vector<size_t> order;
+  for (size_t i = 0; i < dets.size(); ++i) {
+    auto c = classes.Map(dets[i].cls);
+    if (c) {
+      m.det_class[i] = *c;
+      order.push_back(i);
+    } else {
+      m.det_to_gt[i] = SceneMatch::kIgnored;
+    }
+  }
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return dets[a].score > dets[b].score; });
+  for (size_t i : order) {
+    int best = SceneMatch::kUnmatched;
+    float best_dist = 0.f;
+    for (size_t g = 0; g < truth.size(); ++g) {
+      if (m.gt_to_det[g] != SceneMatch::kUnmatched || m.gt_class[g] != m.det_class[i]) continue;
+      const float dist = PlaneDistance(dets[i].center, truth[g].center);
+      // Strictly inside, as the paper says "less than half of the width".
+      if (!(dist < MatchRadius(truth[g], width))) continue;
+      if (best == SceneMatch::kUnmatched || dist < best_dist) {
+        best = static_cast<int>(g);
+        best_dist = dist;
+      }
+    }
+    if (best != SceneMatch::kUnmatched) {
+      m.det_to_gt[i] = best;
+      m.gt_to_det[best] = static_cast<int>(i);
+    }
+  }
+  return m;
+}
+
+// ---- metrics -----------------------------------------------------------------------------
+
+double AveragePrecision(const std::vector<double>& recall, const std::vector<double>& precision) {
+  const size_t n = std::min(recall.size(), precision.size());
+  if (n == 0) return 0.0;
+  std::vector<double> env(precision.begin(), precision.begin() + n);
+  for (size_t i = n - 1; i-- > 0;) env[i] = std::max(env[i], env[i + 1]);
+  double ap = 0, prev = 0;
+  for (size_t i = 0; i < n; ++i) {
+    ap += (recall[i] - prev) * env[i];
+    prev = recall[i];
+  }
+  return ap;
+}
+
+ErrorStats Summarise(std::vector<double> v) {
+  ErrorStats e;
+  v.erase(std::remove_if(v.begin(), v.end(), [](double x) { return !std::isfinite(x); }), v.end());
+  e.n = static_cast<int>(v.size());
+  if (v.empty()) return e;
+  std::sort(v.begin(), v.end());
+  auto q = [&](double p) {
+    const double pos = p * static_cast<double>(v.size() - 1);
+    const size_t lo = static_cast<size_t>(std::floor(pos));
+    const size_t hi = std::min(lo + 1, v.size() - 1);
+    return v[lo] + (pos - static_cast<double>(lo)) * (v[hi] - v[lo]);
+  };
+  e.median = q(0.5);
+  e.p90 = q(0.9);
+  return e;
+}
+
+EvalMetrics Evaluate(const std::vector<SceneEval>& scenes, const ClassMap& classes, WidthConvention width) {
+  EvalMetrics out;
+  std::map<std::string, int> gt_count;
+  std::map<std::string, std::vector<Scored>> scored;
+  std::map<std::string, std::pair<int, int>> hyp_counts, ver_counts;
+  std::map<std::string, ErrorAccumulator> hyp_err, ver_err;
+  for (size_t s = 0; s < scenes.size(); ++s) {
+    const SceneEval& se = scenes[s];
+    out.fitted = out.fitted || se.fitted;
+    const SceneMatch m = MatchScene(se.detections, se.truth, classes, width);
+    for (size_t g = 0; g < se.truth.size(); ++g) {
+      if (m.gt_class[g].empty()) ++out.ignored_gt[se.truth[g].cls];
+      else ++gt_count[m.gt_class[g]];
+    }
+    for (size_t i = 0; i < se.detections.size(); ++i) {
+      if (m.det_to_gt[i] == SceneMatch::kIgnored) {
+        ++out.ignored_detections[se.detections[i].cls];
+        continue;
+      }
+      scored[m.det_class[i]].push_back({se.detections[i].score, s, i, m.det_to_gt[i] >= 0});
+    }
+    Accumulate(se.detections, se.truth, m, se.fitted, hyp_counts, hyp_err);
+    // Rejected detections leave the set, so the remaining ones are matched on their own: a
+    // verified detection may take the gt object a rejected one had taken.
+    std::vector<Detection> kept;
+    for (const auto& d : se.detections)
+      if (d.verified.value_or(true)) kept.push_back(d);
+    const SceneMatch mv = MatchScene(kept, se.truth, classes, width);
+    Accumulate(kept, se.truth, mv, se.fitted, ver_counts, ver_err);
+  }
+
+  int tp_h = 0, fp_h = 0, tp_v = 0, fp_v = 0, gt_all = 0;
+  ErrorAccumulator all_h, all_v;
+  double ap_sum = 0;
+  int ap_n = 0;
+  for (const std::string& c : classes.classes) {
+    ClassMetrics cm;
+    cm.cls = c;
+    cm.gt = gt_count[c];
+    auto& sd = scored[c];
+    cm.detections = static_cast<int>(sd.size());
+    std::sort(sd.begin(), sd.end(), [](const Scored& a, const Scored& b) {
+      if (a.score != b.score) return a.score > b.score;
+      return a.scene != b.scene ? a.scene < b.scene : a.index < b.index;
+    });
+    int tp = 0, fp = 0;
+    for (size_t i = 0; i < sd.size(); ++i) {
+      (sd[i].tp ? tp : fp)++;
+      // Detections with equal scores cannot be separated by a threshold: one point per score.
+      if (i + 1 < sd.size() && sd[i + 1].score == sd[i].score) continue;
+      cm.curve.push_back({sd[i].score, tp, fp, SafeDiv(tp, tp + fp), SafeDiv(tp, cm.gt)});
+    }
+    if (cm.gt > 0) {
+      std::vector<double> r, p;
+      for (const auto& pt : cm.curve) {
+        r.push_back(pt.recall);
+        p.push_back(pt.precision);
+      }
+      cm.ap = AveragePrecision(r, p);
+      ap_sum += cm.ap;
+      ++ap_n;
+    }
+    const auto h = hyp_counts[c];
+    cm.hypotheses = MakePoint(h.first, h.second, cm.gt, hyp_err[c]);
+    tp_h += h.first;
+    fp_h += h.second;
+    gt_all += cm.gt;
+    all_h.centre.insert(all_h.centre.end(), hyp_err[c].centre.begin(), hyp_err[c].centre.end());
+    all_h.yaw.insert(all_h.yaw.end(), hyp_err[c].yaw.begin(), hyp_err[c].yaw.end());
+    if (out.fitted) {
+      const auto v = ver_counts[c];
+      cm.verified = MakePoint(v.first, v.second, cm.gt, ver_err[c]);
+      tp_v += v.first;
+      fp_v += v.second;
+      all_v.centre.insert(all_v.centre.end(), ver_err[c].centre.begin(), ver_err[c].centre.end());
+      all_v.yaw.insert(all_v.yaw.end(), ver_err[c].yaw.begin(), ver_err[c].yaw.end());
+    }
+    out.classes.push_back(std::move(cm));
+  }
+  out.map = ap_n ? ap_sum / ap_n : NAN;
+  out.hypotheses = MakePoint(tp_h, fp_h, gt_all, all_h);
+  if (out.fitted) out.verified = MakePoint(tp_v, fp_v, gt_all, all_v);
+  return out;
+}
+
+// ---- serialisation ---------------------------------------------------------------------
+
+json ToJson(const EvalMetrics& m) {
+  json classes = json::array();
+  for (const auto& c : m.classes) {
+    json curve = json::array();
+    // Compact rows: [score, tp, fp, precision, recall].
+    for (const auto& p : c.curve) curve.push_back({p.score, p.tp, p.fp, Num(p.precision), Num(p.recall)});
+    classes.push_back({{"class", c.cls},
+                       {"gt", c.gt},
+                       {"detections", c.detections},
+                       {"ap", Num(c.ap)},
+                       {"hypotheses", ToJson(c.hypotheses)},
+                       {"verified", c.verified ? ToJson(*c.verified) : json(nullptr)},
+                       {"pr_curve_columns", {"score", "tp", "fp", "precision", "recall"}},
+                       {"pr_curve", curve}});
+  }
+  return {{"classes", classes},
+          {"map", Num(m.map)},
+          {"fitted", m.fitted},
+          {"all", {{"hypotheses", ToJson(m.hypotheses)}, {"verified", m.fitted ? ToJson(m.verified) : json(nullptr)}}},
+          {"ignored_gt", m.ignored_gt},
+          {"ignored_detections", m.ignored_detections}};
+}
+
+EvalMetrics EvalMetricsFromJson(const json& j, const std::string& where) {
+  EvalMetrics m;
+  if (!j.is_object() || !j.contains("classes") || !j["classes"].is_array())
+    throw InputError(where + "/classes: expected a list");
+  for (size_t i = 0; i < j["classes"].size(); ++i) {
+    const json& c = j["classes"][i];
+    const std::string w = where + "/classes/" + std::to_string(i);
+    ClassMetrics cm;
+    if (!c.is_object() || !c.contains("class") || !c["class"].is_string()) throw InputError(w + "/class: expected a string");
+    cm.cls = c["class"].get<std::string>();
+    cm.gt = static_cast<int>(GetNum(c, "gt", w));
+    cm.detections = static_cast<int>(GetNum(c, "detections", w));
+    cm.ap = GetNum(c, "ap", w);
+    if (!c.contains("hypotheses")) throw InputError(w + "/hypotheses: missing");
+    cm.hypotheses = OperatingPointFromJson(c["hypotheses"], w + "/hypotheses");
+    if (c.contains("verified") && !c["verified"].is_null())
+      cm.verified = OperatingPointFromJson(c["verified"], w + "/verified");
+    if (c.contains("pr_curve")) {
+      if (!c["pr_curve"].is_array()) throw InputError(w + "/pr_curve: expected a list");
+      for (size_t k = 0; k < c["pr_curve"].size(); ++k) {
+        const json& p = c["pr_curve"][k];
+        if (!p.is_array() || p.size() != 5) throw InputError(w + "/pr_curve/" + std::to_string(k) + ": expected 5 numbers");
+        auto num = [](const json& v) { return v.is_number() ? v.get<double>() : NAN; };
+        cm.curve.push_back({static_cast<float>(num(p[0])), static_cast<int>(num(p[1])), static_cast<int>(num(p[2])),
+                            num(p[3]), num(p[4])});
+      }
+    }
+    m.classes.push_back(std::move(cm));
+  }
+  m.map = GetNum(j, "map", where);
+  m.fitted = j.value("fitted", false);
+  if (j.contains("all") && j["all"].is_object()) {
+    if (j["all"].contains("hypotheses")) m.hypotheses = OperatingPointFromJson(j["all"]["hypotheses"], where + "/all/hypotheses");
+    if (j["all"].contains("verified") && !j["all"]["verified"].is_null())
+      m.verified = OperatingPointFromJson(j["all"]["verified"], where + "/all/verified");
+  }
+  if (j.contains("ignored_gt") && j["ignored_gt"].is_object())
+    m.ignored_gt = j["ignored_gt"].get<std::map<std::string, int>>();
+  if (j.contains("ignored_detections") && j["ignored_detections"].is_object())
+    m.ignored_detections = j["ignored_detections"].get<std::map<std::string, int>>();
+  return m;
+}
+
+json ToJson(const RunFigures& r) {
+  json scenes = json::array();
+  for (const auto& s : r.scenes)
+    scenes.push_back({{"scan", s.scan}, {"total_ms", s.total_ms}, {"detections", s.detections},
+                      {"timings_ms", TimingsToJson(s.timings_ms)}});
+  return {{"seed", r.seed},
+          {"metrics", ToJson(r.metrics)},
+          {"stage_ms", TimingsToJson(r.stage_ms)},
+          {"wall_ms", r.wall_ms},
+          {"model_ms", r.model_ms},
+          {"model_source", r.model_source},
+          {"peak_rss_mb", Num(r.peak_rss_mb)},
+          {"jobs", r.jobs},
+          {"scenes", scenes}};
+}
+
+RunFigures RunFiguresFromJson(const json& j, const std::string& where) {
+  RunFigures r;
+  if (!j.is_object()) throw InputError(where + ": expected an object");
+  r.seed = static_cast<uint64_t>(GetNum(j, "seed", where));
+  if (!j.contains("metrics")) throw InputError(where + "/metrics: missing");
+  r.metrics = EvalMetricsFromJson(j["metrics"], where + "/metrics");
+  if (j.contains("stage_ms")) r.stage_ms = TimingsFromJson(j["stage_ms"], where + "/stage_ms");
+  r.wall_ms = GetNum(j, "wall_ms", where);
+  r.model_ms = j.contains("model_ms") ? GetNum(j, "model_ms", where) : 0.0;
+  r.model_source = j.value("model_source", "");
+  r.peak_rss_mb = j.contains("peak_rss_mb") ? GetNum(j, "peak_rss_mb", where) : NAN;
+  r.jobs = j.value("jobs", 1);
+  if (j.contains("scenes") && j["scenes"].is_array()) {
+    for (size_t i = 0; i < j["scenes"].size(); ++i) {
+      const json& s = j["scenes"][i];
+      const std::string w = where + "/scenes/" + std::to_string(i);
+      SceneRecord rec;
+      rec.scan = s.value("scan", "");
+      rec.total_ms = GetNum(s, "total_ms", w);
+      rec.detections = s.value("detections", 0);
+      if (s.contains("timings_ms")) rec.timings_ms = TimingsFromJson(s["timings_ms"], w + "/timings_ms");
+      r.scenes.push_back(std::move(rec));
+    }
+  }
+  return r;
+}
+
+json ToJson(const ConfigSummary& s) {
+  json runs = json::array();
+  for (const auto& r : s.runs) runs.push_back(ToJson(r));
+  return {{"name", s.name}, {"graph", s.graph}, {"runs", runs}};
+}
+
+ConfigSummary ConfigSummaryFromJson(const json& j, const std::string& where) {
+  ConfigSummary s;
+  if (!j.is_object() || !j.contains("name") || !j["name"].is_string()) throw InputError(where + "/name: expected a string");
+  s.name = j["name"].get<std::string>();
+  s.graph = j.value("graph", "");
+  if (!j.contains("runs") || !j["runs"].is_array() || j["runs"].empty())
+    throw InputError(where + "/runs: expected a non-empty list (one per seed)");
+  for (size_t i = 0; i < j["runs"].size(); ++i)
+    s.runs.push_back(RunFiguresFromJson(j["runs"][i], where + "/runs/" + std::to_string(i)));
+  return s;
+}
+
+// ---- figures and report ----------------------------------------------------------------
+
+std::map<std::string, double> FlatFigures(const RunFigures& r) {
+  std::map<std::string, double> f;
+  for (const auto& c : r.metrics.classes) {
+    f[c.cls + "/gt"] = c.gt;
+    f[c.cls + "/detections"] = c.detections;
+    f[c.cls + "/ap"] = c.ap;
+    AddPointFigures(f, c.cls + "/hypotheses", c.hypotheses);
+    if (c.verified) AddPointFigures(f, c.cls + "/verified", *c.verified);
+  }
+  f["all/map"] = r.metrics.map;
+  AddPointFigures(f, "all/hypotheses", r.metrics.hypotheses);
+  if (r.metrics.fitted) AddPointFigures(f, "all/verified", r.metrics.verified);
+  const double n = static_cast<double>(r.scenes.size());
+  std::vector<double> scene_ms;
+  for (const auto& s : r.scenes) scene_ms.push_back(s.total_ms);
+  f["time/scene_ms"] = n > 0 ? std::accumulate(scene_ms.begin(), scene_ms.end(), 0.0) / n : NAN;
+  f["time/scene_p90_ms"] = Summarise(scene_ms).p90;
+  for (const auto& [tag, ms] : r.stage_ms) f["time/stage/" + tag + "_ms"] = n > 0 ? ms / n : NAN;
+  f["time/wall_ms"] = r.wall_ms;
+  f["time/model_ms"] = r.model_ms;
+  f["memory/peak_rss_mb"] = r.peak_rss_mb;
+  return f;
+}
+
+MeanStd MeanAndStd(const std::vector<double>& values) {
+  MeanStd m;
+  std::vector<double> v;
+  for (double x : values)
+    if (std::isfinite(x)) v.push_back(x);
+  m.n = static_cast<int>(v.size());
+  if (v.empty()) return m;
+  m.mean = std::accumulate(v.begin(), v.end(), 0.0) / m.n;
+  double ss = 0;
+  for (double x : v) ss += (x - m.mean) * (x - m.mean);
+  m.std = m.n > 1 ? std::sqrt(ss / (m.n - 1)) : 0.0;
+  return m;
+}
+
+namespace {
+
+struct Row {
+  std::string label, key;
+  int decimals;   // -1: a count (0 decimals for one seed, 1 for a mean over seeds)
+  bool optional;  // omitted when no config has a finite value
+};
+
+std::string Fixed(double v, int decimals, bool sign = false) {
+  if (!std::isfinite(v)) return "n/a";
+  std::ostringstream o;
+  o.setf(std::ios::fixed);
+  o.precision(decimals);
+  // A difference that rounds to zero prints as 0, without a sign that would suggest a change.
+  const double scale = std::pow(10.0, decimals);
+  if (std::round(v * scale) == 0) v = 0;
+  if (sign && v > 0) o << "+";
+  o << v;
+  return o.str();
+}
+
+std::string Letter(size_t i) {
+  return i < 26 ? std::string(1, static_cast<char>('A' + i)) : "C" + std::to_string(i);
+}
+
+std::vector<Row> PointRows(const std::string& prefix, const std::string& which) {
+  return {{"precision (" + which + ")", prefix + "/" + which + "/precision", 3, which == "verified"},
+          {"recall (" + which + ")", prefix + "/" + which + "/recall", 3, which == "verified"},
+          {"TP (" + which + ")", prefix + "/" + which + "/tp", -1, which == "verified"},
+          {"FP (" + which + ")", prefix + "/" + which + "/fp", -1, which == "verified"},
+          {"centre error median [m] (" + which + ")", prefix + "/" + which + "/centre_error_median_m", 3, which == "verified"},
+          {"centre error p90 [m] (" + which + ")", prefix + "/" + which + "/centre_error_p90_m", 3, which == "verified"},
+          {"yaw error median [deg] (" + which + ")", prefix + "/" + which + "/yaw_error_median_deg", 1, true},
+          {"yaw error p90 [deg] (" + which + ")", prefix + "/" + which + "/yaw_error_p90_deg", 1, true}};
+}
+
+}  // namespace
+
+std::string RenderReport(const std::vector<ConfigSummary>& configs, const ReportInfo& info) {
+  std::ostringstream o;
+  o << "# " << info.title << "\n\n";
+  o << "- dataset: `" << info.dataset << "` (" << info.scenes << " scenes), hash `" << info.dataset_hash << "`\n";
+  o << "- matching (paper Sect. VII-A): a detection is a true positive when its class matches and its centre lies "
+       "within half the ground-truth object's width of the ground-truth centre on the floor plane (x, y); width "
+       "convention **"
+    << ToString(info.width) << "**: radius = " << ToString(info.width)
+    << "(size x, size y) / 2; greedy by descending score, each ground-truth object matches at most one detection\n";
+  o << "- AP: all-point interpolated (VOC 2010+) area under the precision envelope of the score-threshold sweep; "
+       "\"hypotheses\" = every detection the pipeline output (the voter's own threshold), \"verified\" = "
+       "detections with verified != false (only when a fitter ran)\n";
+  size_t max_runs = 0;
+  for (const auto& c : configs) max_runs = std::max(max_runs, c.runs.size());
+  o << "- values: " << (max_runs > 1 ? "mean ± sample std over the detection seeds" : "one seed per config")
+    << "; " << (configs.size() > 1 ? Letter(1) + " − A is the difference of the means" : "") << "\n";
+  o << "- configs:\n";
+  for (size_t i = 0; i < configs.size(); ++i) {
+    o << "  - " << Letter(i) << " = **" << configs[i].name << "** (`" << configs[i].graph << "`), seeds";
+    for (const auto& r : configs[i].runs) o << " " << r.seed;
+    o << "\n";
+  }
+  for (const auto& n : info.notes) o << "- " << n << "\n";
+  o << "\n";
+
+  // Per config: key -> values over seeds.
+  std::vector<std::map<std::string, std::vector<double>>> values(configs.size());
+  for (size_t i = 0; i < configs.size(); ++i)
+    for (const auto& r : configs[i].runs)
+      for (const auto& [k, v] : FlatFigures(r)) values[i][k].push_back(v);
+  auto stat = [&](size_t i, const std::string& key) {
+    auto it = values[i].find(key);
+    return it == values[i].end() ? MeanStd{} : MeanAndStd(it->second);
+  };
+  // Counts are whole numbers for one seed; their means over seeds are not.
+  auto digits = [&](const Row& r) { return r.decimals < 0 ? (max_runs > 1 ? 1 : 0) : r.decimals; };
+  auto cell = [&](const MeanStd& m, int decimals) {
+    if (m.n == 0) return std::string("n/a");
+    std::string s = Fixed(m.mean, decimals);
+    if (max_runs > 1) s += " ± " + Fixed(m.std, decimals);
+    return s;
+  };
+  auto table = [&](const std::string& heading, const std::vector<Row>& rows) {
+    std::vector<const Row*> shown;
+    for (const auto& r : rows) {
+      bool any = false;
+      for (size_t i = 0; i < configs.size(); ++i) any = any || stat(i, r.key).n > 0;
+      if (any || !r.optional) shown.push_back(&r);
+    }
+    if (shown.empty()) return;
+    o << "### " << heading << "\n\n| metric |";
+    for (size_t i = 0; i < configs.size(); ++i) {
+      o << " " << Letter(i) << ": " << configs[i].name << " |";
+      if (i > 0) o << " " << Letter(i) << " − A |";
+    }
+    o << "\n|---|";
+    for (size_t i = 0; i < configs.size(); ++i) o << (i > 0 ? "---:|---:|" : "---:|");
+    o << "\n";
+    for (const Row* r : shown) {
+      o << "| " << r->label << " |";
+      const MeanStd a = stat(0, r->key);
+      for (size_t i = 0; i < configs.size(); ++i) {
+        const MeanStd b = stat(i, r->key);
+        o << " " << cell(b, digits(*r)) << " |";
+        if (i > 0) o << " " << (a.n && b.n ? Fixed(b.mean - a.mean, digits(*r), true) : std::string("n/a")) << " |";
+      }
+      o << "\n";
+    }
+    o << "\n";
+  };
+
+  // Classes in the order of the first config that has them.
+  std::vector<std::string> classes;
+  for (const auto& c : configs)
+    for (const auto& r : c.runs)
+      for (const auto& cm : r.metrics.classes)
+        if (std::find(classes.begin(), classes.end(), cm.cls) == classes.end()) classes.push_back(cm.cls);
+
+  o << "## Detection\n\n";
+  for (const auto& cls : classes) {
+    int gt = -1, dets = 0;
+    for (const auto& c : configs)
+      for (const auto& r : c.runs)
+        for (const auto& cm : r.metrics.classes)
+          if (cm.cls == cls) {
+            if (gt < 0) gt = cm.gt;
+            dets += cm.detections;
+          }
+    if (gt <= 0 && dets == 0) {
+      o << "### " << cls << "\n\nno ground-truth objects and no detections in any config\n\n";
+      continue;
+    }
+    std::vector<Row> rows = {{"AP", cls + "/ap", 3, false}, {"detections", cls + "/detections", -1, false}};
+    for (const auto& which : {"hypotheses", "verified"}) {
+      auto pr = PointRows(cls, which);
+      rows.insert(rows.end(), pr.begin(), pr.end());
+    }
+    table(cls + " (" + std::to_string(std::max(gt, 0)) + (gt == 1 ? " ground-truth object)" : " ground-truth objects)"), rows);
+  }
+  std::vector<Row> all = {{"mAP (mean AP over classes with ground truth)", "all/map", 3, false}};
+  for (const auto& which : {"hypotheses", "verified"}) {
+    auto pr = PointRows("all", which);
+    all.insert(all.end(), pr.begin(), pr.end());
+  }
+  table("all classes (micro totals)", all);
+
+  // Stage tags in first-seen order.
+  std::vector<std::string> stages;
+  for (const auto& c : configs)
+    for (const auto& r : c.runs)
+      for (const auto& [tag, ms] : r.stage_ms)
+        if (std::find(stages.begin(), stages.end(), tag) == stages.end()) stages.push_back(tag);
+  std::vector<Row> time = {{"scene total [ms] (mean per scene)", "time/scene_ms", 1, false},
+                           {"scene total [ms] (p90)", "time/scene_p90_ms", 1, false}};
+  for (const auto& s : stages) time.push_back({"stage " + s + " [ms per scene]", "time/stage/" + s + "_ms", 1, true});
+  time.push_back({"detection wall clock [ms] (all scenes)", "time/wall_ms", 1, false});
+  time.push_back({"model load / training [ms]", "time/model_ms", 1, false});
+  time.push_back({"peak resident memory [MB]", "memory/peak_rss_mb", 1, false});
+  o << "## Time and memory\n\n";
+  table("time per stage and scene, peak memory", time);
+
+  if (!info.plots.empty()) {
+    o << "## Precision–recall (recall vs 1 − precision)\n\n";
+    for (const auto& p : info.plots) o << "![" << fs::path(p).stem().string() << "](" << p << ")\n";
+    o << "\n";
+  }
+  return o.str();
+}
+
+}  // namespace furnihost
