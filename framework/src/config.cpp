@@ -19,7 +19,17 @@ const std::vector<std::string> kTopKeys = {"extends", "description", "comment", 
                                            "catalog", "model_cache", "training", "stages", "limits"};
 const std::vector<std::string> kStageKeys = {"type", "inputs", "params", "comment"};
 const std::vector<std::string> kTrainingKeys = {"sensor", "comment"};
-const std::vector<std::string> kLimitKeys = {"max_points", "comment"};
+const std::vector<std::string> kLimitKeys = {"max_points", "max_grid_cells", "comment"};
+
+// Resource limits: each caps the parameter of that name of every stage of that kind which
+// declares it, so one line of a config bounds the memory of whatever plugins it uses. A stage
+// left at its default gets the limit; one that asks for more is refused.
+struct LimitRule {
+  const char* key;
+  StageKind kind;
+};
+const LimitRule kLimitRules[] = {{"max_points", StageKind::Sensor},        // points per scan
+                                 {"max_grid_cells", StageKind::Voter}};    // vote grid size
 
 std::string Join(const std::vector<std::string>& v) {
   std::string s;
@@ -135,8 +145,9 @@ GraphConfig ValidateGraph(const std::string& path, const nlohmann::json& config,
     const auto& l = config["limits"];
     if (!l.is_object()) throw InputError(w + "/limits: expected an object, got " + Shown(l));
     CheckKeys(l, kLimitKeys, w + "/limits");
-    if (l.contains("max_points") && !l["max_points"].is_number_unsigned())
-      throw InputError(w + "/limits/max_points: expected a non-negative integer, got " + Shown(l["max_points"]));
+    for (const auto& rule : kLimitRules)
+      if (l.contains(rule.key) && !(l[rule.key].is_number_unsigned() && l[rule.key].get<uint64_t>() > 0))
+        throw InputError(w + "/limits/" + rule.key + ": expected a positive integer, got " + Shown(l[rule.key]));
   }
 
   if (!config.contains("stages")) throw InputError(w + "/stages: missing (an object of stages keyed by tag)");
@@ -173,8 +184,12 @@ GraphConfig ValidateGraph(const std::string& path, const nlohmann::json& config,
   }
   if (!missing.empty()) {
     std::string known = Join(registry.TypeNames());
+    const size_t refused = registry.Refusals().size();
     throw InputError(first_missing_at + ": missing plugin" + (missing.size() > 1 ? "s " : " ") + Join(missing) +
-                     "; known: " + (known.empty() ? "(none found)" : known));
+                     "; known: " + (known.empty() ? "(none found)" : known) +
+                     (refused ? "; " + std::to_string(refused) + " librar" + (refused > 1 ? "ies were" : "y was") +
+                                    " refused (see the warnings above)"
+                              : std::string()));
   }
 
   // Second pass: parameters and connections.
@@ -185,9 +200,29 @@ GraphConfig ValidateGraph(const std::string& path, const nlohmann::json& config,
     s.pointer = "/stages/" + it.key();
     s.type = it.value()["type"].get<std::string>();
     s.kind = registry.Find(s.type)->kind;
+    s.version = registry.Find(s.type)->version;
     if (it.value().contains("inputs")) s.inputs = it.value()["inputs"].get<std::vector<std::string>>();
-    s.params = registry.Find(s.type)->params.Resolve(
-        it.value().contains("params") ? it.value()["params"] : nlohmann::json(), w + s.pointer + "/params");
+    const ParamSchema& schema = registry.Find(s.type)->params;
+    s.params = schema.Resolve(it.value().contains("params") ? it.value()["params"] : nlohmann::json(),
+                              w + s.pointer + "/params");
+    for (const auto& rule : kLimitRules) {
+      const ParamSpec* spec = schema.Find(rule.key);
+      if (s.kind != rule.kind || !spec || spec->type != ParamType::Int || !config.contains("limits") ||
+          !config["limits"].contains(rule.key))
+        continue;
+      const uint64_t limit = config["limits"][rule.key].get<uint64_t>();
+      if (spec->min && static_cast<double>(limit) < *spec->min)
+        throw InputError(w + "/limits/" + rule.key + ": " + std::to_string(limit) + " is below the smallest " +
+                         rule.key + " stage '" + s.tag + "' (" + s.type + ") accepts, " +
+                         std::to_string(static_cast<long long>(*spec->min)));
+      const bool given = it.value().contains("params") && it.value()["params"].is_object() &&
+                         it.value()["params"].contains(rule.key);
+      if (given && s.params[rule.key].get<double>() > static_cast<double>(limit))
+        throw InputError(w + s.pointer + "/params/" + rule.key + ": " + s.params[rule.key].dump() +
+                         " exceeds /limits/" + rule.key + " = " + std::to_string(limit));
+      if (!given)
+        s.params[rule.key] = spec->max ? std::min<uint64_t>(limit, static_cast<uint64_t>(*spec->max)) : limit;
+    }
     resolved["stages"][s.tag]["params"] = s.params;
     resolved["stages"][s.tag]["inputs"] = s.inputs;
     by_tag[s.tag] = s;

@@ -19,7 +19,36 @@ const char kMagic[] = "furnihost-model\n";
 
 nlohmann::json StageKey(const StageConfig* s) {
   if (!s) return nullptr;
-  return {{"type", s->type}, {"params", s->params}};
+  return {{"type", s->type}, {"version", s->version}, {"params", s->params}};
+}
+
+// nlohmann's CBOR reader recurses once per nesting level, so a tampered model of 10^6 nested
+// arrays overflows the stack. This DOM builder stops the reader at a depth no model needs.
+class DepthLimitedSax : public nlohmann::detail::json_sax_dom_parser<nlohmann::json> {
+ public:
+  static constexpr int kMaxDepth = 256;
+  explicit DepthLimitedSax(nlohmann::json& j) : json_sax_dom_parser(j, true) {}
+  bool start_object(std::size_t n) { return Enter() && json_sax_dom_parser::start_object(n); }
+  bool start_array(std::size_t n) { return Enter() && json_sax_dom_parser::start_array(n); }
+  bool end_object() { --depth_; return json_sax_dom_parser::end_object(); }
+  bool end_array() { --depth_; return json_sax_dom_parser::end_array(); }
+  bool too_deep = false;
+
+ private:
+  bool Enter() {
+    too_deep = ++depth_ > kMaxDepth;
+    return !too_deep;
+  }
+  int depth_ = 0;
+};
+
+// The configured cap on points per scan (0 = none), for sensors without a max_points of their own.
+size_t MaxPoints(const GraphConfig& g) {
+  const auto& r = g.resolved;
+  if (r.is_object() && r.contains("limits") && r["limits"].is_object() && r["limits"].contains("max_points") &&
+      r["limits"]["max_points"].is_number_unsigned())
+    return r["limits"]["max_points"].get<size_t>();
+  return 0;
 }
 }  // namespace
 
@@ -74,13 +103,24 @@ TrainedModel LoadModel(const std::string& path) {
     throw InputError(path + ": not a furnihost model file (bad magic)");
   nlohmann::json j;
   try {
-    j = nlohmann::json::from_cbor(data.begin() + ml, data.end());
+    DepthLimitedSax sax(j);
+    const bool ok = nlohmann::json::sax_parse(data.begin() + ml, data.end(), &sax, nlohmann::json::input_format_t::cbor);
+    if (sax.too_deep)
+      throw InputError(path + ": corrupt model file (nested deeper than " + std::to_string(DepthLimitedSax::kMaxDepth) +
+                       " levels); delete it to retrain");
+    if (!ok) throw InputError(path + ": corrupt or truncated model file; delete it to retrain");
+  } catch (const InputError&) {
+    throw;
   } catch (const std::exception& e) {
     throw InputError(path + ": corrupt or truncated model file (" + std::string(e.what()) + "); delete it to retrain");
   }
   try {
     TrainedModel m;
-    m.format_version = j.at("format_version").get<int>();
+    const auto& version = j.at("format_version");
+    if (!version.is_number_integer() || version.get<long long>() < 0 || version.get<long long>() > 1000000)
+      throw InputError(path + ": corrupt model file (format_version " + version.dump().substr(0, 40) +
+                       "); delete it to retrain");
+    m.format_version = version.get<int>();
     if (m.format_version != kModelFormatVersion)
       throw InputError(path + ": model file format version " + std::to_string(m.format_version) +
                        ", this furnihost reads version " + std::to_string(kModelFormatVersion) +
@@ -89,11 +129,15 @@ TrainedModel LoadModel(const std::string& path) {
     m.catalog_hash = j.at("catalog_hash").get<std::string>();
     m.voter_type = j.at("voter_type").get<std::string>();
     m.normaliser = Normaliser::FromJson(j.at("normaliser"));
+    if (!m.normaliser.min.allFinite() || !m.normaliser.max.allFinite())
+      throw InputError(path + ": corrupt model file (non-finite normaliser); delete it to retrain");
     m.voter_model = j.at("voter_model");
     m.summary = j.value("summary", nlohmann::json::object());
     return m;
-  } catch (const InputError&) {
-    throw;
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    if (what.rfind(path, 0) == 0) throw;
+    throw InputError(path + ": " + what + "; delete it to retrain");  // e.g. from Normaliser::FromJson
   } catch (const std::exception& e) {
     throw InputError(path + ": model file is missing a field (" + std::string(e.what()) + "); delete it to retrain");
   }
@@ -206,7 +250,8 @@ TrainedModel Pipeline::Train(const Catalog& catalog, const RunContext& ctx) {
                {"parts", parts},
                {"classes", classes},
                {"time_ms", {{"simulate", t_sim}, {"segment", t_seg}, {"features", t_feat}, {"voter", t_vote}}}};
-  voter_->Load(m.voter_model);
+  // Through Call: an exception escaping the plugin is caught while its library is loaded.
+  Call(*voter_cfg_, [&] { voter_->Load(m.voter_model); return 0; });
   loaded_model_id_ = m.catalog_hash + TrainingKey(graph_).dump();
   return m;
 }
@@ -227,6 +272,12 @@ Pipeline::Result Pipeline::Detect(const std::vector<SceneInput>& scenes, const T
     Stopwatch sw;
     auto got = Call(*input_cfg_, [&] { return input_->Acquire(req, ctx); });
     timed(input_cfg_->tag, sw.Ms());
+    // Sensors that declare max_points refuse before reading; this catches the others.
+    if (const size_t cap = MaxPoints(graph_))
+      for (const auto& s : got)
+        if (s.points.size() > cap)
+          throw InputError("stage '" + input_cfg_->tag + "' (" + input_cfg_->type + "): " + sc.path + ": " +
+                           std::to_string(s.points.size()) + " points exceed /limits/max_points = " + std::to_string(cap));
     for (auto& s : got) {
       s.pose = sc.pose;
       r.scans.push_back(std::move(s));
@@ -253,7 +304,15 @@ Pipeline::Result Pipeline::Detect(const std::vector<SceneInput>& scenes, const T
   if (!voter_ || !model) return r;
   const std::string id = model->catalog_hash + model->training_config.dump();
   if (loaded_model_id_ != id) {
-    Call(*voter_cfg_, [&] { voter_->Load(model->voter_model); return 0; });
+    // A model its voter cannot load is a corrupt or foreign cache file: bad input (exit 2),
+    // whatever the plugin threw, with the way out in the message.
+    const std::string fix = graph_.model_cache.empty() ? std::string(" (retrain with --retrain)")
+                                                       : " (model " + graph_.model_cache + "; retrain with --retrain)";
+    try {
+      Call(*voter_cfg_, [&] { voter_->Load(model->voter_model); return 0; });
+    } catch (const std::exception& e) {
+      throw InputError(std::string(e.what()) + fix);
+    }
     loaded_model_id_ = id;
   }
   std::vector<SceneParts> parts;

@@ -26,6 +26,7 @@ namespace furnihost {
 struct StageConfig {
   std::string tag;
   std::string type;
+  std::string version;  // the plugin's version (part of the model cache key)
   StageKind kind;
   std::vector<std::string> inputs;
   nlohmann::json params;  // resolved: every default filled

@@ -1,0 +1,315 @@
+#include "model_cloud.hpp"
+
+#include <nanoflann.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <random>
+
+namespace furnihost::ransac_upright {
+
+uint64_t Fnv1a(const std::string& s, uint64_t h) {
+  for (unsigned char c : s) {
+    h ^= c;
+    h *= 1099511628211ull;
+  }
+  return h;
+}
+
+void SamplingOptions::Check() const {
+  if (!(density_per_m2 > 0)) throw StageError("model_density_per_m2 must be > 0");
+  if (min_points < 1 || max_points < min_points)
+    throw StageError("model point limits: need 1 <= min_model_points <= max_model_points");
+  if (!(inlier_distance > 0)) throw StageError("inlier_distance_m must be > 0");
+}
+
+namespace {
+
+// nanoflann reads the points where they are (no copy).
+struct PointsAdaptor {
+  const Points* pts;
+  size_t kdtree_get_point_count() const { return pts->size(); }
+  float kdtree_get_pt(size_t i, size_t d) const { return (*pts)[i][static_cast<int>(d)]; }
+  template <class B>
+  bool kdtree_get_bbox(B&) const { return false; }
+};
+
+// Result set that stops the search at the first point within the radius: a yes/no query.
+struct AnyWithinSet {
+  float radius_sq;
+  bool found = false;
+  explicit AnyWithinSet(float r2) : radius_sq(r2) {}
+  bool full() const { return true; }
+  float worstDist() const { return radius_sq; }
+  bool addPoint(float, uint32_t) {
+    found = true;
+    return false;
+  }
+};
+
+using Tree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, PointsAdaptor>,
+                                                 PointsAdaptor, 3, uint32_t>;
+
+// Indices of the points seen from outside: orthographic point z-buffers from 12 azimuths at
+// elevations -20°, 0°, 30°, 60° and from straight above (furniture is never seen from below
+// the floor). A point is seen when it lies within one pixel of the front-most depth of its
+// pixel in some view; pixels are 2.5 point spacings wide so the front surface has no holes.
+std::vector<int> OuterPoints(const Points& pts, float spacing) {
+  std::vector<char> seen(pts.size(), 0);
+  std::vector<Eigen::Vector3f> dirs;  // towards the viewer
+  for (float el : {-20.f, 0.f, 30.f, 60.f})
+    for (int a = 0; a < 12; ++a) {
+      const float az = a * 30.f * 3.14159265f / 180.f, e = el * 3.14159265f / 180.f;
+      dirs.emplace_back(std::cos(e) * std::cos(az), std::cos(e) * std::sin(az), std::sin(e));
+    }
+  dirs.emplace_back(0.f, 0.f, 1.f);
+  const float pix = 2.5f * spacing;
+  std::vector<float> top;
+  std::vector<int> cell(pts.size());
+  for (const Eigen::Vector3f& d : dirs) {
+    const Eigen::Vector3f u = d.unitOrthogonal(), v = d.cross(u);
+    float u0 = std::numeric_limits<float>::infinity(), v0 = u0, u1 = -u0, v1 = -u0;
+    for (const auto& p : pts) {
+      u0 = std::min(u0, p.dot(u));
+      u1 = std::max(u1, p.dot(u));
+      v0 = std::min(v0, p.dot(v));
+      v1 = std::max(v1, p.dot(v));
+    }
+    const int w = static_cast<int>((u1 - u0) / pix) + 1, h = static_cast<int>((v1 - v0) / pix) + 1;
+    top.assign(size_t(w) * h, -std::numeric_limits<float>::infinity());
+    for (size_t i = 0; i < pts.size(); ++i) {
+      const int x = std::min(w - 1, static_cast<int>((pts[i].dot(u) - u0) / pix));
+      const int y = std::min(h - 1, static_cast<int>((pts[i].dot(v) - v0) / pix));
+      cell[i] = y * w + x;
+      top[cell[i]] = std::max(top[cell[i]], pts[i].dot(d));
+    }
+    for (size_t i = 0; i < pts.size(); ++i)
+      if (pts[i].dot(d) >= top[cell[i]] - pix) seen[i] = 1;
+  }
+  std::vector<int> out;
+  for (size_t i = 0; i < pts.size(); ++i)
+    if (seen[i]) out.push_back(static_cast<int>(i));
+  return out;
+}
+
+}  // namespace
+
+struct PointIndex::Impl {
+  PointsAdaptor adaptor;
+  Tree tree;
+  explicit Impl(const Points* p) : adaptor{p}, tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10)) {
+    tree.buildIndex();
+  }
+};
+
+PointIndex::PointIndex(const Points* points) : impl_(std::make_unique<Impl>(points)) {}
+PointIndex::~PointIndex() = default;
+
+bool PointIndex::AnyWithin(const Eigen::Vector3f& q, float radius) const {
+  if (impl_->adaptor.pts->empty()) return false;
+  AnyWithinSet rs(radius * radius);
+  impl_->tree.findNeighbors(rs, q.data(), nanoflann::SearchParams());
+  return rs.found;
+}
+
+int PointIndex::Nearest(const Eigen::Vector3f& q, float* dist) const {
+  if (impl_->adaptor.pts->empty()) {
+    if (dist) *dist = std::numeric_limits<float>::infinity();
+    return -1;
+  }
+  uint32_t idx = 0;
+  float d2 = std::numeric_limits<float>::infinity();
+  nanoflann::KNNResultSet<float, uint32_t> rs(1);
+  rs.init(&idx, &d2);
+  impl_->tree.findNeighbors(rs, q.data(), nanoflann::SearchParams());
+  if (dist) *dist = std::sqrt(d2);
+  return static_cast<int>(idx);
+}
+
+ModelCloud::ModelCloud(const CatalogModel& model, const SamplingOptions& o, uint64_t seed)
+    : id_(model.id), inlier_(o.inlier_distance), min_h_(o.min_horizontal_normal) {
+  const Mesh& mesh = model.mesh;
+  const int nv = static_cast<int>(mesh.vertices.size());
+  // Cumulative face areas; degenerate or invalid faces get zero weight (no defined normal).
+  std::vector<double> cum(mesh.triangles.size() + 1, 0.0);
+  for (size_t t = 0; t < mesh.triangles.size(); ++t) {
+    const Eigen::Vector3i& f = mesh.triangles[t];
+    double a = 0.0;
+    if (f.minCoeff() >= 0 && f.maxCoeff() < nv) {
+      const Eigen::Vector3f e1 = mesh.vertices[f[1]] - mesh.vertices[f[0]];
+      const Eigen::Vector3f e2 = mesh.vertices[f[2]] - mesh.vertices[f[0]];
+      a = 0.5 * static_cast<double>(e1.cross(e2).norm());
+      if (!std::isfinite(a) || a < 1e-12) a = 0.0;
+    }
+    cum[t + 1] = cum[t] + a;
+  }
+  area_ = cum.back();
+  if (!(area_ > 0.0)) throw StageError("catalog model " + model.id + " has no faces with area");
+  // Dense pass over all faces (up to 4x the final budget), then only the outer surface is kept
+  // (paper: "filling the outer triangle faces with points"), then a uniform subset within the
+  // budget. Faces inside closed furniture (drawer interiors, doubled walls) never face a sensor.
+  const double wanted = area_ * o.density_per_m2;
+  const int n = static_cast<int>(std::clamp(wanted, double(o.min_points), 4.0 * o.max_points));
+  const double dense_spacing = std::sqrt(area_ / n);
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> uni(0.0, 1.0);
+  Points pts, nrm;
+  pts.reserve(n);
+  nrm.reserve(n);
+  // Systematic area-weighted sampling: point k lands at cumulative area (u0 + k) * A / n, so
+  // every face gets its share up to one point, then a uniform position inside the face.
+  const double u0 = uni(rng);
+  size_t t = 0;
+  for (int k = 0; k < n; ++k) {
+    const double target = (u0 + k) * area_ / n;
+    while (t + 1 < mesh.triangles.size() && cum[t + 1] <= target) ++t;
+    const Eigen::Vector3i& f = mesh.triangles[t];
+    const Eigen::Vector3f& a = mesh.vertices[f[0]];
+    const Eigen::Vector3f e1 = mesh.vertices[f[1]] - a, e2 = mesh.vertices[f[2]] - a;
+    double r1 = uni(rng), r2 = uni(rng);
+    if (r1 + r2 > 1.0) {  // fold the square onto the triangle: uniform barycentric sample
+      r1 = 1.0 - r1;
+      r2 = 1.0 - r2;
+    }
+    pts.push_back(a + static_cast<float>(r1) * e1 + static_cast<float>(r2) * e2);
+    nrm.push_back(e1.cross(e2).normalized());
+  }
+  std::vector<int> keep = OuterPoints(pts, static_cast<float>(dense_spacing));
+  if (keep.empty()) {  // degenerate (e.g. a single flat face seen edge-on): keep everything
+    keep.resize(pts.size());
+    std::iota(keep.begin(), keep.end(), 0);
+  }
+  outer_area_ = area_ * double(keep.size()) / double(pts.size());
+  const size_t budget = static_cast<size_t>(
+      std::clamp(outer_area_ * o.density_per_m2, double(o.min_points), double(o.max_points)));
+  if (keep.size() > budget) {
+    for (size_t a = 0; a < budget; ++a) {
+      std::uniform_int_distribution<size_t> d(a, keep.size() - 1);
+      std::swap(keep[a], keep[d(rng)]);
+    }
+    keep.resize(budget);
+    std::sort(keep.begin(), keep.end());
+  }
+  points_.reserve(keep.size());
+  normals_.reserve(keep.size());
+  for (int i : keep) {
+    points_.push_back(pts[i]);
+    normals_.push_back(nrm[i]);
+  }
+  density_ = double(points_.size()) / outer_area_;
+  spacing_ = static_cast<float>(1.0 / std::sqrt(density_));
+  // Bounds of the referenced vertices (Mesh::Bounds is not exported by the core library).
+  bounds_.setEmpty();
+  for (const Eigen::Vector3i& f : mesh.triangles)
+    if (f.minCoeff() >= 0 && f.maxCoeff() < nv)
+      for (int c = 0; c < 3; ++c) bounds_.extend(mesh.vertices[f[c]]);
+
+  // Height index.
+  std::vector<int> order(points_.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(),
+                   [&](int a, int b) { return points_[a].z() < points_[b].z(); });
+  for (int i : order) {
+    const Eigen::Vector3f& nn = normals_[i];
+    const bool info = std::hypot(nn.x(), nn.y()) > min_h_;
+    (info ? z_info_ : z_flat_).push_back(points_[i].z());
+    (info ? idx_info_ : idx_flat_).push_back(i);
+  }
+
+  kd_ = std::make_unique<PointIndex>(&points_);
+  BuildCoverageGrid();
+}
+
+ModelCloud::~ModelCloud() = default;
+
+void ModelCloud::HeightBand(float z, float tol, bool informative, std::vector<int>* out) const {
+  const std::vector<float>& zs = informative ? z_info_ : z_flat_;
+  const std::vector<int>& idx = informative ? idx_info_ : idx_flat_;
+  auto lo = std::lower_bound(zs.begin(), zs.end(), z - tol);
+  auto hi = std::upper_bound(lo, zs.end(), z + tol);
+  out->insert(out->end(), idx.begin() + (lo - zs.begin()), idx.begin() + (hi - zs.begin()));
+}
+
+double ModelCloud::AmbiguousCellShare() const {
+  size_t amb = 0, any = 0;
+  for (uint8_t byte : cells_)
+    for (int k = 0; k < 4; ++k) {
+      const unsigned c = (byte >> (2 * k)) & 3u;
+      amb += c == kAmbiguous;
+      any += c != kOutside;
+    }
+  return any ? double(amb) / double(any) : 0.0;
+}
+
+void ModelCloud::BuildCoverageGrid() {
+  // Thin cells keep the ambiguous shell (inlier ± half a cell diagonal) thin, so that few
+  // queries reach the kd-tree; huge models get coarser cells (at most ~2^31 cells).
+  float cell = inlier_ * 0.25f;
+  const Eigen::Vector3f lo = bounds_.min() - Eigen::Vector3f::Constant(inlier_ + cell);
+  const Eigen::Vector3f ext = bounds_.max() - bounds_.min() + Eigen::Vector3f::Constant(2 * (inlier_ + cell));
+  while (double(ext.x() / cell + 1) * (ext.y() / cell + 1) * (ext.z() / cell + 1) > 2e9) cell *= 1.25f;
+  grid_min_ = lo;
+  inv_cell_ = 1.f / cell;
+  for (int d = 0; d < 3; ++d) {
+    dims_[d] = static_cast<int>(std::ceil(ext[d] / cell)) + 1;
+    bdims_[d] = (dims_[d] + 7) / 8;
+  }
+  blocks_.assign(size_t(bdims_[0]) * bdims_[1] * bdims_[2], -1);
+  cells_.clear();
+  // Block of cell (x, y, z), allocated on first use (all cells kOutside).
+  auto block = [&](int x, int y, int z) -> uint8_t* {
+    int32_t& b = blocks_[(size_t(z >> 3) * bdims_[1] + (y >> 3)) * bdims_[0] + (x >> 3)];
+    if (b < 0) {
+      b = static_cast<int32_t>(cells_.size() / 128);
+      cells_.resize(cells_.size() + 128, 0);
+    }
+    return &cells_[size_t(b) * 128];
+  };
+  const float half_diag = 0.5f * std::sqrt(3.f) * cell;
+  // 10 µm of slack keeps float rounding from marking a cell covered that is not.
+  const float d_in = inlier_ - half_diag - 1e-5f, d_out = inlier_ + half_diag + 1e-5f;
+  const float d_in2 = d_in > 0 ? d_in * d_in : -1.f, d_out2 = d_out * d_out;
+  for (const Eigen::Vector3f& p : points_) {
+    const Eigen::Vector3f rel = (p - grid_min_) * inv_cell_;
+    int a[3], b[3];
+    for (int d = 0; d < 3; ++d) {
+      a[d] = std::max(0, static_cast<int>(std::floor(rel[d] - d_out * inv_cell_ - 0.5f)));
+      b[d] = std::min(dims_[d] - 1, static_cast<int>(std::ceil(rel[d] + d_out * inv_cell_ - 0.5f)));
+    }
+    // Per row (y, z), the cells within d_out / d_in of p are x intervals around p.x: no
+    // per-cell distance test.
+    const float px = (p.x() - grid_min_.x()) * inv_cell_ - 0.5f;  // p.x in cell-centre units
+    for (int z = a[2]; z <= b[2]; ++z) {
+      const float dz = grid_min_.z() + (z + 0.5f) * cell - p.z();
+      for (int y = a[1]; y <= b[1]; ++y) {
+        const float dy = grid_min_.y() + (y + 0.5f) * cell - p.y();
+        const float dyz = dy * dy + dz * dz;
+        if (dyz > d_out2) continue;
+        const float ro = std::sqrt(d_out2 - dyz) * inv_cell_;
+        const int x0 = std::max(a[0], static_cast<int>(std::ceil(px - ro)));
+        const int x1 = std::min(b[0], static_cast<int>(std::floor(px + ro)));
+        int i0 = x1 + 1, i1 = x1;  // covered sub-interval (empty by default)
+        if (dyz <= d_in2) {
+          const float ri = std::sqrt(d_in2 - dyz) * inv_cell_;
+          i0 = std::max(x0, static_cast<int>(std::ceil(px - ri)));
+          i1 = std::min(x1, static_cast<int>(std::floor(px + ri)));
+        }
+        const unsigned yz = ((z & 7) << 6) | ((y & 7) << 3);
+        for (int x = x0; x <= x1;) {  // one block segment of the row at a time
+          uint8_t* blk = block(x, y, z);
+          const int xe = std::min(x1, x | 7);
+          for (; x <= xe; ++x) {
+            const unsigned state = (x >= i0 && x <= i1) ? kCovered : kAmbiguous;
+            const unsigned idx = yz | (x & 7), sh = (idx & 3) * 2;
+            uint8_t& byte = blk[idx >> 2];
+            if (((byte >> sh) & 3u) < state) byte = static_cast<uint8_t>((byte & ~(3u << sh)) | (state << sh));
+          }
+        }
+      }
+    }
+  }
+}
+
+}  // namespace furnihost::ransac_upright

@@ -1,0 +1,387 @@
+// fitters.ransac_upright — the paper's model fitting and verification (Sect. VI-C, VII-B):
+// catalog models of the hypothesis' class become dense point clouds, an upright RANSAC finds
+// x, y and yaw of each on the floor plane, the model covering the most part points (tie-broken
+// by explained model surface) is kept, then the fit is verified by its coverage and by an
+// OctoMap free-space test per scan that has a sensor origin.
+//
+// Frames: detections and fitted poses in the world frame (Scan::pose maps scan -> world);
+// occupancy grids in each scan's own frame. Assumption: objects stand on the floor z = floor_z.
+#include <octomap/OcTree.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <map>
+#include <mutex>
+#include <set>
+
+#include "furnihost/log.hpp"
+#include "furnihost/plugin.hpp"
+#include "model_cloud.hpp"
+#include "occupancy.hpp"
+#include "upright_ransac.hpp"
+
+namespace furnihost {
+namespace {
+
+using namespace ransac_upright;
+
+struct RansacUprightOptions {
+  SamplingOptions sampling;
+  RansacOptions ransac;
+  OccupancyOptions grid;
+  FreeSpaceOptions free_space;
+  float min_coverage = 0.5f;
+  float max_free_space_ratio = 0.2f;
+  int grid_cache_size = 4;
+
+  static RansacUprightOptions FromJson(const nlohmann::json& p) {
+    RansacUprightOptions o;
+    o.sampling.density_per_m2 = p.at("model_density_per_m2").get<double>();
+    o.sampling.min_points = p.at("min_model_points").get<int>();
+    o.sampling.max_points = p.at("max_model_points").get<int>();
+    o.sampling.inlier_distance = p.at("inlier_distance_m").get<float>();
+    o.sampling.min_horizontal_normal = p.at("min_horizontal_normal").get<float>();
+    RansacOptions& r = o.ransac;
+    r.floor_z = p.at("floor_z").get<float>();
+    r.height_tolerance = p.at("height_tolerance_m").get<float>();
+    r.correspondence_fraction = p.at("correspondence_fraction").get<float>();
+    r.max_correspondences = p.at("max_correspondences").get<int>();
+    r.min_horizontal_normal = o.sampling.min_horizontal_normal;
+    r.normal_z_tolerance = p.at("normal_z_tolerance").get<float>();
+    r.normal_sign_ambiguous = p.at("normal_sign_ambiguous").get<bool>();
+    r.score_fraction = p.at("score_fraction").get<float>();
+    r.p_success = p.at("p_success").get<double>();
+    r.max_iterations = p.at("max_iterations").get<int>();
+    r.min_iterations = p.at("min_iterations").get<int>();
+    r.model_tie_tolerance = p.at("model_tie_tolerance").get<float>();
+    r.refine_iterations = p.at("refine_iterations").get<int>();
+    o.min_coverage = r.min_coverage = p.at("min_coverage").get<float>();
+    o.max_free_space_ratio = p.at("max_free_space_ratio").get<float>();
+    o.grid.resolution = p.at("grid_resolution_m").get<double>();
+    o.grid.max_range = p.at("grid_max_range_m").get<double>();
+    o.grid_cache_size = p.at("grid_cache_size").get<int>();
+    o.free_space.free_margin = p.at("free_space_margin_m").get<float>();
+    o.free_space.visibility_margin = p.at("visibility_margin_m").get<float>();
+    o.free_space.erosion = p.at("free_space_erosion").get<int>();
+    o.Check();
+    return o;
+  }
+  void Check() const {
+    sampling.Check();
+    ransac.Check();
+    grid.Check();
+  }
+};
+
+std::string Fixed2(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.2f", v);
+  return buf;
+}
+
+uint64_t SplitMix(uint64_t x) {
+  x += 0x9e3779b97f4a7c15ull;
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
+  return x ^ (x >> 31);
+}
+
+// Identifies a scan's grid in the cache: the pointer alone could be reused by a later scan.
+struct GridKey {
+  const Scan* scan = nullptr;
+  size_t n = 0;
+  uint64_t fingerprint = 0;
+  bool operator==(const GridKey& o) const { return scan == o.scan && n == o.n && fingerprint == o.fingerprint; }
+};
+
+GridKey KeyOf(const Scan& s, double resolution) {
+  GridKey k{&s, s.points.size(), 1469598103934665603ull};
+  auto mix = [&](const void* p, size_t len) {
+    std::string bytes(static_cast<const char*>(p), len);
+    k.fingerprint = Fnv1a(bytes, k.fingerprint);
+  };
+  const size_t n = s.points.size();
+  for (size_t i : {size_t(0), n / 3, n / 2, (2 * n) / 3, n ? n - 1 : 0})
+    if (i < n) mix(s.points[i].data(), sizeof(float) * 3);
+  if (s.origin) mix(s.origin->data(), sizeof(float) * 3);
+  mix(&resolution, sizeof resolution);
+  return k;
+}
+
+class RansacUprightFitter : public Fitter {
+ public:
+  static ParamSchema Schema() {
+    ParamSchema s;
+    s.Number("model_density_per_m2", 10000, 100, 1e6,
+             "model cloud density [points/m² of outer face area] (1 cm spacing; paper's models: 5k-15k points)")
+        .Int("min_model_points", 5000, 100, 1e6, "small models are sampled denser up to this count")
+        .Int("max_model_points", 40000, 100, 1e6,
+             "large models are sampled sparser down to this count (40k keeps big cabinets near 2 cm spacing)")
+        .Number("floor_z", 0.0, -10, 10, "world height [m] of the floor every model stands on (upright assumption)")
+        .Number("height_tolerance_m", 0.01, 0.001, 0.2,
+                "candidate correspondences: model points within this height [m] of the sampled scan point")
+        .Number("correspondence_fraction", 0.5, 0.01, 1, "share of the candidate correspondences tried per sample (paper: ~50 %)")
+        .Int("max_correspondences", 0, 0, 1e6, "cap on the candidates tried per sample; 0 = no cap")
+        .Number("min_horizontal_normal", 0.5, 0, 1,
+                "|n_xy| above this: the yaw comes from the normals, else a random yaw (paper: tables)")
+        .Number("normal_z_tolerance", 0.3, 0, 1, "candidates need a normal tilt |n_z| within this of the scan point's")
+        .Bool("normal_sign_ambiguous", true, "normals' signs are arbitrary: try yaw and yaw + 180°")
+        .Number("inlier_distance_m", 0.02, 0.001, 0.5, "a scan point is covered when a model point is this close [m]")
+        .Number("score_fraction", 0.5, 0.01, 1, "share of the part points each candidate is scored on (paper: ~50 %)")
+        .Number("p_success", 0.99, 0.5, 0.999999, "RANSAC success probability of eq. 7")
+        .Int("max_iterations", 200, 1, 100000, "cap on the samples per model (eq. 7 starts at infinity)")
+        .Int("min_iterations", 10, 0, 100000,
+             "samples per model at least: eq. 7 assumes every covered scan point yields the pose, which noisy normals do not")
+        .Number("model_tie_tolerance", 0.02, 0, 1,
+                "models covering within this share of the best are ranked by explained model surface")
+        .Int("refine_iterations", 0, 0, 100, "upright ICP steps after RANSAC (not in the paper; 0 = off)")
+        .Number("min_coverage", 0.5, 0, 1, "reject when the model covers less than this share of the part points (paper: 0.5)")
+        .Number("max_free_space_ratio", 0.2, 0, 1, "reject when more than this share of the visible model surface is in free space")
+        .Number("grid_resolution_m", 0.05, 0.005, 1, "OctoMap voxel edge [m] of the per-scan occupancy grids")
+        .Number("grid_max_range_m", 0.0, 0, 1000, "rays longer than this only clear space [m]; 0 = unlimited")
+        .Int("grid_cache_size", 4, 1, 1000, "occupancy grids kept between calls (least recently used dropped)")
+        .Number("free_space_margin_m", 0.05, 0, 1,
+                "model points are pushed this far from the sensor before the free-space look-up [m]")
+        .Number("visibility_margin_m", 0.03, 0, 1,
+                "model points this far behind the model's own front surface count as self-occluded [m]")
+        .Int("free_space_erosion", 1, 0, 1,
+             "1: a model point is in free space only if its voxel and the 6 neighbours are free; 0: its voxel");
+    return s;
+  }
+
+  explicit RansacUprightFitter(const nlohmann::json& p) : o_(RansacUprightOptions::FromJson(p)) {}
+
+  // Samples every catalog model once (in parallel). Nothing is returned for the model file:
+  // resampling (0.05-0.3 s per model) is about as fast as parsing stored clouds would be.
+  nlohmann::json Prepare(const std::vector<const CatalogModel*>& catalog, const nlohmann::json&) override {
+    tbb::this_task_arena::isolate([&] { Clouds(catalog); });
+    return nullptr;
+  }
+
+  std::vector<Detection> Fit(const std::vector<Detection>& input, const FitContext& ctx) override {
+    std::vector<Detection> out = input;
+    if (out.empty()) return out;
+    const int threads = ctx.run.threads > 0 ? ctx.run.threads : tbb::task_arena::automatic;
+    tbb::task_arena arena(threads);
+    arena.execute([&] { FitAll(&out, ctx); });
+    return out;
+  }
+
+ private:
+  void FitAll(std::vector<Detection>* dets, const FitContext& ctx) {
+    // Scene points of every detection (world frame).
+    std::vector<ScenePoints> scenes(dets->size());
+    for (size_t d = 0; d < dets->size(); ++d) scenes[d] = Gather((*dets)[d], ctx);
+
+    // Models per class, in catalog order; sampled once per stage object.
+    std::set<std::string> classes;
+    for (const auto& d : *dets) classes.insert(d.cls);
+    std::vector<const CatalogModel*> needed;
+    for (const CatalogModel* m : ctx.catalog)
+      if (m && classes.count(m->cls)) needed.push_back(m);
+    const std::vector<std::shared_ptr<const ModelCloud>> clouds = Clouds(needed);
+    std::map<std::string, std::vector<const ModelCloud*>> by_class;
+    for (size_t i = 0; i < needed.size(); ++i) by_class[needed[i]->cls].push_back(clouds[i].get());
+
+    // RANSAC per detection, in parallel; each has its own seed so the order does not matter.
+    std::vector<FitResult> fits(dets->size());
+    tbb::parallel_for(size_t(0), dets->size(), [&](size_t d) {
+      auto it = by_class.find((*dets)[d].cls);
+      if (it == by_class.end() || scenes[d].points.empty()) return;
+      fits[d] = FitUpright(scenes[d], it->second, o_.ransac, SplitMix(ctx.run.seed ^ SplitMix(d + 1)));
+    });
+
+    std::vector<char> passed(dets->size(), 0);
+    for (size_t d = 0; d < dets->size(); ++d) {
+      Detection& det = (*dets)[d];
+      det.free_space_ratio = -1.f;  // recomputed below
+      det.rejection.clear();
+      det.coverage = -1.f;
+      det.rms = -1.f;
+      det.iterations = 0;
+      auto it = by_class.find(det.cls);
+      if (it == by_class.end()) {
+        Reject(&det, "no catalog model of class '" + det.cls + "'");
+        continue;
+      }
+      if (scenes[d].points.empty()) {
+        Reject(&det, "no part points to fit");
+        continue;
+      }
+      const FitResult& f = fits[d];
+      det.iterations = f.iterations;
+      det.notes.push_back(TrialNote(f, it->second));
+      if (f.model < 0) {
+        det.coverage = 0.f;
+        Reject(&det, "no pose found");
+        continue;
+      }
+      const ModelCloud& m = *it->second[f.model];
+      det.model = m.Id();
+      det.model_pose = f.pose;
+      det.center = f.pose * m.Bounds().center();
+      det.yaw = f.yaw;
+      det.coverage = f.coverage;
+      det.rms = f.rms;
+      if (f.coverage < o_.min_coverage) {
+        Reject(&det, "coverage " + Fixed2(f.coverage) + " < " + Fixed2(o_.min_coverage));
+        continue;
+      }
+      passed[d] = 1;
+    }
+
+    // Free-space test against every scan that has a sensor origin.
+    std::vector<const Scan*> scans;
+    for (const SceneParts& sp : ctx.scenes)
+      if (sp.scan && sp.scan->origin && std::find(scans.begin(), scans.end(), sp.scan) == scans.end())
+        scans.push_back(sp.scan);
+    const bool any_passed = std::find(passed.begin(), passed.end(), 1) != passed.end();
+    std::vector<std::shared_ptr<const octomap::OcTree>> grids;
+    if (any_passed)
+      for (const Scan* s : scans) grids.push_back(Grid(*s));
+    tbb::parallel_for(size_t(0), dets->size(), [&](size_t d) {
+      if (!passed[d]) return;
+      Detection& det = (*dets)[d];
+      if (scans.empty()) {
+        det.notes.push_back("free-space test skipped: scan has no sensor origin");
+        det.verified = true;
+        return;
+      }
+      const ModelCloud& m = *by_class.at(det.cls)[fits[d].model];
+      FreeSpaceOptions fo = o_.free_space;
+      fo.point_spacing = m.Spacing();
+      long visible = 0, free = 0;
+      for (size_t s = 0; s < scans.size(); ++s) {
+        const Eigen::Isometry3f to_scan = scans[s]->pose.inverse() * det.model_pose;
+        Points pts(m.Cloud().size());
+        for (size_t i = 0; i < pts.size(); ++i) pts[i] = to_scan * m.Cloud()[i];
+        const FreeSpaceCount c = CountFreeSpace(*grids[s], pts, *scans[s]->origin, fo);
+        visible += c.visible;
+        free += c.free;
+      }
+      det.free_space_ratio = visible > 0 ? float(double(free) / double(visible)) : 0.f;
+      if (det.free_space_ratio > o_.max_free_space_ratio)
+        Reject(&det, "free space " + Fixed2(det.free_space_ratio) + " > " + Fixed2(o_.max_free_space_ratio));
+      else
+        det.verified = true;
+    });
+  }
+
+  static void Reject(Detection* det, const std::string& why) {
+    det->verified = false;
+    det->rejection = why;
+  }
+
+  static std::string TrialNote(const FitResult& f, const std::vector<const ModelCloud*>& models) {
+    std::string s = "ransac:";
+    for (size_t i = 0; i < models.size(); ++i) {
+      const ModelTrial& t = f.trials[i];
+      s += " " + models[i]->Id() + " " +
+           (t.subset_coverage >= 0 ? Fixed2(t.subset_coverage) : std::string("abandoned")) + " (" +
+           std::to_string(t.samples) + " it)" + (int(i) == f.model ? " *" : "") + ";";
+    }
+    if (!s.empty() && s.back() == ';') s.pop_back();
+    return s;
+  }
+
+  static ScenePoints Gather(const Detection& det, const FitContext& ctx) {
+    ScenePoints sp;
+    std::set<std::pair<int, int>> seen;
+    for (const Support& s : det.support) {
+      if (!seen.insert({s.scene, s.part}).second) continue;
+      if (s.scene < 0 || s.scene >= int(ctx.scenes.size()))
+        throw StageError("detection support names scene " + std::to_string(s.scene) + " but there are " +
+                         std::to_string(ctx.scenes.size()));
+      const SceneParts& scene = ctx.scenes[s.scene];
+      if (!scene.scan || !scene.segmentation) throw StageError("scene " + std::to_string(s.scene) + " has no scan or segmentation");
+      const Scan& scan = *scene.scan;
+      const Segmentation& seg = *scene.segmentation;
+      if (s.part < 0 || s.part >= int(seg.parts.size()))
+        throw StageError("detection support names part " + std::to_string(s.part) + " of scene " +
+                         std::to_string(s.scene) + " which has " + std::to_string(seg.parts.size()));
+      const bool normals = seg.normals.size() == scan.points.size();
+      const Eigen::Matrix3f R = scan.pose.linear();
+      for (int i : seg.parts[s.part].indices) {
+        if (i < 0 || i >= int(scan.points.size()))
+          throw StageError("part " + std::to_string(s.part) + " of scene " + std::to_string(s.scene) +
+                           " indexes point " + std::to_string(i) + " of " + std::to_string(scan.points.size()));
+        if (!scan.points[i].allFinite()) continue;
+        sp.points.push_back(scan.pose * scan.points[i]);
+        sp.normals.push_back(normals ? Eigen::Vector3f(R * seg.normals[i]) : Eigen::Vector3f::Constant(NAN));
+      }
+    }
+    return sp;
+  }
+
+  // Sampled clouds of `models` (same order), building the missing ones in parallel.
+  std::vector<std::shared_ptr<const ModelCloud>> Clouds(const std::vector<const CatalogModel*>& models) {
+    std::vector<std::shared_ptr<const ModelCloud>> out(models.size());
+    std::vector<size_t> missing;
+    std::vector<std::string> keys(models.size());
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      for (size_t i = 0; i < models.size(); ++i) {
+        const CatalogModel& m = *models[i];
+        // The id alone could name another mesh in another catalog: key by the mesh size too.
+        keys[i] = m.id + "|" + std::to_string(m.mesh.vertices.size()) + "|" + std::to_string(m.mesh.triangles.size());
+        auto it = clouds_.find(keys[i]);
+        if (it != clouds_.end()) out[i] = it->second;
+        else missing.push_back(i);
+      }
+    }
+    tbb::parallel_for(size_t(0), missing.size(), [&](size_t k) {
+      const CatalogModel& m = *models[missing[k]];
+      out[missing[k]] = std::make_shared<const ModelCloud>(m, o_.sampling, Fnv1a(m.id));
+    });
+    std::lock_guard<std::mutex> lock(mu_);
+    for (size_t i : missing) clouds_.emplace(keys[i], out[i]);
+    return out;
+  }
+
+  // The occupancy grid of a scan, built once per run (bounded least-recently-used cache).
+  std::shared_ptr<const octomap::OcTree> Grid(const Scan& scan) {
+    const GridKey key = KeyOf(scan, o_.grid.resolution);
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      for (auto& e : grids_)
+        if (e.key == key) {
+          e.last_use = ++clock_;
+          return e.tree;
+        }
+    }
+    OccupancyStats st;
+    Stopwatch sw;
+    auto tree = BuildOccupancy(scan.points, *scan.origin, o_.grid, &st);
+    spdlog::debug("fitters.ransac_upright: occupancy grid of {} ({} points, {} rays): {} free, {} occupied voxels, {:.0f} ms",
+                  scan.source, scan.points.size(), st.rays, st.free, st.occupied, sw.Ms());
+    std::lock_guard<std::mutex> lock(mu_);
+    grids_.push_back({key, tree, ++clock_});
+    while (int(grids_.size()) > o_.grid_cache_size) {
+      auto oldest = std::min_element(grids_.begin(), grids_.end(),
+                                     [](const GridEntry& a, const GridEntry& b) { return a.last_use < b.last_use; });
+      grids_.erase(oldest);
+    }
+    return tree;
+  }
+
+  struct GridEntry {
+    GridKey key;
+    std::shared_ptr<const octomap::OcTree> tree;
+    uint64_t last_use = 0;
+  };
+
+  const RansacUprightOptions o_;
+  std::mutex mu_;  // guards the two caches below
+  std::map<std::string, std::shared_ptr<const ModelCloud>> clouds_;
+  std::vector<GridEntry> grids_;
+  uint64_t clock_ = 0;
+};
+
+}  // namespace
+}  // namespace furnihost
+
+FURNIHOST_PLUGIN(furnihost::RansacUprightFitter, "fitters.ransac_upright", "1.0.0",
+                 "upright RANSAC fit of catalog models (x, y, yaw) with coverage and OctoMap free-space verification")

@@ -1,0 +1,326 @@
+#include "upright_ransac.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <numeric>
+#include <random>
+
+namespace furnihost::ransac_upright {
+
+namespace {
+constexpr float kPi = 3.14159265358979f;
+
+float WrapAngle(float a) {
+  a = std::fmod(a + kPi, 2.f * kPi);
+  if (a < 0) a += 2.f * kPi;
+  return a - kPi;
+}
+
+struct Pose2 {
+  float yaw = 0.f, tx = 0.f, ty = 0.f;
+};
+
+// One candidate transformation and what scoring it gave.
+struct Hyp {
+  Pose2 pose;
+  int score = -1;    // exact covered count on the subset, -1 when abandoned
+  int partial = 0;   // covered count when abandoned
+};
+
+// Scores `h` on the subset; abandons it as soon as it cannot reach `bound` (shared, only grows).
+// Every candidate whose final score is the maximum is never abandoned, so the reduction
+// (highest score, then lowest index) does not depend on thread timing. `ev` holds the subset
+// points within the model's height range; `E` counts the whole subset, the others are misses.
+void Score(const ModelCloud& model, const std::vector<Eigen::Vector3f>& ev, int E, Hyp* h,
+           std::atomic<int>* bound) {
+  const int n = static_cast<int>(ev.size());
+  const float c = std::cos(h->pose.yaw), s = std::sin(h->pose.yaw);
+  int allowed = E - bound->load(std::memory_order_relaxed);  // misses we can afford
+  int hits = 0, misses = E - n;
+  if (misses > allowed) {
+    h->score = -1;
+    h->partial = 0;
+    return;
+  }
+  for (int k = 0; k < n; ++k) {
+    const float dx = ev[k].x() - h->pose.tx, dy = ev[k].y() - h->pose.ty;
+    if (model.Covered(Eigen::Vector3f(c * dx + s * dy, -s * dx + c * dy, ev[k].z()))) {
+      ++hits;
+    } else if (++misses > allowed) {
+      h->score = -1;
+      h->partial = hits;
+      return;
+    }
+    if ((k & 63) == 63) allowed = std::min(allowed, E - bound->load(std::memory_order_relaxed));
+  }
+  h->score = hits;
+  int b = bound->load(std::memory_order_relaxed);
+  while (hits > b && !bound->compare_exchange_weak(b, hits, std::memory_order_relaxed)) {
+  }
+}
+
+}  // namespace
+
+void RansacOptions::Check() const {
+  auto in01 = [](float v) { return v > 0.f && v <= 1.f; };
+  if (!(height_tolerance > 0)) throw StageError("height_tolerance_m must be > 0");
+  if (!in01(correspondence_fraction)) throw StageError("correspondence_fraction must be in (0, 1]");
+  if (!in01(score_fraction)) throw StageError("score_fraction must be in (0, 1]");
+  if (!(p_success > 0 && p_success < 1)) throw StageError("p_success must be in (0, 1)");
+  if (max_iterations < 1 || min_iterations < 0 || min_iterations > max_iterations)
+    throw StageError("iterations: need 0 <= min_iterations <= max_iterations, max_iterations >= 1");
+  if (max_correspondences < 0) throw StageError("max_correspondences must be >= 0");
+}
+
+double RequiredIterations(double p_success, double p_good) {
+  if (p_good <= 0.0) return std::numeric_limits<double>::infinity();
+  if (p_good >= 1.0) return 0.0;
+  return std::log(1.0 - p_success) / std::log(1.0 - p_good);
+}
+
+Eigen::Isometry3f UprightIsometry(float x, float y, float z, float yaw) {
+  Eigen::Isometry3f t = Eigen::Isometry3f::Identity();
+  t.linear() = Eigen::AngleAxisf(yaw, Eigen::Vector3f::UnitZ()).toRotationMatrix();
+  t.translation() = Eigen::Vector3f(x, y, z);
+  return t;
+}
+
+FitResult FitUpright(const ScenePoints& scene, const std::vector<const ModelCloud*>& models,
+                     const RansacOptions& o, uint64_t seed) {
+  o.Check();
+  FitResult out;
+  out.trials.resize(models.size());
+  const int n = static_cast<int>(scene.points.size());
+  out.total = n;
+  if (n == 0 || models.empty()) return out;
+  const bool have_normals = scene.normals.size() == scene.points.size();
+  std::mt19937_64 rng(seed);
+
+  // Scoring subset: a fixed random share of the scene points, heights relative to the floor.
+  std::vector<int> perm(n);
+  std::iota(perm.begin(), perm.end(), 0);
+  std::shuffle(perm.begin(), perm.end(), rng);
+  const int E = std::clamp(static_cast<int>(std::lround(o.score_fraction * n)), 1, n);
+  std::vector<Eigen::Vector3f> ev(E);
+  for (int k = 0; k < E; ++k) {
+    const Eigen::Vector3f& p = scene.points[perm[k]];
+    ev[k] = {p.x(), p.y(), p.z() - o.floor_z};
+  }
+  // Candidates that cannot cover min_coverage would be rejected anyway: abandon them early.
+  const int prune = std::max(1, static_cast<int>(std::ceil(o.min_coverage * E)));
+  const int slack = static_cast<int>(std::floor(o.model_tie_tolerance * E));
+
+  int global_best = -1;
+  std::vector<int> model_best(models.size(), -1);
+  std::vector<Pose2> model_pose(models.size());
+  int partial_best = -1, partial_model = -1;
+  Pose2 partial_pose;
+
+  std::uniform_int_distribution<int> pick(0, n - 1);
+  std::uniform_real_distribution<float> random_yaw(-kPi, kPi);
+  std::vector<int> cands;
+  std::vector<Hyp> hyps;
+  for (size_t mi = 0; mi < models.size(); ++mi) {
+    const ModelCloud& model = *models[mi];
+    // Subset points above or below the model (by more than the inlier distance) are misses
+    // whatever x, y and yaw: counted once, never looked up.
+    std::vector<Eigen::Vector3f> ev_in;
+    ev_in.reserve(ev.size());
+    for (const Eigen::Vector3f& q : ev)
+      if (q.z() >= model.Bounds().min().z() - model.InlierDistance() &&
+          q.z() <= model.Bounds().max().z() + model.InlierDistance())
+        ev_in.push_back(q);
+    int own = -1;
+    auto base = [&] { return std::max(prune, global_best - slack); };
+    double T = RequiredIterations(o.p_success, double(base()) / E);
+    int it = 0;
+    // The floor applies once some model has shown a plausible pose (then a high bound makes
+    // each abandoned candidate cheap); until then, a model that does not reach min_coverage
+    // within the eq. 7 count for p_good = min_coverage is given up (non-matching models).
+    while (it < o.max_iterations && (it < T || (global_best >= 0 && it < o.min_iterations))) {
+      ++it;
+      const int i = pick(rng);
+      const Eigen::Vector3f& p = scene.points[i];
+      const Eigen::Vector3f ns = have_normals ? scene.normals[i] : Eigen::Vector3f::Constant(NAN);
+      const float z = p.z() - o.floor_z;
+      const bool known = ns.allFinite();
+      const bool informative = known && std::hypot(ns.x(), ns.y()) > o.min_horizontal_normal;
+
+      // Candidate correspondences: model points at a similar height (and normal tilt).
+      cands.clear();
+      if (informative) {
+        model.HeightBand(z, o.height_tolerance, true, &cands);
+        const float nz = std::fabs(ns.z());
+        cands.erase(std::remove_if(cands.begin(), cands.end(),
+                                   [&](int j) {
+                                     return std::fabs(std::fabs(model.Normals()[j].z()) - nz) >
+                                            o.normal_z_tolerance;
+                                   }),
+                    cands.end());
+      } else {
+        model.HeightBand(z, o.height_tolerance, false, &cands);
+        if (!known) model.HeightBand(z, o.height_tolerance, true, &cands);
+      }
+      if (cands.empty()) continue;
+      int k = static_cast<int>(std::ceil(o.correspondence_fraction * cands.size()));
+      if (o.max_correspondences > 0) k = std::min(k, o.max_correspondences);
+      for (int a = 0; a < k; ++a) {  // partial Fisher-Yates: a random subset of size k
+        std::uniform_int_distribution<int> d(a, static_cast<int>(cands.size()) - 1);
+        std::swap(cands[a], cands[d(rng)]);
+      }
+      hyps.clear();
+      const float as = std::atan2(ns.y(), ns.x());
+      for (int a = 0; a < k; ++a) {
+        const Eigen::Vector3f& m = model.Cloud()[cands[a]];
+        auto add = [&](float yaw) {
+          const float c = std::cos(yaw), s = std::sin(yaw);
+          Hyp h;
+          h.pose = {WrapAngle(yaw), p.x() - (c * m.x() - s * m.y()), p.y() - (s * m.x() + c * m.y())};
+          hyps.push_back(h);
+        };
+        if (informative) {
+          const Eigen::Vector3f& nm = model.Normals()[cands[a]];
+          const float yaw = as - std::atan2(nm.y(), nm.x());
+          add(yaw);
+          if (o.normal_sign_ambiguous) add(yaw + kPi);
+        } else {
+          add(random_yaw(rng));  // near-vertical normal: the paper's random rotation
+        }
+      }
+
+      const int bound0 = std::max(base(), own + 1);
+      std::atomic<int> bound(bound0);
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, hyps.size(), 8), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t h = r.begin(); h < r.end(); ++h) Score(model, ev_in, E, &hyps[h], &bound);
+      });
+      int best_h = -1;
+      for (size_t h = 0; h < hyps.size(); ++h)
+        if (hyps[h].score >= bound0 && (best_h < 0 || hyps[h].score > hyps[best_h].score)) best_h = int(h);
+      if (best_h >= 0) {
+        own = hyps[best_h].score;
+        model_best[mi] = own;
+        model_pose[mi] = hyps[best_h].pose;
+        global_best = std::max(global_best, own);
+        T = RequiredIterations(o.p_success, double(std::max(own, base())) / E);
+      } else if (global_best < 0) {
+        // Nothing reached min_coverage yet: remember the most promising abandoned candidate so
+        // that a rejected detection still reports a pose and its (low) coverage.
+        for (const Hyp& h : hyps)
+          if (h.partial > partial_best) {
+            partial_best = h.partial;
+            partial_model = static_cast<int>(mi);
+            partial_pose = h.pose;
+          }
+      }
+    }
+    out.trials[mi].samples = it;
+    out.trials[mi].subset_coverage = model_best[mi] >= 0 ? float(model_best[mi]) / E : -1.f;
+    out.iterations += it;
+  }
+
+  // Share of a model's points within the inlier distance of a scene point (ranks tied models).
+  std::unique_ptr<PointIndex> scene_index;
+  auto explained_share = [&](int mi, const Pose2& ps) {
+    if (!scene_index) scene_index = std::make_unique<PointIndex>(&scene.points);
+    const ModelCloud& m = *models[mi];
+    const Eigen::Isometry3f T = UprightIsometry(ps.tx, ps.ty, o.floor_z, ps.yaw);
+    int cnt = 0;
+    for (const auto& q : m.Cloud()) cnt += scene_index->AnyWithin(T * q, m.InlierDistance());
+    return double(cnt) / double(m.Cloud().size());
+  };
+
+  int win = -1;
+  Pose2 pose;
+  if (global_best >= 0) {
+    // The best model explains the most model points: among the models whose coverage is within
+    // the tie tolerance of the best, the largest share of the model's (outer) points near scene
+    // points wins. A share, not a count: a bigger model that also covers the scene points (a
+    // dresser over a drawer's front) explains as many points but a smaller share of itself.
+    std::vector<int> tied;
+    for (size_t mi = 0; mi < models.size(); ++mi)
+      if (model_best[mi] >= 0 && model_best[mi] >= global_best - slack) tied.push_back(static_cast<int>(mi));
+    double best_share = -1.0;
+    for (int mi : tied) {
+      if (tied.size() == 1) {  // nothing to break: skip the model-to-scene queries
+        win = mi;
+        break;
+      }
+      const double share = explained_share(mi, model_pose[mi]);
+      if (win < 0 || share > best_share || (share == best_share && model_best[mi] > model_best[win])) {
+        win = mi;
+        best_share = share;
+      }
+    }
+    out.explained_share = best_share;
+    out.reached_bound = true;
+    pose = model_pose[win];
+  } else if (partial_model >= 0) {
+    win = partial_model;
+    pose = partial_pose;
+  } else {
+    return out;
+  }
+  const ModelCloud& m = *models[win];
+
+  // Optional upright ICP: nearest model point per scene point, closed-form 2D rigid update.
+  for (int r = 0; r < o.refine_iterations; ++r) {
+    const Eigen::Isometry3f Tw = UprightIsometry(pose.tx, pose.ty, o.floor_z, pose.yaw);
+    const Eigen::Isometry3f Ti = Tw.inverse();
+    std::vector<Eigen::Vector2f> a, b;
+    for (const auto& p : scene.points) {
+      float d = 0.f;
+      const int j = m.Nearest(Ti * p, &d);
+      if (j < 0 || d > 2.f * m.InlierDistance()) continue;
+      a.push_back((Tw * m.Cloud()[j]).head<2>());
+      b.push_back(p.head<2>());
+    }
+    if (a.size() < 3) break;
+    Eigen::Vector2f ca = Eigen::Vector2f::Zero(), cb = Eigen::Vector2f::Zero();
+    for (size_t q = 0; q < a.size(); ++q) {
+      ca += a[q];
+      cb += b[q];
+    }
+    ca /= float(a.size());
+    cb /= float(a.size());
+    double sxy = 0, sdot = 0;
+    for (size_t q = 0; q < a.size(); ++q) {
+      const Eigen::Vector2f u = a[q] - ca, v = b[q] - cb;
+      sxy += u.x() * v.y() - u.y() * v.x();
+      sdot += u.x() * v.x() + u.y() * v.y();
+    }
+    const float dth = static_cast<float>(std::atan2(sxy, sdot));
+    const Eigen::Rotation2Df R(dth);
+    const Eigen::Vector2f t = cb - R * ca;
+    const Eigen::Vector2f nt = R * Eigen::Vector2f(pose.tx, pose.ty) + t;
+    pose = {WrapAngle(pose.yaw + dth), nt.x(), nt.y()};
+    if (std::fabs(dth) < 1e-5f && t.norm() < 1e-5f) break;
+  }
+
+  // Final figures on all scene points.
+  out.model = win;
+  out.x = pose.tx;
+  out.y = pose.ty;
+  out.yaw = pose.yaw;
+  out.pose = UprightIsometry(pose.tx, pose.ty, o.floor_z, pose.yaw);
+  const Eigen::Isometry3f Ti = out.pose.inverse();
+  double se = 0.0;
+  for (const auto& p : scene.points) {
+    float d = 0.f;
+    m.Nearest(Ti * p, &d);
+    if (d <= m.InlierDistance()) {
+      ++out.covered;
+      se += double(d) * d;
+    }
+  }
+  out.coverage = float(out.covered) / float(n);
+  out.rms = out.covered > 0 ? static_cast<float>(std::sqrt(se / out.covered)) : -1.f;
+  return out;
+}
+
+}  // namespace furnihost::ransac_upright
