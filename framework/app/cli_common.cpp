@@ -10,8 +10,10 @@
 namespace furnihost::app {
 
 void CommonOptions::Add(CLI::App& app, bool with_run_options) {
+  // One folder per --plugin-path, so `--plugin-path DIR scan.pcd` leaves the scan alone.
   app.add_option("--plugin-path", plugin_paths,
-                 "extra folder(s) searched for plugins first (then $FURNIHOST_PLUGIN_PATH, the build tree, the install prefix)");
+                 "extra folder(s) searched for plugins first (then $FURNIHOST_PLUGIN_PATH, the build tree, the install prefix)")
+      ->allow_extra_args(false);
   app.add_flag("-v,--verbose", verbose, "more log output (-vv for debug)");
   app.add_flag("-q,--quiet", quiet, "only warnings and errors");
   if (with_run_options) {

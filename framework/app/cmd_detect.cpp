@@ -89,7 +89,8 @@ int RunDetect(const std::vector<std::string>& args) {
   app.add_option("scans", scans, "scan files (.pcd, .ply, .xyz)")->required();
   app.add_option("--out,-o", out, "output folder (default furnihost-out/<scan stem>/)");
   app.add_option("--origin", origin_text, "sensor origin x,y,z for scans without VIEWPOINT");
-  app.add_option("--pose", poses, "pose x,y,z,yaw_deg of each scan in the common frame (once per scan, with --fuse)");
+  app.add_option("--pose", poses, "pose x,y,z,yaw_deg of each scan in the common frame (once per scan, with --fuse)")
+      ->allow_extra_args(false);
   app.add_flag("--fuse", fuse, "vote with all scans in one common space (multi-view fusion, paper Sect. VII-C)");
   app.add_flag("--save-parts", save_parts, "write parts.ply: the segmentation, a random colour per part");
   app.add_flag("--retrain", retrain, "retrain the model even if the cache is valid");
@@ -106,6 +107,9 @@ int RunDetect(const std::vector<std::string>& args) {
     auto o = ParseNumbers(origin_text, 3, "--origin");
     origin = Eigen::Vector3f(o[0], o[1], o[2]);
   }
+  // Checked before any work, so a bad --out never wastes a training run.
+  if (!out.empty() && fs::exists(out) && !fs::is_directory(out))
+    throw InputError("--out " + out + ": exists and is not a folder");
   std::vector<Pipeline::SceneInput> inputs;
   for (size_t i = 0; i < scans.size(); ++i) {
     RequireRegularFile(scans[i], "scan file");

@@ -386,6 +386,13 @@ int RunSimulate(const std::vector<std::string>& args) {
     } catch (const StageError& e) {
       // Re-thrown from host code while the plugin is still loaded.
       throw StageError(std::string(kSensorType) + ": " + e.what(), e.IsInputError());
+    } catch (const InputError& e) {
+      throw InputError(std::string(kSensorType) + ": " + e.what());
+    } catch (const std::exception& e) {
+      // Any other type may have its code in the plugin: copy the message before unloading.
+      throw StageError(std::string(kSensorType) + ": " + e.what(), false);
+    } catch (...) {
+      throw StageError(std::string(kSensorType) + ": unknown exception", false);
     }
   }
   if (scans.size() != request.poses.size())

@@ -107,8 +107,9 @@ struct EntryResult {
   CatalogModel model;
 };
 
+// Positive and small enough to stay finite as a float (1e300 would become inf).
 bool PositiveFinite(const nlohmann::json& v) {
-  return v.is_number() && std::isfinite(v.get<double>()) && v.get<double>() > 0.0;
+  return v.is_number() && std::isfinite(v.get<double>()) && v.get<double>() > 0.0 && v.get<double>() < 1e30;
 }
 
 EntryResult LoadEntry(const nlohmann::json& e, size_t index, const fs::path& dir) {
@@ -197,11 +198,32 @@ EntryResult LoadEntry(const nlohmann::json& e, size_t index, const fs::path& dir
   constexpr float kMinExtent = 1e-3f;
   if (!(size.z() > kMinExtent) || !(std::max(size.x(), size.y()) > kMinExtent))
     return fail("zero-size model: extents " + Fmt3(size) + " m after scaling");
+  // And 100 m far above: such a size is a wrong "scale" (mm read as m), and scanning it from
+  // a few metres would give no useful view.
+  constexpr float kMaxExtent = 100.f;
+  if (!(size.maxCoeff() <= kMaxExtent))
+    return fail("implausible size " + Fmt3(size) + " m after scaling (over " + std::to_string(static_cast<int>(kMaxExtent)) +
+                " m; check \"" + sk + "\")");
 
   const Eigen::Vector3f lo = box.min().cwiseProduct(scale);
   const Eigen::Vector3f hi = box.max().cwiseProduct(scale);
   const Eigen::Vector3f bottom_centre(0.5f * (lo.x() + hi.x()), 0.5f * (lo.y() + hi.y()), lo.z());
   for (auto& v : m.vertices) v = v.cwiseProduct(scale) - bottom_centre;
+  // Zero-area triangles have no normal (consumers would divide by zero) and no surface to
+  // scan: drop them, and refuse a mesh that has nothing else.
+  const size_t before = m.triangles.size();
+  m.triangles.erase(std::remove_if(m.triangles.begin(), m.triangles.end(),
+                                   [&](const Eigen::Vector3i& t) {
+                                     // sin(angle at a) <= 1e-6: zero area up to float rounding.
+                                     const Eigen::Vector3f e1 = m.vertices[t[1]] - m.vertices[t[0]];
+                                     const Eigen::Vector3f e2 = m.vertices[t[2]] - m.vertices[t[0]];
+                                     return !(e1.cross(e2).norm() > 1e-6f * e1.norm() * e2.norm());
+                                   }),
+                    m.triangles.end());
+  if (m.triangles.empty())
+    return fail("degenerate mesh: all " + std::to_string(before) + " triangles have zero area");
+  if (m.triangles.size() < before)
+    spdlog::debug("{}: dropped {} zero-area triangles of {}", mesh.string(), before - m.triangles.size(), before);
 
   r.model.id = r.id;
   r.model.cls = e["class"].get<std::string>();
@@ -258,6 +280,11 @@ Mesh LoadMeshFile(const std::string& path) {
     for (unsigned f = 0; f < am->mNumFaces; ++f) {
       const aiFace& face = am->mFaces[f];
       if (face.mNumIndices != 3) continue;
+      // assimp's PLY importer passes out-of-range indices through unchecked.
+      for (unsigned k = 0; k < 3; ++k)
+        if (face.mIndices[k] >= am->mNumVertices)
+          throw InputError(path + ": face " + std::to_string(f) + " of mesh " + std::to_string(mi) + " uses vertex " +
+                           std::to_string(face.mIndices[k]) + " of " + std::to_string(am->mNumVertices));
       out.triangles.emplace_back(base + static_cast<int>(face.mIndices[0]),
                                  base + static_cast<int>(face.mIndices[1]),
                                  base + static_cast<int>(face.mIndices[2]));

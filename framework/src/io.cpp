@@ -7,8 +7,10 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -36,12 +38,103 @@ std::string Lower(std::string s) {
 void CheckCap(const std::string& path, size_t n, size_t max_points) {
   if (max_points && n > max_points)
     throw InputError(path + ": " + std::to_string(n) + " points exceed the limit of " + std::to_string(max_points) +
-                     " (raise limits.max_points or --max-points)");
+                     " (raise the graph's limits.max_points or the sensor's max_points)");
+}
+
+// Scans are in metres in a local frame. Farther points are dropped like NaNs: they are no
+// furniture, and grid keys (voxels, vote cells) computed from them would overflow.
+constexpr float kMaxCoordinate = 1e6f;
+
+// What the readers drop besides keeping ReadStats.
+struct Tally {
+  ReadStats stats;
+  size_t far = 0;  // finite points beyond kMaxCoordinate
+  // True when `v` is kept; counts it otherwise.
+  bool Keep(const Eigen::Vector3f& v) {
+    if (!v.allFinite()) {
+      ++stats.non_finite;
+      return false;
+    }
+    if (v.cwiseAbs().maxCoeff() > kMaxCoordinate) {
+      ++far;
+      return false;
+    }
+    return true;
+  }
+};
+
+// PCL trusts a PCD header's sizes: it allocates WIDTH x HEIGHT x point size before reading
+// anything, and unpacks binary_compressed data for the header's point count even when the
+// stored uncompressed size is smaller (a crash on a 20-byte file). The sizes are checked
+// against the file first; a header this parser cannot read is left to PCL to refuse.
+void PrecheckPcd(const std::string& path, size_t max_points) {
+  std::ifstream in(path, std::ios::binary);
+  std::string line, data;
+  std::vector<long long> sizes, counts;
+  long long width = -1, height = -1, points = -1;
+  size_t header_bytes = 0;
+  while (data.empty() && std::getline(in, line)) {
+    header_bytes += line.size() + 1;
+    if (header_bytes > (1u << 16)) return;
+    std::istringstream ls(line);
+    std::string key;
+    ls >> key;
+    long long v;
+    if (key == "SIZE") while (ls >> v) sizes.push_back(v);
+    else if (key == "COUNT") while (ls >> v) counts.push_back(v);
+    else if (key == "WIDTH") ls >> width;
+    else if (key == "HEIGHT") ls >> height;
+    else if (key == "POINTS") ls >> points;
+    else if (key == "DATA") ls >> data;
+  }
+  // PCL's defaults for a missing HEIGHT / WIDTH.
+  if (height < 0) height = 1;
+  if (width < 0) width = points;
+  if (data.empty() || width < 0 || sizes.empty()) return;
+  unsigned __int128 step = 0, values = 0;  // bytes and values per point
+  for (size_t i = 0; i < sizes.size(); ++i) {
+    const long long c = i < counts.size() ? counts[i] : 1;
+    if (sizes[i] <= 0 || c <= 0) return;
+    step += static_cast<unsigned __int128>(sizes[i]) * static_cast<unsigned __int128>(c);
+    values += static_cast<unsigned __int128>(c);
+  }
+  const unsigned __int128 n = static_cast<unsigned __int128>(width) * static_cast<unsigned __int128>(height);
+  const unsigned __int128 most = std::max<unsigned __int128>(n, points > 0 ? points : 0);
+  const size_t shown = most > std::numeric_limits<size_t>::max() ? std::numeric_limits<size_t>::max()
+                                                                  : static_cast<size_t>(most);
+  CheckCap(path, shown, max_points);
+  std::error_code ec;
+  const auto file_size = fs::file_size(path, ec);
+  if (ec || file_size < header_bytes) return;
+  const unsigned __int128 left = file_size - header_bytes;
+  const std::string declared = std::to_string(shown) + " points";
+  if (data == "binary" && n * step > left)
+    throw InputError(path + ": PCD data shorter than its header says (" + declared + ", " +
+                     std::to_string(static_cast<size_t>(left)) + " bytes of data)");
+  // Each ascii value takes at least one byte.
+  if (data == "ascii" && most * values > left)
+    throw InputError(path + ": PCD declares " + declared + " but holds " + std::to_string(static_cast<size_t>(left)) +
+                     " bytes of data");
+  if (data == "binary_compressed") {
+    uint32_t sz[2] = {0, 0};
+    in.read(reinterpret_cast<char*>(sz), sizeof sz);
+    if (!in || left < 8) throw InputError(path + ": binary_compressed PCD data truncated (no size words)");
+    if (sz[0] > left - 8)
+      throw InputError(path + ": binary_compressed PCD data truncated (" + std::to_string(sz[0]) +
+                       " compressed bytes declared, " + std::to_string(static_cast<size_t>(left - 8)) + " present)");
+    // LZF expands at most ~88x (a 3-byte back reference copies up to 264 bytes).
+    if (sz[1] != n * step || (n > 0 && sz[0] == 0) || sz[1] > 100ull * sz[0] + 64)
+      throw InputError(path + ": corrupt binary_compressed PCD (uncompressed size " + std::to_string(sz[1]) +
+                       " bytes, the header's " + declared + " need " +
+                       std::to_string(static_cast<unsigned long long>(std::min<unsigned __int128>(n * step, ~0ull))) + ")");
+  }
 }
 
 // ---- PCD (PCL) -------------------------------------------------------------------------------
-Scan ReadPcd(const std::string& path, ReadStats& stats, size_t max_points) {
+Scan ReadPcd(const std::string& path, Tally& tally, size_t max_points) {
+  ReadStats& stats = tally.stats;
   pcl::console::setVerbosityLevel(pcl::console::L_ALWAYS);  // our message replaces PCL's
+  PrecheckPcd(path, max_points);
   pcl::PCDReader reader;
   pcl::PCLPointCloud2 blob;
   Eigen::Vector4f origin;
@@ -50,8 +143,13 @@ Scan ReadPcd(const std::string& path, ReadStats& stats, size_t max_points) {
   // Read the header first so a huge declared size is refused before allocating.
   int data_type = 0;
   unsigned int data_idx = 0;
-  if (reader.readHeader(path, blob, origin, orientation, version, data_type, data_idx) < 0)
-    throw InputError(path + ": not a valid PCD file (bad header)");
+  int header_rc = -1;
+  try {  // PCL's header parser throws std::out_of_range on some malformed lines
+    header_rc = reader.readHeader(path, blob, origin, orientation, version, data_type, data_idx);
+  } catch (const std::exception& e) {
+    throw InputError(path + ": not a valid PCD file (bad header: " + e.what() + ")");
+  }
+  if (header_rc < 0) throw InputError(path + ": not a valid PCD file (bad header)");
   const size_t declared = static_cast<size_t>(blob.width) * blob.height;
   CheckCap(path, declared, max_points);
   bool has_x = false, has_y = false, has_z = false;
@@ -98,10 +196,7 @@ Scan ReadPcd(const std::string& path, ReadStats& stats, size_t max_points) {
         std::memcpy(&v[k], p + o, 4);
       }
     }
-    if (!v.allFinite()) {
-      ++stats.non_finite;
-      continue;
-    }
+    if (!tally.Keep(v)) continue;
     scan.points.push_back(v);
   }
   const bool default_view = origin.head<3>().isZero() && orientation.coeffs().isApprox(Eigen::Quaternionf::Identity().coeffs());
@@ -139,7 +234,8 @@ double PlyDecode(const uint8_t* p, const std::string& t, bool swap) {
   return v;
 }
 
-Scan ReadPly(const std::string& path, ReadStats& stats, size_t max_points) {
+Scan ReadPly(const std::string& path, Tally& tally, size_t max_points) {
+  ReadStats& stats = tally.stats;
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path + ": cannot be opened");
   std::string line;
@@ -209,10 +305,7 @@ Scan ReadPly(const std::string& path, ReadStats& stats, size_t max_points) {
   std::vector<double> vals(props.size());
   auto keep = [&](size_t) {
     Eigen::Vector3f v(vals[ix], vals[iy], vals[iz]);
-    if (!v.allFinite()) {
-      ++stats.non_finite;
-      return;
-    }
+    if (!tally.Keep(v)) return;
     scan.points.push_back(v);
     if (colour)
       scan.colors.push_back({static_cast<uint8_t>(std::clamp(vals[ir], 0.0, 255.0)),
@@ -267,7 +360,8 @@ Scan ReadPly(const std::string& path, ReadStats& stats, size_t max_points) {
 }
 
 // ---- XYZ -------------------------------------------------------------------------------
-Scan ReadXyz(const std::string& path, ReadStats& stats, size_t max_points) {
+Scan ReadXyz(const std::string& path, Tally& tally, size_t max_points) {
+  ReadStats& stats = tally.stats;
   std::ifstream in(path);
   if (!in) throw InputError(path + ": cannot be opened");
   Scan scan;
@@ -291,10 +385,7 @@ Scan ReadXyz(const std::string& path, ReadStats& stats, size_t max_points) {
     ++stats.read;
     CheckCap(path, stats.read, max_points);
     Eigen::Vector3f p(v[0], v[1], v[2]);
-    if (!p.allFinite()) {
-      ++stats.non_finite;
-      continue;
-    }
+    if (!tally.Keep(p)) continue;
     scan.points.push_back(p);
   }
   return scan;
@@ -304,15 +395,23 @@ Scan ReadXyz(const std::string& path, ReadStats& stats, size_t max_points) {
 
 Scan ReadScan(const std::string& path, ReadStats* stats_out, size_t max_points) {
   RequireRegularFile(path, "scan file");
-  ReadStats stats;
+  Tally tally;
+  const ReadStats& stats = tally.stats;
   const std::string ext = Lower(fs::path(path).extension().string());
   Scan scan;
-  if (ext == ".pcd") scan = ReadPcd(path, stats, max_points);
-  else if (ext == ".ply") scan = ReadPly(path, stats, max_points);
-  else if (ext == ".xyz" || ext == ".txt" || ext == ".pts" || ext == ".asc") scan = ReadXyz(path, stats, max_points);
+  if (ext == ".pcd") scan = ReadPcd(path, tally, max_points);
+  else if (ext == ".ply") scan = ReadPly(path, tally, max_points);
+  else if (ext == ".xyz" || ext == ".txt" || ext == ".pts" || ext == ".asc") scan = ReadXyz(path, tally, max_points);
   else throw InputError(path + ": unknown scan format '" + ext + "' (expected .pcd, .ply, .xyz or .txt)");
+  if (scan.points.empty() && tally.far)
+    throw InputError(path + ": holds no points within " + std::to_string(static_cast<int>(kMaxCoordinate)) +
+                     " m of the origin (" + std::to_string(tally.far) +
+                     " farther; scans must be in metres in a local frame)");
   if (scan.points.empty()) throw InputError(path + ": holds no finite points");
   if (stats.non_finite) spdlog::info("{}: dropped {} NaN/inf points of {}", path, stats.non_finite, stats.read);
+  if (tally.far)
+    spdlog::warn("{}: dropped {} of {} points farther than {} m from the origin (scans are metres in a local frame)",
+                 path, tally.far, stats.read, static_cast<int>(kMaxCoordinate));
   if (stats_out) *stats_out = stats;
   return scan;
 }
@@ -435,7 +534,8 @@ nlohmann::json ReadJson(const std::string& path) {
   if (max_depth > 256) throw InputError(path + ": JSON nested deeper than 256 levels");
   try {
     return nlohmann::json::parse(text);
-  } catch (const nlohmann::json::parse_error& e) {
+  } catch (const nlohmann::json::exception& e) {
+    // parse_error, and out_of_range for numbers beyond double ("1e400").
     std::string what = e.what();
     auto pos = what.find("] ");
     throw InputError(path + ": not valid JSON: " + (pos == std::string::npos ? what : what.substr(pos + 2)));

@@ -76,6 +76,8 @@ bool Registry::LoadFile(const std::string& path) {
     spdlog::warn("plugin {} refused: {}", path, why);
     return false;
   };
+  // dlopen() of a FIFO blocks forever, and of a folder fails obscurely: refuse both first.
+  if (!fs::is_regular_file(path, ec)) return refuse("not a regular file");
   auto lib = std::make_shared<boost::dll::shared_library>();
   boost::system::error_code lec;
   lib->load(path, boost::dll::load_mode::rtld_lazy | boost::dll::load_mode::rtld_local, lec);

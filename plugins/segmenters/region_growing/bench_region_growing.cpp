@@ -1,0 +1,390 @@
+// Speed of segmenters.region_growing (+ features.paper24) against PCL MovingLeastSquares
+// (order 2, same radius, normals) + pcl::RegionGrowing, in one binary, on 2 threads:
+//   (a) the real ScanNet room ../shared/data/scannet_votenet50k/scene0001_00.ply (50k points),
+//   (b) a procedural ~1M-point room (floor, walls, tables, chairs, cabinets, bins; 2 mm noise),
+//   (c) our pipeline on rooms of 100k..1M points at constant density (linearity),
+// plus the neighbourhood search alone: our voxel grid vs a nanoflann k-d tree.
+// After the Google Benchmark table it prints a summary: times, ratios and part counts.
+//
+//   build-x/bin/bench_region_growing [--benchmark_filter=...]
+//
+// PCL's RegionGrowing has no radius neighbourhood: it grows over the k = 30 nearest
+// neighbours (its default), with the angle measured to the seed normal (smooth mode off, as
+// in the paper), no curvature or residual test, min cluster 10. MLS gets 2 threads
+// (setNumberOfThreads); RegionGrowing is single-threaded in PCL.
+#include <benchmark/benchmark.h>
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
+#include <pcl/search/kdtree.h>
+#include <pcl/segmentation/region_growing.h>
+#include <pcl/surface/mls.h>
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
+
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <ctime>
+#include <map>
+#include <nanoflann.hpp>
+#include <random>
+#include <string>
+
+#include "furnihost/io.hpp"
+#include "furnihost/log.hpp"
+#include "part_features.hpp"
+#include "region_growing_core.hpp"
+#include "voxel_grid.hpp"
+
+namespace {
+
+using furnihost::Points;
+using furnihost::Scan;
+
+constexpr int kThreads = 2;
+constexpr double kPi = 3.14159265358979323846;
+
+// ---- procedural room ---------------------------------------------------------------------
+struct Rect {
+  Eigen::Vector3f o, a, b;  // o + s a + t b, s, t in [0, 1]
+  double Area() const { return a.cross(b).norm(); }
+};
+struct Cylinder {
+  Eigen::Vector3f base;  // centre of the bottom circle
+  float r, h;            // side surface only
+  double Area() const { return 2 * kPi * r * h; }
+};
+
+struct RoomPrimitives {
+  std::vector<Rect> rects;
+  std::vector<Cylinder> cyls;
+  double Area() const {
+    double a = 0;
+    for (const auto& r : rects) a += r.Area();
+    for (const auto& c : cyls) a += c.Area();
+    return a;
+  }
+};
+
+// A room of 8s x 6s m, walls 2.6 m, one piece of furniture per 1.6 m cell.
+RoomPrimitives MakeRoom(double s, std::mt19937_64& rng) {
+  RoomPrimitives P;
+  const float lx = float(8 * s), ly = float(6 * s), wall = 2.6f;
+  const Eigen::Vector3f X = Eigen::Vector3f::UnitX(), Y = Eigen::Vector3f::UnitY(), Z = Eigen::Vector3f::UnitZ();
+  P.rects.push_back({Eigen::Vector3f::Zero(), lx * X, ly * Y});
+  P.rects.push_back({Eigen::Vector3f::Zero(), lx * X, wall * Z});
+  P.rects.push_back({ly * Y, lx * X, wall * Z});
+  P.rects.push_back({Eigen::Vector3f::Zero(), ly * Y, wall * Z});
+  P.rects.push_back({lx * X, ly * Y, wall * Z});
+  std::uniform_real_distribution<float> yaw(0.f, float(2 * kPi));
+  // A box's faces: bottom omitted (on the floor).
+  auto box = [&](const Eigen::Vector3f& c, const Eigen::Matrix3f& R, const Eigen::Vector3f& size, bool bottom) {
+    const Eigen::Vector3f ex = R * Eigen::Vector3f(size.x(), 0, 0), ey = R * Eigen::Vector3f(0, size.y(), 0),
+                          ez = Eigen::Vector3f(0, 0, size.z());
+    const Eigen::Vector3f lo = c - 0.5f * (ex + ey);
+    P.rects.push_back({lo + ez, ex, ey});
+    if (bottom) P.rects.push_back({lo, ex, ey});
+    P.rects.push_back({lo, ex, ez});
+    P.rects.push_back({lo + ey, ex, ez});
+    P.rects.push_back({lo, ey, ez});
+    P.rects.push_back({lo + ex, ey, ez});
+  };
+  const int nx = std::max(1, int(lx / 1.6f)), ny = std::max(1, int(ly / 1.6f));
+  int k = 0;
+  for (int i = 0; i < nx; ++i)
+    for (int j = 0; j < ny; ++j, ++k) {
+      const Eigen::Vector3f c((i + 0.5f) * lx / nx, (j + 0.5f) * ly / ny, 0.f);
+      const Eigen::Matrix3f R = Eigen::AngleAxisf(yaw(rng), Z).toRotationMatrix();
+      switch (k % 4) {
+        case 0: {  // table: top slab and four square legs
+          box(c + Eigen::Vector3f(0, 0, 0.72f), R, {1.2f, 0.8f, 0.03f}, true);
+          for (int l = 0; l < 4; ++l) {
+            const Eigen::Vector3f off = R * Eigen::Vector3f((l & 1 ? 0.55f : -0.55f), (l & 2 ? 0.35f : -0.35f), 0);
+            box(c + off, R, {0.05f, 0.05f, 0.72f}, false);
+          }
+          break;
+        }
+        case 1: {  // chair: seat, back, round legs
+          box(c + Eigen::Vector3f(0, 0, 0.43f), R, {0.45f, 0.45f, 0.03f}, true);
+          box(c + R * Eigen::Vector3f(-0.21f, 0, 0) + Eigen::Vector3f(0, 0, 0.46f), R, {0.03f, 0.45f, 0.45f}, false);
+          for (int l = 0; l < 4; ++l) {
+            const Eigen::Vector3f off = R * Eigen::Vector3f((l & 1 ? 0.2f : -0.2f), (l & 2 ? 0.2f : -0.2f), 0);
+            P.cyls.push_back({c + off, 0.015f, 0.43f});
+          }
+          break;
+        }
+        case 2:  // cabinet
+          box(c, R, {0.8f, 0.45f, 0.9f}, false);
+          break;
+        default:  // round bin
+          P.cyls.push_back({c, 0.2f, 0.6f});
+          break;
+      }
+    }
+  return P;
+}
+
+// About `n` points on a room whose size grows with n so that the density stays ~6400 points
+// per m^2 (1.25 cm spacing, ~18 neighbours in 3 cm), Gaussian noise of 2 mm.
+Scan SyntheticRoom(size_t n, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  // Area(s) ~ 89 s^2 + 72.8 s m^2 (floor + furniture, walls).
+  const double target = double(n) / 6400.0;
+  const double s = (-72.8 + std::sqrt(72.8 * 72.8 + 4 * 89 * target)) / (2 * 89);
+  const RoomPrimitives P = MakeRoom(s, rng);
+  const double density = double(n) / P.Area();
+  std::uniform_real_distribution<float> u(0.f, 1.f);
+  std::normal_distribution<float> g(0.f, 0.002f);
+  Scan scan;
+  scan.source = "synthetic room " + std::to_string(n);
+  scan.points.reserve(n + 1000);
+  auto noise = [&] { return Eigen::Vector3f(g(rng), g(rng), g(rng)); };
+  for (const auto& r : P.rects) {
+    const int m = int(std::lround(r.Area() * density));
+    for (int i = 0; i < m; ++i) scan.points.push_back(r.o + u(rng) * r.a + u(rng) * r.b + noise());
+  }
+  for (const auto& c : P.cyls) {
+    const int m = int(std::lround(c.Area() * density));
+    for (int i = 0; i < m; ++i) {
+      const float t = float(2 * kPi) * u(rng);
+      scan.points.push_back(c.base + Eigen::Vector3f(c.r * std::cos(t), c.r * std::sin(t), c.h * u(rng)) + noise());
+    }
+  }
+  return scan;
+}
+
+const Scan& Room(size_t n) {
+  static std::map<size_t, Scan> cache;
+  auto it = cache.find(n);
+  if (it == cache.end()) it = cache.emplace(n, SyntheticRoom(n, 42 + n)).first;
+  return it->second;
+}
+
+const Scan& ScanNetRoom() {
+  static const Scan scan = furnihost::ReadScan(std::string(FURNIHOST_SHARED_DATA_DIR) +
+                                               "/scannet_votenet50k/scene0001_00.ply");
+  return scan;
+}
+
+// ---- results for the summary -------------------------------------------------------------
+struct Row {
+  size_t points = 0;
+  double normals = 0, growing = 0, features = 0, total = 0, cpu = 0;  // ours [ms]
+  size_t parts = 0;
+  double mls = 0, rg = 0, pcl_total = 0, pcl_cpu = 0;  // PCL [ms]
+  size_t pcl_parts = 0;
+};
+std::map<std::string, Row> g_rows;
+
+// CPU time of the whole process (all threads) [ms]: on a shared machine the wall time of a
+// 2-thread run is inflated by other load, its CPU time is not.
+double CpuMs() { return 1000.0 * double(std::clock()) / CLOCKS_PER_SEC; }
+
+struct Params {
+  double normal_radius, distance, boundary_radius, voxel;
+};
+// Paper (Sect. III) for the simulated room (1.25 cm spacing); for ScanNet (1.6-3.3 cm median
+// vertex spacing) the values suggested for configs/scannet.json.
+constexpr Params kPaper{0.03, 0.05, 0.03, 0.02};
+constexpr Params kScanNet{0.08, 0.07, 0.06, 0.03};
+
+void BM_Ours(benchmark::State& state, std::string key, const Scan* (*get)(), Params prm) {
+  const Scan& scan = *get();
+  furnihost::rg::RegionGrowingOptions o;
+  o.normal_radius_m = prm.normal_radius;
+  o.distance_m = prm.distance;
+  furnihost::features::PartFeatureOptions fo;
+  fo.boundary_radius_m = prm.boundary_radius;
+  fo.voxel_m = prm.voxel;
+  Row acc;
+  int iters = 0;
+  for (auto _ : state) {
+    const double cpu0 = CpuMs();
+    furnihost::Stopwatch w;
+    furnihost::rg::SegmentTimings t;
+    auto seg = furnihost::rg::Segment(scan, o, &t);
+    const double seg_ms = w.Ms();
+    auto f = furnihost::features::ComputePaper24(scan, seg, fo);
+    benchmark::DoNotOptimize(f.values.data());
+    acc.normals += t.normals_ms;
+    acc.growing += seg_ms - t.normals_ms;
+    acc.features += w.Ms() - seg_ms;
+    acc.total += w.Ms();
+    acc.cpu += CpuMs() - cpu0;
+    acc.parts = seg.parts.size();
+    ++iters;
+  }
+  Row& row = g_rows[key];
+  row.points = scan.points.size();
+  row.normals = acc.normals / iters;
+  row.growing = acc.growing / iters;
+  row.features = acc.features / iters;
+  row.total = acc.total / iters;
+  row.cpu = acc.cpu / iters;
+  row.parts = acc.parts;
+  state.counters["parts"] = double(acc.parts);
+  state.counters["points/s"] = benchmark::Counter(double(scan.points.size()), benchmark::Counter::kIsIterationInvariantRate);
+}
+
+void BM_Pcl(benchmark::State& state, std::string key, const Scan* (*get)(), Params prm) {
+  const Scan& scan = *get();
+  const double normal_radius = prm.normal_radius;
+  pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
+  cloud->resize(scan.points.size());
+  for (size_t i = 0; i < scan.points.size(); ++i) (*cloud)[i].getVector3fMap() = scan.points[i];
+  double mls_ms = 0, rg_ms = 0, cpu_ms = 0;
+  size_t parts = 0;
+  int iters = 0;
+  for (auto _ : state) {
+    const double cpu0 = CpuMs();
+    furnihost::Stopwatch w;
+    auto tree = std::make_shared<pcl::search::KdTree<pcl::PointXYZ>>();
+    tree->setInputCloud(cloud);
+    pcl::MovingLeastSquares<pcl::PointXYZ, pcl::PointNormal> mls;
+    mls.setInputCloud(cloud);
+    mls.setSearchMethod(tree);
+    mls.setSearchRadius(normal_radius);
+    mls.setPolynomialOrder(2);
+    mls.setComputeNormals(true);
+    mls.setNumberOfThreads(kThreads);
+    pcl::PointCloud<pcl::PointNormal> out;
+    mls.process(out);
+    pcl::PointCloud<pcl::Normal>::Ptr normals(new pcl::PointCloud<pcl::Normal>);
+    normals->resize(cloud->size());
+    for (auto& nm : *normals) nm.getNormalVector3fMap().setConstant(NAN);
+    pcl::IndicesPtr valid(new pcl::Indices);
+    const auto corr = mls.getCorrespondingIndices();
+    for (size_t k = 0; k < out.size(); ++k) {
+      const int i = corr->indices[k];
+      (*normals)[i].getNormalVector3fMap() = out[k].getNormalVector3fMap();
+      (*normals)[i].curvature = out[k].curvature;
+      if (out[k].getNormalVector3fMap().allFinite()) valid->push_back(i);
+    }
+    const double t_mls = w.Ms();
+    pcl::RegionGrowing<pcl::PointXYZ, pcl::Normal> rg;
+    rg.setInputCloud(cloud);
+    rg.setIndices(valid);
+    rg.setInputNormals(normals);
+    rg.setSearchMethod(tree);
+    rg.setNumberOfNeighbours(30);
+    rg.setSmoothnessThreshold(float(40.0 * kPi / 180.0));
+    rg.setSmoothModeFlag(false);
+    rg.setCurvatureTestFlag(false);
+    rg.setResidualTestFlag(false);
+    rg.setMinClusterSize(10);
+    std::vector<pcl::PointIndices> clusters;
+    rg.extract(clusters);
+    mls_ms += t_mls;
+    rg_ms += w.Ms() - t_mls;
+    cpu_ms += CpuMs() - cpu0;
+    parts = clusters.size();
+    ++iters;
+  }
+  Row& row = g_rows[key];
+  row.points = scan.points.size();
+  row.mls = mls_ms / iters;
+  row.rg = rg_ms / iters;
+  row.pcl_total = row.mls + row.rg;
+  row.pcl_cpu = cpu_ms / iters;
+  row.pcl_parts = parts;
+  state.counters["parts"] = double(parts);
+}
+
+// Neighbourhood gathering alone (radius r around every point, count only).
+void BM_NeighboursGrid(benchmark::State& state, const Scan* (*get)(), float r) {
+  const Points& pts = get()->points;
+  for (auto _ : state) {
+    furnihost::rg::VoxelGrid grid;
+    grid.Build(pts, r);
+    std::atomic<size_t> total{0};
+    tbb::parallel_for(tbb::blocked_range<int>(0, grid.NumCells(), 16), [&](const tbb::blocked_range<int>& range) {
+      size_t m = 0;
+      for (int c = range.begin(); c != range.end(); ++c)
+        for (int s = grid.cell_start[c]; s < grid.cell_start[c + 1]; ++s)
+          grid.ForEachWithin(c, grid.x[s], grid.y[s], grid.z[s], r, [&](int, float, float, float, float) { ++m; });
+      total += m;
+    });
+    benchmark::DoNotOptimize(total.load());
+  }
+}
+
+struct PointsAdaptor {
+  const Points& pts;
+  size_t kdtree_get_point_count() const { return pts.size(); }
+  float kdtree_get_pt(size_t i, size_t d) const { return pts[i][int(d)]; }
+  template <class B>
+  bool kdtree_get_bbox(B&) const { return false; }
+};
+using KdTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, PointsAdaptor>, PointsAdaptor, 3, uint32_t>;
+
+void BM_NeighboursNanoflann(benchmark::State& state, const Scan* (*get)(), float r) {
+  const Points& pts = get()->points;
+  PointsAdaptor adaptor{pts};
+  for (auto _ : state) {
+    KdTree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+    std::atomic<size_t> total{0};
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, pts.size(), 1024), [&](const tbb::blocked_range<size_t>& range) {
+      std::vector<std::pair<uint32_t, float>> hits;
+      size_t m = 0;
+      nanoflann::SearchParams params(32, 0.f, false);
+      for (size_t i = range.begin(); i != range.end(); ++i) m += tree.radiusSearch(pts[i].data(), r * r, hits, params);
+      total += m;
+    });
+    benchmark::DoNotOptimize(total.load());
+  }
+}
+
+const Scan* GetScanNet() { return &ScanNetRoom(); }
+template <size_t N>
+const Scan* GetRoom() { return &Room(N); }
+
+void PrintSummary() {
+  std::printf("\n%-16s %8s | %8s %8s %8s %8s %8s %6s | %8s %8s %8s %8s %6s | %8s %8s\n", "data", "points", "normals",
+              "growing", "features", "ours", "cpu", "parts", "PCL MLS", "PCL RG", "PCL", "cpu", "parts", "wall x",
+              "cpu x");
+  for (const auto& [key, r] : g_rows) {
+    std::printf("%-16s %8zu | %8.1f %8.1f %8.1f %8.1f %8.1f %6zu |", key.c_str(), r.points, r.normals, r.growing,
+                r.features, r.total, r.cpu, r.parts);
+    if (r.pcl_total > 0)
+      std::printf(" %8.1f %8.1f %8.1f %8.1f %6zu | %7.1fx %7.1fx\n", r.mls, r.rg, r.pcl_total, r.pcl_cpu, r.pcl_parts,
+                  r.pcl_total / r.total, r.pcl_cpu / r.cpu);
+    else
+      std::printf(" %8s %8s %8s %8s %6s | %8s %8s\n", "-", "-", "-", "-", "-", "-", "-");
+  }
+  std::printf("ms per run, wall clock unless 'cpu' (process CPU time, all threads); ours = normals + growing +\n"
+              "paper24 features; %d threads; 'x' = PCL / ours\n", kThreads);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  tbb::global_control threads(tbb::global_control::max_allowed_parallelism, kThreads);
+  spdlog::set_level(spdlog::level::warn);
+  using benchmark::RegisterBenchmark;
+  const auto ms = benchmark::kMillisecond;
+  auto ours = [&](const char* name, const char* key, const Scan* (*get)(), Params p, int iterations) {
+    RegisterBenchmark(name, BM_Ours, std::string(key), get, p)->Unit(ms)->Iterations(iterations)->UseRealTime();
+  };
+  auto pcl = [&](const char* name, const char* key, const Scan* (*get)(), Params p, int iterations) {
+    RegisterBenchmark(name, BM_Pcl, std::string(key), get, p)->Unit(ms)->Iterations(iterations)->UseRealTime();
+  };
+  ours("ours/scannet0001_00", "a scannet0001_00", GetScanNet, kScanNet, 20);
+  pcl("pcl/scannet0001_00", "a scannet0001_00", GetScanNet, kScanNet, 3);
+  ours("ours/room_1M", "b room_1M", GetRoom<1000000>, kPaper, 5);
+  pcl("pcl/room_1M", "b room_1M", GetRoom<1000000>, kPaper, 1);
+  ours("ours/room_100k", "c room_0100k", GetRoom<100000>, kPaper, 10);
+  pcl("pcl/room_100k", "c room_0100k", GetRoom<100000>, kPaper, 2);
+  ours("ours/room_250k", "c room_0250k", GetRoom<250000>, kPaper, 5);
+  ours("ours/room_500k", "c room_0500k", GetRoom<500000>, kPaper, 5);
+  ours("ours/room_750k", "c room_0750k", GetRoom<750000>, kPaper, 5);
+  RegisterBenchmark("neighbours/grid/room_1M", BM_NeighboursGrid, GetRoom<1000000>, float(kPaper.normal_radius))
+      ->Unit(ms)->Iterations(3)->UseRealTime();
+  RegisterBenchmark("neighbours/nanoflann/room_1M", BM_NeighboursNanoflann, GetRoom<1000000>,
+                    float(kPaper.normal_radius))->Unit(ms)->Iterations(3)->UseRealTime();
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  PrintSummary();
+  return 0;
+}

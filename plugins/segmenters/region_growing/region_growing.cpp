@@ -1,0 +1,59 @@
+// segmenters.region_growing — the paper's segmenter (Sect. III): normals from a 2nd-order
+// height function (MLS, eq. 1) in a radius, region growing against the SEED's normal from
+// seeds of increasing curvature, small parts regrouped by distance and the rest discarded.
+// The algorithm lives in region_growing_core.{hpp,cpp}; this file only maps parameters.
+#include <tbb/task_arena.h>
+
+#include "furnihost/log.hpp"
+#include "furnihost/plugin.hpp"
+#include "region_growing_core.hpp"
+
+namespace furnihost {
+
+class RegionGrowingSegmenter : public Segmenter {
+ public:
+  static ParamSchema Schema() {
+    ParamSchema s;
+    s.Number("normal_radius_m", 0.03, 0.001, 10.0,
+             "radius of the neighbourhood of the height-function fit [m] (paper: 0.03)");
+    s.Number("distance_m", 0.05, 0.001, 10.0,
+             "a point joins a part if closer than this to one of its points [m] (paper: 0.05)");
+    s.Number("angle_deg", 40.0, 0.0, 180.0,
+             "max angle between a point's normal and the part's seed normal [deg] (paper: 40)");
+    s.Int("min_points", 10, 1, 1e9,
+          "parts with fewer points are regrouped by distance; still smaller ones are discarded (paper: 10)");
+    s.Int("min_fit_points", 6, 3, 1e6,
+          "with fewer neighbours (the point included) the normal is the PCA normal, below 3 it is NaN");
+    s.Bool("signed_normals", false,
+           "compare signed normals (needs a sensor origin); false treats n and -n as parallel");
+    return s;
+  }
+
+  explicit RegionGrowingSegmenter(const nlohmann::json& p) {
+    o_.normal_radius_m = p.at("normal_radius_m").get<double>();
+    o_.distance_m = p.at("distance_m").get<double>();
+    o_.angle_deg = p.at("angle_deg").get<double>();
+    o_.min_points = p.at("min_points").get<int>();
+    o_.min_fit_points = p.at("min_fit_points").get<int>();
+    o_.signed_normals = p.at("signed_normals").get<bool>();
+    o_.Check();
+  }
+
+  Segmentation Segment(const Scan& scan, const RunContext& ctx) override {
+    tbb::task_arena arena(ctx.threads > 0 ? ctx.threads : tbb::task_arena::automatic);
+    rg::SegmentTimings t;
+    Segmentation seg;
+    arena.execute([&] { seg = rg::Segment(scan, o_, &t); });
+    spdlog::debug("region_growing: {} points -> {} parts (normals {:.1f} ms, growing {:.1f} ms)",
+                  scan.points.size(), seg.parts.size(), t.normals_ms, t.growing_ms);
+    return seg;
+  }
+
+ private:
+  rg::RegionGrowingOptions o_;
+};
+
+}  // namespace furnihost
+
+FURNIHOST_PLUGIN(furnihost::RegionGrowingSegmenter, "segmenters.region_growing", "1.0.0",
+                 "paper Sect. III: MLS normals, region growing against the seed normal, small parts regrouped")

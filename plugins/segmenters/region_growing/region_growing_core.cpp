@@ -1,0 +1,436 @@
+#include "region_growing_core.hpp"
+
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "furnihost/log.hpp"
+#include "voxel_grid.hpp"
+
+namespace furnihost::rg {
+
+namespace {
+
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+
+// The finite points of a scan shifted by the centre of their bounding box, computed in double:
+// float coordinates of a scan in map coordinates (1e5 m) would leave ~8 mm of resolution for
+// the squares accumulated below. Every later step works in this frame.
+struct LocalCloud {
+  Points pts;                 // finite points, local frame
+  std::vector<int> input;     // input index of each local point
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+};
+
+LocalCloud ToLocal(const Points& points) {
+  LocalCloud lc;
+  Eigen::AlignedBox3d box;
+  for (const auto& p : points)
+    if (p.allFinite()) box.extend(p.cast<double>());
+  if (box.isEmpty()) return lc;
+  lc.centre = box.center();
+  lc.pts.reserve(points.size());
+  lc.input.reserve(points.size());
+  for (size_t i = 0; i < points.size(); ++i)
+    if (points[i].allFinite()) {
+      lc.pts.push_back((points[i].cast<double>() - lc.centre).cast<float>());
+      lc.input.push_back(int(i));
+    }
+  return lc;
+}
+
+// Neighbours of one query as offsets scaled by 1/r (so every quantity below is O(1)) and
+// their squared scaled distance.
+// The arrays have room for every candidate; the first `count` entries are the neighbours.
+struct Neighbours {
+  std::vector<float> x, y, z, d2;
+  std::vector<float> scratch;  // FitPoint's work arrays
+  int count = 0;
+  void reserve(int m) {
+    if (int(x.size()) < m) x.resize(m), y.resize(m), z.resize(m), d2.resize(m);
+  }
+  int size() const { return count; }
+};
+
+// Solves the symmetric positive definite 6x6 system A c = y (upper triangle of A given) by
+// Cholesky. False when a pivot is not clearly positive (a degenerate neighbourhood).
+bool SolveSpd6(double A[6][6], double y[6], double c[6]) {
+  double L[6][6], inv[6];  // L lower triangular, inv[j] = 1 / L[j][j]
+  const double scale = std::max({A[0][0], A[1][1], A[2][2], A[3][3], A[4][4], A[5][5]});
+  for (int j = 0; j < 6; ++j) {
+    double d = A[j][j];
+    for (int k = 0; k < j; ++k) d -= L[j][k] * L[j][k];
+    if (!(d > 1e-10 * scale)) return false;
+    inv[j] = 1.0 / std::sqrt(d);
+    for (int i = j + 1; i < 6; ++i) {
+      double v = A[j][i];
+      for (int k = 0; k < j; ++k) v -= L[i][k] * L[j][k];
+      L[i][j] = v * inv[j];
+    }
+  }
+  double t[6];
+  for (int i = 0; i < 6; ++i) {
+    double v = y[i];
+    for (int k = 0; k < i; ++k) v -= L[i][k] * t[k];
+    t[i] = v * inv[i];
+  }
+  for (int i = 5; i >= 0; --i) {
+    double v = t[i];
+    for (int k = i + 1; k < 6; ++k) v -= L[k][i] * c[k];
+    c[i] = v * inv[i];
+  }
+  return true;
+}
+
+// Normal and curvature of one point from its radius neighbourhood (query included).
+// 1. PCA of the neighbourhood: tangent frame U (largest), V, N (smallest eigenvector) and the
+//    curvature lambda0 / sum.
+// 2. Height function h(u, v) = c0 + c1 u + c2 v + c3 uv + c4 u^2 + c5 v^2 over the PCA plane,
+//    origin at the query projected on that plane (eq. 1), fitted by weighted least squares with
+//    Gaussian weights exp(-d^2 / r^2) of the distance to the query (as in PCL's MLS).
+// 3. n = (U + c1 N) x (V + c2 N) = N - c1 U - c2 V, with U x V = N.
+// Fewer than `min_fit` points or a neighbourhood without 2-D extent (a line of points, where
+// the quadratic terms are undetermined): the PCA normal. Fewer than 3 points: NaN.
+// The paper also projects the point onto the fitted surface; we keep the measured points.
+void FitPoint(Neighbours& nb, int min_fit, Eigen::Vector3f& normal, float& curvature) {
+  const int k = nb.size();
+  if (k < 3) {
+    normal.setConstant(kNaN);
+    curvature = kNaN;
+    return;
+  }
+  // Raw moments of the offsets, scaled to |d| < 1 so float sums lose nothing that matters
+  // before the centring in double. Eigen array reductions are vectorised (plain loops would
+  // not be without -ffast-math).
+  using Arr = Eigen::Map<const Eigen::ArrayXf>;
+  const Arr X(nb.x.data(), k), Y(nb.y.data(), k), Z(nb.z.data(), k);
+  const double inv_k = 1.0 / k;
+  const Eigen::Vector3d mean(X.sum() * inv_k, Y.sum() * inv_k, Z.sum() * inv_k);
+  Eigen::Matrix3d cov;
+  cov << (X * X).sum(), (X * Y).sum(), (X * Z).sum(), 0, (Y * Y).sum(), (Y * Z).sum(), 0, 0, (Z * Z).sum();
+  cov *= inv_k;
+  cov -= mean * mean.transpose();
+  cov(1, 0) = cov(0, 1), cov(2, 0) = cov(0, 2), cov(2, 1) = cov(1, 2);
+  // Closed-form 3x3 solver in float: the scaled covariance is O(1); double costs 10 % of the
+  // normals and changed none of 300k normals of a noisy room by more than 0.05 deg but one
+  // (a degenerate neighbourhood).
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3f> es;
+  es.computeDirect(cov.cast<float>());
+  const Eigen::Vector3d lambda = es.eigenvalues().cast<double>().cwiseMax(0.0);  // ascending
+  const double sum = lambda.sum();
+  curvature = sum > 0 ? float(lambda[0] / sum) : 0.f;
+  const Eigen::Vector3f N = es.eigenvectors().col(0).cast<float>().normalized();
+  if (k < min_fit || !(lambda[1] > 1e-4 * lambda[2])) {
+    normal = N;
+    return;
+  }
+  const Eigen::Vector3f U = es.eigenvectors().col(2).cast<float>().normalized();
+  const Eigen::Vector3f V = N.cross(U);
+  // Origin: the query (offset 0) projected on the plane through the mean.
+  const Eigen::Vector3f o = mean.cast<float>().dot(N) * N;
+  // Normal equations A c = y of the 6 coefficients: A(r, c) = sum w b_r b_c, y(r) = sum w h b_r
+  // with b = (1, u, v, uv, u^2, v^2), in scalar accumulators (an array of them makes the
+  // compiler's vector loads wait on scalar stores).
+  float a00 = 0, a01 = 0, a02 = 0, a03 = 0, a04 = 0, a05 = 0, a11 = 0, a12 = 0, a13 = 0, a14 = 0, a15 = 0;
+  float a22 = 0, a23 = 0, a24 = 0, a25 = 0, a33 = 0, a34 = 0, a35 = 0, a44 = 0, a45 = 0, a55 = 0;
+  float y0 = 0, y1 = 0, y2 = 0, y3 = 0, y4 = 0, y5 = 0;
+  const float ox = o.x(), oy = o.y(), oz = o.z();
+  // Gaussian weights in one vectorised pass (Eigen's packet exp).
+  nb.scratch.resize(k);
+  Eigen::Map<Eigen::ArrayXf> weight(nb.scratch.data(), k);
+  weight = (-Arr(nb.d2.data(), k)).exp();
+  for (int i = 0; i < k; ++i) {
+    const float ex = nb.x[i] - ox, ey = nb.y[i] - oy, ez = nb.z[i] - oz;
+    const float u = ex * U.x() + ey * U.y() + ez * U.z();
+    const float v = ex * V.x() + ey * V.y() + ez * V.z();
+    const float h = ex * N.x() + ey * N.y() + ez * N.z();
+    const float w = weight[i];
+    const float uv = u * v, uu = u * u, vv = v * v;
+    const float wu = w * u, wv = w * v, wuv = w * uv, wuu = w * uu, wvv = w * vv;
+    a00 += w, a01 += wu, a02 += wv, a03 += wuv, a04 += wuu, a05 += wvv;
+    a11 += wu * u, a12 += wu * v, a13 += wuv * u, a14 += wuu * u, a15 += wvv * u;
+    a22 += wv * v, a23 += wuv * v, a24 += wuu * v, a25 += wvv * v;
+    a33 += wuv * uv, a34 += wuu * uv, a35 += wvv * uv;
+    a44 += wuu * uu, a45 += wvv * uu, a55 += wvv * vv;
+    y0 += w * h, y1 += wu * h, y2 += wv * h, y3 += wuv * h, y4 += wuu * h, y5 += wvv * h;
+  }
+  double A[6][6] = {{a00, a01, a02, a03, a04, a05}, {0, a11, a12, a13, a14, a15}, {0, 0, a22, a23, a24, a25},
+                    {0, 0, 0, a33, a34, a35}, {0, 0, 0, 0, a44, a45}, {0, 0, 0, 0, 0, a55}};
+  double y[6] = {y0, y1, y2, y3, y4, y5}, c[6];
+  if (!SolveSpd6(A, y, c) || !std::isfinite(c[1]) || !std::isfinite(c[2])) {
+    normal = N;
+    return;
+  }
+  normal = (N - float(c[1]) * U - float(c[2]) * V).normalized();
+}
+
+// Normals of `lc` (by local index) with the grid of cell = radius. Per cell, the candidates of
+// its 27 neighbour cells are copied once into a contiguous buffer that every point of the cell
+// then scans (a tight, vectorisable loop).
+void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const RegionGrowingOptions& o,
+                  Points& normals, std::vector<float>& curvature) {
+  const size_t n = lc.pts.size();
+  normals.assign(n, Eigen::Vector3f::Constant(kNaN));
+  curvature.assign(n, kNaN);
+  if (n == 0) return;
+  const float r = float(o.normal_radius_m);
+  const float inv_r = 1.f / r;
+  VoxelGrid grid;
+  grid.Build(lc.pts, r);
+  tbb::parallel_for(tbb::blocked_range<int>(0, grid.NumCells(), 16), [&](const tbb::blocked_range<int>& range) {
+    Neighbours nb;
+    std::vector<float> cx, cy, cz;
+    for (int c = range.begin(); c != range.end(); ++c) {
+      cx.clear(), cy.clear(), cz.clear();
+      for (int k = grid.nb_start[c]; k < grid.nb_start[c + 1]; ++k) {
+        const int nc = grid.nb[k];
+        const int b = grid.cell_start[nc], e = grid.cell_start[nc + 1];
+        cx.insert(cx.end(), grid.x.begin() + b, grid.x.begin() + e);
+        cy.insert(cy.end(), grid.y.begin() + b, grid.y.begin() + e);
+        cz.insert(cz.end(), grid.z.begin() + b, grid.z.begin() + e);
+      }
+      const int m = int(cx.size());
+      for (int s = grid.cell_start[c]; s < grid.cell_start[c + 1]; ++s) {
+        const float px = grid.x[s], py = grid.y[s], pz = grid.z[s];
+        // Branch-free compaction: every candidate is written, only hits advance the cursor.
+        nb.reserve(m);
+        int cnt = 0;
+        float *nx = nb.x.data(), *ny = nb.y.data(), *nz = nb.z.data(), *nd = nb.d2.data();
+        for (int j = 0; j < m; ++j) {
+          const float dx = (cx[j] - px) * inv_r, dy = (cy[j] - py) * inv_r, dz = (cz[j] - pz) * inv_r;
+          const float d2 = dx * dx + dy * dy + dz * dz;
+          nx[cnt] = dx, ny[cnt] = dy, nz[cnt] = dz, nd[cnt] = d2;
+          cnt += d2 < 1.f;
+        }
+        nb.count = cnt;
+        Eigen::Vector3f nrm;
+        float curv;
+        FitPoint(nb, o.min_fit_points, nrm, curv);
+        if (nrm.dot(view_local - Eigen::Vector3f(px, py, pz)) < 0) nrm = -nrm;
+        const uint32_t i = grid.order[s];
+        normals[i] = nrm;
+        curvature[i] = curv;
+      }
+    }
+  });
+}
+
+Eigen::Vector3f LocalViewpoint(const LocalCloud& lc, const std::optional<Eigen::Vector3f>& viewpoint) {
+  if (viewpoint && viewpoint->allFinite()) return (viewpoint->cast<double>() - lc.centre).cast<float>();
+  return Eigen::Vector3f::Zero();  // the bounding-box centre
+}
+
+}  // namespace
+
+void RegionGrowingOptions::Check() const {
+  if (!(normal_radius_m > 0)) throw StageError("normal_radius_m must be > 0");
+  if (!(distance_m > 0)) throw StageError("distance_m must be > 0");
+  if (!(angle_deg >= 0 && angle_deg <= 180)) throw StageError("angle_deg must be in [0, 180]");
+  if (min_points < 1) throw StageError("min_points must be >= 1");
+  if (min_fit_points < 3) throw StageError("min_fit_points must be >= 3");
+}
+
+NormalResult EstimateNormals(const Points& points, const std::optional<Eigen::Vector3f>& viewpoint,
+                             const RegionGrowingOptions& o) {
+  o.Check();
+  const LocalCloud lc = ToLocal(points);
+  Points nl;
+  std::vector<float> cl;
+  NormalsLocal(lc, LocalViewpoint(lc, viewpoint), o, nl, cl);
+  NormalResult res;
+  res.normals.assign(points.size(), Eigen::Vector3f::Constant(kNaN));
+  res.curvature.assign(points.size(), kNaN);
+  for (size_t k = 0; k < lc.input.size(); ++k) {
+    res.normals[lc.input[k]] = nl[k];
+    res.curvature[lc.input[k]] = cl[k];
+  }
+  return res;
+}
+
+Segmentation Segment(const Scan& scan, const RegionGrowingOptions& o, SegmentTimings* timings) {
+  o.Check();
+  Stopwatch watch;
+  const LocalCloud lc = ToLocal(scan.points);
+  const size_t n = lc.pts.size();
+  Points normals_local;
+  std::vector<float> curv_local;
+  // The growing runs on a grid with cells of delta, so a point's candidates are the slices of
+  // its 27 neighbour cells. Built beside the normals: it needs only the points.
+  const float delta = float(o.distance_m);
+  const float delta2 = delta * delta;
+  VoxelGrid grid;
+  tbb::parallel_invoke([&] { NormalsLocal(lc, LocalViewpoint(lc, scan.origin), o, normals_local, curv_local); },
+                       [&] { grid.Build(lc.pts, delta); });
+  const double normals_ms = watch.Ms();
+
+  Segmentation seg;
+  seg.normals.assign(scan.points.size(), Eigen::Vector3f::Constant(kNaN));
+  seg.curvature.assign(scan.points.size(), kNaN);
+  for (size_t k = 0; k < n; ++k) {
+    seg.normals[lc.input[k]] = normals_local[k];
+    seg.curvature[lc.input[k]] = curv_local[k];
+  }
+  seg.discarded_points = int(scan.points.size() - n);  // non-finite points never join a part
+  if (n == 0) return seg;
+
+  std::vector<float> nx(n), ny(n), nz(n);
+  std::vector<uint64_t> seed_key(n);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 16384), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t s = r.begin(); s != r.end(); ++s) {
+      const uint32_t i = grid.order[s];
+      nx[s] = normals_local[i].x();
+      ny[s] = normals_local[i].y();
+      nz[s] = normals_local[i].z();
+      // Non-negative floats order like their bit patterns; NaN curvature seeds last.
+      const float c = curv_local[i];
+      uint32_t bits = 0xffffffffu;
+      if (std::isfinite(c)) {
+        const float cc = std::max(0.f, c);
+        std::memcpy(&bits, &cc, 4);
+      }
+      seed_key[s] = bits;
+    }
+  });
+  // Seeds by increasing curvature; ties keep slot order (a stable sort), so deterministic.
+  std::vector<uint32_t> seeds(n);
+  for (size_t s = 0; s < n; ++s) seeds[s] = uint32_t(s);
+  RadixSortByKey(seed_key, 32, seeds);
+
+  const float cos_a = float(std::cos(o.angle_deg * M_PI / 180.0));
+  const bool signed_normals = o.signed_normals;
+  std::vector<int> label(n, -1);
+  // Unlabelled slots of each cell are kept at the front of the cell's range of `free_slots`
+  // (swap-remove on labelling), so the growth never rescans labelled points.
+  const int cells = grid.NumCells();
+  std::vector<int> free_in_cell(cells);
+  std::vector<uint32_t> free_slots(n), pos(n);
+  auto reset_free = [&] {
+    for (int c = 0; c < cells; ++c) {
+      int w = grid.cell_start[c];
+      for (int s = grid.cell_start[c]; s < grid.cell_start[c + 1]; ++s)
+        if (label[s] == -1) free_slots[w] = uint32_t(s), pos[s] = uint32_t(w++);
+      free_in_cell[c] = w - grid.cell_start[c];
+      for (int s = grid.cell_start[c]; s < grid.cell_start[c + 1]; ++s)
+        if (label[s] != -1) free_slots[w] = uint32_t(s), pos[s] = uint32_t(w++);
+    }
+  };
+  auto take = [&](uint32_t q) {
+    const int c = grid.cell_of[q];
+    const uint32_t last = uint32_t(grid.cell_start[c] + --free_in_cell[c]);
+    const uint32_t moved = free_slots[last];
+    free_slots[pos[q]] = moved;
+    pos[moved] = pos[q];
+    free_slots[last] = q;
+    pos[q] = last;
+  };
+  reset_free();
+  std::vector<uint32_t> members;  // slots of all parts, part after part
+  std::vector<size_t> part_begin{0};
+  members.reserve(n);
+
+  // Breadth-first growth from `seed` over unlabelled slots accepted by `admit`.
+  auto grow = [&](uint32_t seed, int id, auto&& admit) {
+    const size_t begin = members.size();
+    label[seed] = id;
+    take(seed);
+    members.push_back(seed);
+    for (size_t head = begin; head < members.size(); ++head) {
+      const uint32_t p = members[head];
+      const float px = grid.x[p], py = grid.y[p], pz = grid.z[p];
+      const int c = grid.cell_of[p];
+      for (int k = grid.nb_start[c]; k < grid.nb_start[c + 1]; ++k) {
+        const int nc = grid.nb[k];
+        const int b = grid.cell_start[nc];
+        for (int i = b; i < b + free_in_cell[nc];) {
+          const uint32_t q = free_slots[i];
+          const float dx = grid.x[q] - px, dy = grid.y[q] - py, dz = grid.z[q] - pz;
+          if (dx * dx + dy * dy + dz * dz >= delta2 || !admit(q)) {
+            ++i;
+            continue;
+          }
+          label[q] = id;
+          take(q);  // moves another free slot to position i: look at i again
+          members.push_back(q);
+        }
+      }
+    }
+  };
+
+  // Pass 1: normal-based growing. A seed without a normal stays alone (and is regrouped).
+  int parts = 0;
+  for (uint32_t seed : seeds) {
+    if (label[seed] != -1) continue;
+    const float sx = nx[seed], sy = ny[seed], sz = nz[seed];
+    const bool seed_ok = std::isfinite(sx);
+    grow(seed, parts, [&](int q) {
+      if (!seed_ok) return false;
+      const float d = nx[q] * sx + ny[q] * sy + nz[q] * sz;  // NaN normals compare false
+      return signed_normals ? d >= cos_a : std::fabs(d) >= cos_a;
+    });
+    part_begin.push_back(members.size());
+    ++parts;
+  }
+
+  // Pass 2: parts below min_points are released and regrouped among themselves by distance.
+  std::vector<uint32_t> pool;
+  std::vector<std::pair<size_t, size_t>> kept;  // [begin, end) ranges into members
+  for (int p = 0; p < parts; ++p) {
+    const size_t b = part_begin[p], e = part_begin[p + 1];
+    if (int(e - b) >= o.min_points) {
+      kept.emplace_back(b, e);
+      continue;
+    }
+    for (size_t k = b; k < e; ++k) pool.push_back(members[k]);
+  }
+  std::sort(pool.begin(), pool.end());
+  // Pass 1 labelled every slot, so after this only the pool is unlabelled and the distance-only
+  // growth below cannot reach into the kept parts.
+  for (uint32_t s : pool) label[s] = -1;
+  reset_free();
+  int regrouped = 0, discarded = 0;
+  std::vector<std::pair<size_t, size_t>> regroup_parts;
+  for (uint32_t s : pool) {
+    if (label[s] != -1) continue;
+    const size_t b = members.size();
+    grow(s, parts + int(regroup_parts.size()), [](int) { return true; });
+    const size_t e = members.size();
+    if (int(e - b) >= o.min_points) {
+      regroup_parts.emplace_back(b, e);
+      regrouped += int(e - b);
+    } else {
+      discarded += int(e - b);
+    }
+  }
+  const double growing_ms = watch.Ms() - normals_ms;
+
+  auto emit = [&](size_t b, size_t e, Part& part) {
+    part.indices.reserve(e - b);
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (size_t k = b; k < e; ++k) {
+      const uint32_t s = members[k];
+      part.indices.push_back(lc.input[grid.order[s]]);
+      sum += Eigen::Vector3d(grid.x[s], grid.y[s], grid.z[s]);
+    }
+    std::sort(part.indices.begin(), part.indices.end());
+    part.centroid = (sum / double(e - b) + lc.centre).cast<float>();
+  };
+  kept.insert(kept.end(), regroup_parts.begin(), regroup_parts.end());
+  seg.parts.resize(kept.size());
+  tbb::parallel_for(size_t(0), kept.size(), [&](size_t p) { emit(kept[p].first, kept[p].second, seg.parts[p]); });
+  seg.discarded_points += discarded;
+  if (discarded > 0 || pool.size() > 0)
+    spdlog::info("region_growing: {} parts; {} points of parts below {} regrouped into {} parts, {} discarded",
+                 seg.parts.size(), pool.size(), o.min_points, regroup_parts.size(), discarded);
+  if (timings) {
+    timings->normals_ms = normals_ms;
+    timings->growing_ms = growing_ms;
+  }
+  return seg;
+}
+
+}  // namespace furnihost::rg

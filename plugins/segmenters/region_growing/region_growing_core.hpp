@@ -1,0 +1,44 @@
+// The paper's segmenter (Sect. III) as plain functions, so the plugin, its tests and the
+// benchmark call the same code: MLS normals from a 2nd-order height function, then region
+// growing against the seed normal, then distance-only regrouping of the small parts.
+#pragma once
+#include <optional>
+
+#include "furnihost/types.hpp"
+
+namespace furnihost::rg {
+
+struct RegionGrowingOptions {
+  double normal_radius_m = 0.03;  // neighbourhood of the height-function fit [m] (paper: 3 cm)
+  double distance_m = 0.05;       // delta: a point joins a part within this of one of its points [m] (paper: 5 cm)
+  double angle_deg = 40.0;        // alpha: max angle between a point's and the seed's normal [deg] (paper: 40)
+  int min_points = 10;            // smaller parts are regrouped by distance, then discarded (paper: 10)
+  int min_fit_points = 6;         // fewer neighbours (query included) than this: PCA normal, no polynomial
+  // false: a normal and its opposite count as parallel (|cos|), robust when no sensor origin
+  // gives the normals a consistent sign (e.g. ScanNet meshes). true: signed angle.
+  bool signed_normals = false;
+  void Check() const;  // throws StageError naming the bad field
+};
+
+// Per-point normals (unit, scan frame) and curvature lambda0 / (lambda0 + lambda1 + lambda2).
+// NaN where the radius neighbourhood holds fewer than 3 points (query included) or the point
+// is not finite. Normals point towards `viewpoint` (scan frame) when given, otherwise towards
+// the centre of the scan's bounding box (a room seen from inside; the sign is only a
+// convention then, the growing uses |cos| by default).
+struct NormalResult {
+  Points normals;
+  std::vector<float> curvature;
+};
+NormalResult EstimateNormals(const Points& points, const std::optional<Eigen::Vector3f>& viewpoint,
+                             const RegionGrowingOptions& o);
+
+// Timings of the last Segment call [ms], for the benchmark and debug logs.
+struct SegmentTimings {
+  double normals_ms = 0, growing_ms = 0;
+};
+
+// Full segmentation. Parts are ordered by creation (seeds of increasing curvature first,
+// regrouped small parts after them); indices inside a part are ascending.
+Segmentation Segment(const Scan& scan, const RegionGrowingOptions& o, SegmentTimings* timings = nullptr);
+
+}  // namespace furnihost::rg

@@ -1,0 +1,32 @@
+// libFuzzer target: catalogs. The input is split at "\n---\n" lines into catalog.json and
+// four mesh files (a.obj, b.off, c.ply, d.stl) that its entries may name; LoadCatalog parses,
+// imports (assimp), normalises and hashes them, strict and lenient. Anything but InputError
+// is a finding.
+#include "fuzz_common.hpp"
+#include "furnihost/catalog.hpp"
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  const auto parts = furnihost::fuzz::Split(data, size);
+  static const char* const kNames[] = {"catalog.json", "a.obj", "b.off", "c.ply", "d.stl"};
+  for (size_t i = 0; i < 5; ++i) {
+    const std::string& text = i < parts.size() ? parts[i] : std::string();
+    furnihost::fuzz::Write(kNames[i], text.data(), text.size());
+  }
+  const std::string path = furnihost::fuzz::Dir() + "/catalog.json";
+  for (bool strict : {false, true}) {
+    try {
+      furnihost::Catalog c = furnihost::LoadCatalog(path, strict);
+      for (const auto& m : c.models) {
+        // What every consumer relies on: indices in range, finite metres, bottom centre at 0.
+        for (const auto& t : m.mesh.triangles)
+          for (int k = 0; k < 3; ++k)
+            if (t[k] < 0 || t[k] >= static_cast<int>(m.mesh.vertices.size())) __builtin_trap();
+        for (const auto& v : m.mesh.vertices)
+          if (!v.allFinite()) __builtin_trap();
+        if (!m.size.allFinite() || !(m.size.z() > 0.f)) __builtin_trap();
+      }
+    } catch (const furnihost::InputError&) {
+    }
+  }
+  return 0;
+}
