@@ -1,0 +1,38 @@
+#!/usr/bin/env bash
+# Regenerates the README's "Results" section from real runs (no hand-typed numbers):
+#   synthetic benchmark: configs/paper.json vs paper_nn.json vs paper_ism.json on benchmarks/synthetic.json
+#   ScanNet dev set:     configs/scannet.json vs scannet_nn.json vs scannet_ism.json on benchmarks/scannet_dev.json
+# Full reports, PR plots and run records go to runs/results/{synthetic,scannet}/.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+FURNIHOST=${FURNIHOST:-build/bin/furnihost}
+OUT=${OUT:-runs/results}
+"$FURNIHOST" eval --graph configs/paper.json --graph configs/paper_nn.json --graph configs/paper_ism.json \
+  --dataset benchmarks/synthetic.json --out "$OUT/synthetic" -q
+"$FURNIHOST" eval --graph configs/scannet.json --graph configs/scannet_nn.json --graph configs/scannet_ism.json \
+  --dataset benchmarks/scannet_dev.json --out "$OUT/scannet" -q
+python3 - "$OUT" <<'PY'
+import re, sys, pathlib
+out = pathlib.Path(sys.argv[1])
+def tables(report):
+    text = (out / report / "report.md").read_text()
+    keep, on = [], False
+    for line in text.splitlines():
+        if line.startswith("## Detection"): on = True; continue
+        if on and line.startswith("## "): break
+        if on and (line.startswith("|") or line.startswith("### ")): keep.append(line.replace("### ", "**") + ("**" if line.startswith("### ") else ""))
+        elif on and keep and keep[-1] != "": keep.append("")
+    return "\n".join(keep)
+block = ["<!-- results:begin (scripts/update_results.sh writes this section) -->",
+         "Synthetic rooms (`benchmarks/synthetic.json`, objects not in the training catalog), "
+         "A = paper.json, B = paper_nn.json, C = paper_ism.json:", "", tables("synthetic"), "",
+         "ScanNet dev scans (`benchmarks/scannet_dev.json`, trained on the shared CAD catalog only), "
+         "A = scannet.json, B = scannet_nn.json, C = scannet_ism.json:", "", tables("scannet"), "",
+         "Full reports: `runs/results/*/report.md` (with time per stage and peak memory).",
+         "<!-- results:end -->"]
+readme = pathlib.Path("README.md")
+text = readme.read_text()
+new = re.sub(r"<!-- results:begin.*?<!-- results:end -->", "\n".join(block), text, flags=re.S)
+tmp = readme.with_suffix(".md.tmp"); tmp.write_text(new); tmp.replace(readme)
+print("README.md results updated from", out)
+PY
