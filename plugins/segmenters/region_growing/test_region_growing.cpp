@@ -204,6 +204,27 @@ TEST(RegionGrowing, CylinderPartsSpanAtMostTwiceAlpha) {
   }
 }
 
+// Two parallel sheets 4 cm apart (within delta = 5 cm, outside each other's 3 cm normal
+// neighbourhoods), no sensor origin: both sheets' normals point to the bounding-box centre
+// between them, i.e. opposite ways. Unsigned angles (default) make one part, signed two.
+TEST(RegionGrowing, SignedNormalsSeparateOppositeSheets) {
+  Scan scan;
+  for (int face = 0; face < 2; ++face)
+    for (int i = 0; i <= 40; ++i)
+      for (int j = 0; j <= 40; ++j) scan.points.emplace_back(0.01f * i, 0.01f * j, 0.04f * face);
+  const auto one = RunSeg(scan);
+  ASSERT_EQ(one.parts.size(), 1u);
+  const auto two = RunSeg(scan, {{"signed_normals", true}});
+  ASSERT_EQ(two.parts.size(), 2u);
+  for (const auto& part : two.parts) {
+    ASSERT_EQ(part.indices.size(), 41u * 41u);
+    const float z = scan.points[part.indices.front()].z();
+    for (int i : part.indices) ASSERT_EQ(scan.points[i].z(), z);
+  }
+  EXPECT_GT(one.normals.front().z(), 0.99f);  // the lower sheet looks up to the centre
+  EXPECT_LT(one.normals.back().z(), -0.99f);
+}
+
 // Two tiny clusters within delta of each other merge into one part; isolated tiny clusters
 // are discarded and counted.
 TEST(RegionGrowing, SmallPartsRegroupedByDistanceOrDiscarded) {
