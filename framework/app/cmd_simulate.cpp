@@ -271,8 +271,12 @@ int RunSimulate(const std::vector<std::string>& args) {
   json user_params = json::object();
   if (!sensor_params_text.empty()) {
     try {
-      user_params = json::parse(sensor_params_text);
-    } catch (const json::parse_error& e) {
+      // Depth-limited: messages dump offending values recursively (stack overflow at 10^4 levels).
+      user_params = json::parse(sensor_params_text, [](int depth, json::parse_event_t, json&) {
+        if (depth > 64) throw InputError("--sensor-params: nested deeper than 64 levels");
+        return true;
+      });
+    } catch (const json::exception& e) {  // parse_error, out_of_range ("1e400")
       throw InputError(std::string("--sensor-params: not valid JSON: ") + e.what());
     }
     if (!user_params.is_object()) throw InputError("--sensor-params: expected a JSON object");

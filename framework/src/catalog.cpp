@@ -26,10 +26,24 @@
 #include <map>
 #include <set>
 #include <sstream>
+#include <stdexcept>
+#include <string>
 
 #include "furnihost/io.hpp"
 
 namespace fs = std::filesystem;
+
+// Debian's assimp is built with ASSIMP_BUILD_DEBUG: an internal consistency check that fails
+// on a malformed file (e.g. a broken OFF face list) calls this function, which aborts the
+// whole process. This definition interposes the library's (the core library comes first in
+// the dynamic linker's search order) and turns the abort into an exception that
+// LoadMeshFile reports as an unreadable mesh. Without a debug assimp it is never called.
+namespace Assimp {
+FURNIHOST_API void aiAssertViolation(const char* expression, const char* file, int line) {
+  throw std::runtime_error(std::string("assimp internal check failed: ") + expression + " (" + file + ":" +
+                           std::to_string(line) + ")");
+}
+}  // namespace Assimp
 
 namespace furnihost {
 
@@ -261,7 +275,12 @@ Mesh LoadMeshFile(const std::string& path) {
   importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
   const unsigned flags = aiProcess_Triangulate | aiProcess_JoinIdenticalVertices |
                          aiProcess_PreTransformVertices | aiProcess_SortByPType;
-  const aiScene* scene = importer.ReadFile(path, flags);
+  const aiScene* scene = nullptr;
+  try {
+    scene = importer.ReadFile(path, flags);
+  } catch (const std::exception& e) {  // see aiAssertViolation above; assimp's own errors too
+    throw InputError(path + ": " + e.what());
+  }
   if (!scene || (scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE) || !scene->mRootNode)
     throw InputError(path + ": " + (importer.GetErrorString()[0] ? importer.GetErrorString()
                                                                  : "assimp could not read it"));

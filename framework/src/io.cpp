@@ -311,7 +311,10 @@ Scan ReadPly(const std::string& path, Tally& tally, size_t max_points) {
       scan.colors.push_back({static_cast<uint8_t>(std::clamp(vals[ir], 0.0, 255.0)),
                              static_cast<uint8_t>(std::clamp(vals[ig], 0.0, 255.0)),
                              static_cast<uint8_t>(std::clamp(vals[ib], 0.0, 255.0))});
-    for (int a : attr_props) scan.attributes[props[a].name].push_back(static_cast<int32_t>(vals[a]));
+    // Integer attributes may be uint32 (or ascii text of any size): clamp to int32 (UB otherwise).
+    for (int a : attr_props)
+      scan.attributes[props[a].name].push_back(
+          std::isfinite(vals[a]) ? static_cast<int32_t>(std::clamp(vals[a], -2147483648.0, 2147483647.0)) : 0);
   };
   if (format == "ascii") {
     for (size_t i = 0; i < n_vertex; ++i) {

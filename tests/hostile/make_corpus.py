@@ -189,6 +189,9 @@ def main():
           "ply\nformat ascii 1.0\nelement face 1\nproperty list uchar int vertex_indices\n"
           "element vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n"
           "3 0 1 2\n0 0 0\n1 0 0\n0 1 0\n")
+    write("scans/ply_uint_attribute.ply",
+          ply_header("binary_little_endian", 2, props=("float x", "float y", "float z", "uint label")).encode() +
+          struct.pack("<3fI", 1.0, 2.0, 0.5, 4294967295) + struct.pack("<3fI", 1.5, 2.0, 0.5, 7))
     write("scans/ply_all_nan.ply", ply_binary([(math.nan, 0.0, 0.0), (0.0, math.inf, 0.0)], endian=">",
                                               fmt="binary_big_endian"))
     write("scans/xyz_binary_garbage.xyz", bytes(range(256)) * 4)
@@ -302,6 +305,10 @@ def main():
     # Binary STL: 80-byte header, then a triangle count far beyond the file's size.
     write("catalogs/stl_count_lies/lies.stl", b"\x00" * 80 + struct.pack("<I", 100000000) + b"\x00" * 50)
     write("catalogs/stl_count_lies/catalog.json", catalog([entry("lies.stl")]))
+    # fuzz_catalog finding: a control byte merges an OFF vertex line with a face line; assimp's
+    # triangulation then fails an internal assertion, which aborts in Debian's (debug) build.
+    write("catalogs/fuzz_off_assert/broken.off", b"OFF\n4 2 0\n0 0 0\n1 0 0\n1 1 0\n0 1 1\x063 0 1 2\n3 0 2 3\n")
+    write("catalogs/fuzz_off_assert/catalog.json", catalog([entry("broken.off", up="+y", height_m=0.7)]))
     write("catalogs/bad_scale/catalog.json", catalog([entry("../tiny/cube.obj", scale=-1)]))
     write("catalogs/overflow_scale/catalog.json", catalog([entry("../tiny/cube.obj", scale=1e300)]))
 

@@ -159,6 +159,8 @@ void PrepareStep(const std::string& step, const Paths& p) {
     WriteIdentical(t + "/identical.pcd");
   } else if (step == "deep_json") {
     WriteFile(t + "/deep.json", "{\"stages\": " + std::string(100000, '[') + std::string(100000, ']') + "}");
+  } else if (step == "deep_sensor_params") {
+    WriteFile(t + "/deep_params.json", "{\"noise_a\": " + std::string(60000, '[') + std::string(60000, ']') + "}");
   } else if (step == "out_is_file") {
     WriteFile(t + "/file", "not a folder");
   } else {

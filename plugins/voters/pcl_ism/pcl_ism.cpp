@@ -53,6 +53,7 @@
 #include <ctime>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <memory>
 #include <set>
@@ -113,6 +114,9 @@ struct LoadedModel {
   std::vector<std::string> classes;
   std::vector<Eigen::Vector3f> sizes;  // mean catalog extents per class [m]
   std::vector<int> n_vw;
+  // Factor applied to the class's statistical weights in memory (see min_vote_weight); votes
+  // and densities are divided by it again, so they stay in ISM's units.
+  std::vector<double> strength_scale;
   float sampling_size_m = 0.05f, normal_radius_m = 0.08f, fpfh_radius_m = 0.15f;
 };
 
@@ -302,6 +306,7 @@ struct IsmOptions {
   float floor_cut_m = 0.05f;         // scene points below this world height are dropped
   float grid_cell_m = 0.05f;
   int max_plot_votes = 200000;       // 0 = keep every vote
+  double min_vote_weight = 1e-3;     // votes below this x the class's top weight are dropped
   float vote_cell_fraction = 0.25f;  // votes merged per cell of this x sigma; 0 = raw votes
   int max_votes = 200000;            // per class, after merging
 
@@ -332,6 +337,10 @@ struct IsmOptions {
         .Number("grid_cell_m", 0.05, 0.005, 1.0, "cell of the per-class vote density grids [m]")
         .Int("max_plot_votes", 200000, 0, 1e9,
              "raw votes kept for plots (every n-th, weight x n); 0 = all")
+        .Number("min_vote_weight", 1e-3, 0.0, 1.0,
+                "a vote is dropped when its strength is below this x the class's largest statistical "
+                "weight, or below FLT_EPSILON (PCL's own cut), whichever is lower; 0 = PCL's cut only, "
+                "which lets almost no vote through once the training set has ~1e5 words")
         .Number("vote_cell_fraction", 0.25, 0.0, 1.0,
                 "votes in one cube of this x sigma are merged (mean position, summed strength) before "
                 "ISM's mean shift, whose cost grows with the votes within 3 sigma; 0 = PCL's raw votes")
@@ -361,6 +370,7 @@ struct IsmOptions {
     o.floor_cut_m = p.at("floor_cut_m").get<float>();
     o.grid_cell_m = p.at("grid_cell_m").get<float>();
     o.max_plot_votes = p.at("max_plot_votes").get<int>();
+    o.min_vote_weight = p.at("min_vote_weight").get<double>();
     o.vote_cell_fraction = p.at("vote_cell_fraction").get<float>();
     o.max_votes = p.at("max_votes").get<int>();
     o.Check();
@@ -515,8 +525,22 @@ class PclIsmVoter : public Voter {
                        std::to_string(im.number_of_visual_words_) + " words, " + std::to_string(in_clusters) +
                        " in clusters, dimension " + std::to_string(im.descriptors_dimension_) + ")");
     m->n_vw.assign(m->classes.size(), 0);
-    for (size_t c = 0; c < m->classes.size(); ++c)
-      for (float s : im.statistical_weights_[c]) m->n_vw[c] += s > 0.f;
+    m->strength_scale.assign(m->classes.size(), 1.0);
+    for (size_t c = 0; c < m->classes.size(); ++c) {
+      float top = 0.f;
+      for (float s : im.statistical_weights_[c]) {
+        m->n_vw[c] += s > 0.f;
+        top = std::max(top, s);
+      }
+      // findObjects drops votes of strength <= FLT_EPSILON, but strengths scale with
+      // 1 / #words: with the whole catalog (533k words) the statistical weights are ~1e-6 and
+      // almost no vote passes. Scaling a class's weights by a constant moves no peak; it only
+      // turns that absolute cut into one relative to the class's strongest weight.
+      const double relative = opt_.min_vote_weight * top;
+      if (relative > 0 && relative < std::numeric_limits<float>::epsilon())
+        m->strength_scale[c] = std::numeric_limits<float>::epsilon() / relative;
+      for (float& s : m->ism->statistical_weights_[c]) s = static_cast<float>(s * m->strength_scale[c]);
+    }
     model_ = std::move(m);
   }
 
@@ -614,7 +638,7 @@ class PclIsmVoter : public Voter {
       }
       const double radius = opt_.peak_radius_fraction * FloorRadius(m.sizes[c]);
       if (!votes.empty()) list->findStrongestPeaks(out[i].peaks, c, radius, m.ism->sigmas_[c]);
-      const float scale = static_cast<float>(m.n_vw[c]);
+      const float scale = static_cast<float>(m.n_vw[c] / m.strength_scale[c]);
       for (auto& v : votes) v.w() *= scale;
       out[i].votes = std::move(votes);
       const auto t2 = std::chrono::steady_clock::now();
@@ -653,7 +677,7 @@ class PclIsmVoter : public Voter {
         Hypothesis h;
         h.cls = cls;
         h.center = Eigen::Vector3f(p.x, p.y, p.z);
-        h.score = static_cast<float>(p.density) * static_cast<float>(m.n_vw[c]);
+        h.score = static_cast<float>(p.density * m.n_vw[c] / m.strength_scale[c]);
         if (!h.center.allFinite() || !(h.score >= threshold)) continue;
         // ISM has no parts; parts near the peak support it so fitters can still run.
         for (size_t s = 0; s < scenes.size(); ++s) {
