@@ -61,6 +61,8 @@ void Fnv1a(uint64_t& h, const char* data, size_t n) {
 
 // Hashes a whole file; returns false when it cannot be read.
 bool HashFile(uint64_t& h, const std::string& path) {
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) return false;  // opening a FIFO would block forever
   std::ifstream in(path, std::ios::binary);
   if (!in) return false;
   char buf[1 << 16];
@@ -262,9 +264,110 @@ FURNIHOST_API std::vector<std::string> Catalog::Classes() const {
   return {s.begin(), s.end()};
 }
 
+namespace {
+// assimp 5.2's PLY importer loops forever on a header without end_header (a truncated
+// download) or with a malformed line (fuzz_catalog): the header must follow the PLY grammar
+// before assimp sees the file.
+void CheckPlyHeader(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::string line;
+  if (!std::getline(in, line)) return;
+  if (!line.empty() && line.back() == '\r') line.pop_back();
+  if (line != "ply") return;
+  static const std::set<std::string> kTypes = {"char", "uchar", "short", "ushort", "int", "uint", "float",
+                                               "double", "int8", "uint8", "int16", "uint16", "int32",
+                                               "uint32", "float32", "float64"};
+  auto bad = [&](const std::string& why) { return InputError(path + ": malformed PLY header (" + why + ")"); };
+  size_t read = line.size();
+  bool format = false, element = false;
+  while (read < (1u << 16) && std::getline(in, line)) {
+    read += line.size() + 1;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    for (char c : line)
+      if ((static_cast<unsigned char>(c) < 0x20 && c != '\t') || c == 0x7F) throw bad("control character");
+    std::istringstream ls(line);
+    std::vector<std::string> t;
+    for (std::string w; ls >> w;) t.push_back(w);
+    if (t.empty() || t[0] == "comment" || t[0] == "obj_info") continue;
+    if (t[0] == "end_header") {
+      if (!format || !element) throw bad("no format or no element before end_header");
+      return;
+    }
+    if (t[0] == "format") {
+      if (t.size() != 3 || (t[1] != "ascii" && t[1] != "binary_little_endian" && t[1] != "binary_big_endian"))
+        throw bad("bad format line");
+      format = true;
+    } else if (t[0] == "element") {
+      if (t.size() != 3 || t[2].find_first_not_of("0123456789") != std::string::npos || t[2].size() > 10)
+        throw bad("bad element line '" + line.substr(0, 40) + "'");
+      element = true;
+    } else if (t[0] == "property") {
+      const bool list = t.size() == 5 && t[1] == "list" && kTypes.count(t[2]) && kTypes.count(t[3]);
+      if (!element || !(list || (t.size() == 3 && kTypes.count(t[1]))))
+        throw bad("bad property line '" + line.substr(0, 40) + "'");
+    } else {
+      throw bad("unknown line '" + line.substr(0, 40) + "'");
+    }
+  }
+  throw InputError(path + ": PLY header has no end_header in its first 64 KB (truncated file?)");
+}
+
+// assimp 5.2's OFF importer reads vertices by unchecked face indices and splits lines at
+// control characters (fuzz_catalog: a heap overflow, then a crash). An OFF file is imported
+// only if it is plain: header, counts, nV vertex lines of >= 3 numbers, nF face lines of
+// 3..9 indices below nV (then optional colour values).
+void CheckOff(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::string line;
+  auto bad = [&](const std::string& why) { return InputError(path + ": malformed OFF file (" + why + ")"); };
+  auto next = [&](std::vector<std::string>& tok) {
+    while (std::getline(in, line)) {
+      if (!line.empty() && line.back() == '\r') line.pop_back();
+      for (char c : line)
+        if ((static_cast<unsigned char>(c) < 0x20 && c != '\t') || c == 0x7F) throw bad("control character");
+      std::istringstream ls(line);
+      tok.clear();
+      for (std::string t; ls >> t;) tok.push_back(t);
+      if (!tok.empty() && tok[0][0] != '#') return true;
+    }
+    return false;
+  };
+  auto number = [](const std::string& t, double& v) {
+    char* end = nullptr;
+    v = std::strtod(t.c_str(), &end);
+    return end == t.c_str() + t.size() && std::isfinite(v);
+  };
+  std::vector<std::string> tok;
+  if (!next(tok) || (tok[0] != "OFF" && tok[0] != "COFF" && tok[0] != "NOFF" && tok[0] != "CNOFF"))
+    return;  // not a plain OFF file: assimp's other OFF flavours or another format
+  tok.erase(tok.begin());
+  if (tok.empty() && !next(tok)) throw bad("no counts");
+  double nv = 0, nf = 0;
+  if (tok.size() < 2 || !number(tok[0], nv) || !number(tok[1], nf) || nv < 0 || nf < 0 || nv > 1e8 || nf > 1e8 ||
+      nv != std::floor(nv) || nf != std::floor(nf))
+    throw bad("bad vertex/face counts");
+  for (double i = 0; i < nv; ++i) {
+    double v;
+    if (!next(tok) || tok.size() < 3 || !number(tok[0], v) || !number(tok[1], v) || !number(tok[2], v))
+      throw bad("vertex " + std::to_string(static_cast<long long>(i)) + " is not 3 numbers");
+  }
+  for (double f = 0; f < nf; ++f) {
+    double k, idx;
+    if (!next(tok) || !number(tok[0], k) || k < 3 || k > 9 || k != std::floor(k) || tok.size() < 1 + k)
+      throw bad("face " + std::to_string(static_cast<long long>(f)) + " is not 3 to 9 vertex indices");
+    for (size_t m = 1; m <= static_cast<size_t>(k); ++m)
+      if (!number(tok[m], idx) || idx < 0 || idx >= nv || idx != std::floor(idx))
+        throw bad("face " + std::to_string(static_cast<long long>(f)) + " uses vertex " + tok[m] + " of " +
+                  std::to_string(static_cast<long long>(nv)));
+  }
+}
+}  // namespace
+
 Mesh LoadMeshFile(const std::string& path) {
   std::error_code ec;
   if (!fs::is_regular_file(path, ec)) throw InputError(path + ": no such mesh file");
+  CheckPlyHeader(path);
+  CheckOff(path);
   Assimp::Importer importer;
   // Pinned to assimp's defaults on purpose (see the file comment): catalogs are written
   // against the default import.

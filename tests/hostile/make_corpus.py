@@ -309,6 +309,19 @@ def main():
     # triangulation then fails an internal assertion, which aborts in Debian's (debug) build.
     write("catalogs/fuzz_off_assert/broken.off", b"OFF\n4 2 0\n0 0 0\n1 0 0\n1 1 0\n0 1 1\x063 0 1 2\n3 0 2 3\n")
     write("catalogs/fuzz_off_assert/catalog.json", catalog([entry("broken.off", up="+y", height_m=0.7)]))
+    # fuzz_catalog finding: assimp's PLY importer never returns on a header without end_header.
+    write("catalogs/fuzz_ply_no_end_header/truncated.ply",
+          "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\n")
+    write("catalogs/fuzz_ply_no_end_header/catalog.json", catalog([entry("truncated.ply")]))
+    # fuzz_catalog finding: assimp's OFF importer reads vertices by unchecked face indices
+    # (heap overflow, then a crash under ASan or with a far index).
+    write("catalogs/fuzz_off_index/far.off", "OFF\n4 2 0\n0 0 0\n1 0 0\n1 1 0\n0 1 1\n3 0 1 2\n3 5 2 3\n")
+    write("catalogs/fuzz_off_index/catalog.json", catalog([entry("far.off", up="+y", height_m=0.7)]))
+    # fuzz_catalog finding: ... and on a header line it cannot parse.
+    write("catalogs/fuzz_ply_bad_header/garbled.ply",
+          b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n{\nproperty float y\nproperty float z\n"
+          b"element face 1\nproperty list uchar int ve \"furn47\x0c\x00\"z [\nend_header\n0 0 0\n1 0 0\n0 1 1\n3 0 1 2\n")
+    write("catalogs/fuzz_ply_bad_header/catalog.json", catalog([entry("garbled.ply")]))
     write("catalogs/bad_scale/catalog.json", catalog([entry("../tiny/cube.obj", scale=-1)]))
     write("catalogs/overflow_scale/catalog.json", catalog([entry("../tiny/cube.obj", scale=1e300)]))
 

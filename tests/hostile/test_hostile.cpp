@@ -150,6 +150,11 @@ void PrepareStep(const std::string& step, const Paths& p) {
     fs::create_directories(t + "/dir.pcd");
   } else if (step == "fifo_scan" || step == "fifo_graph") {
     ASSERT_EQ(::mkfifo((t + (step == "fifo_scan" ? "/fifo.pcd" : "/fifo.json")).c_str(), 0644), 0);
+  } else if (step == "fifo_mesh") {
+    fs::create_directories(t + "/fifo_mesh");
+    ASSERT_EQ(::mkfifo((t + "/fifo_mesh/m.obj").c_str(), 0644), 0);
+    WriteFile(t + "/fifo_mesh/catalog.json",
+              R"({"models": [{"id": "cube", "class": "cube", "mesh": "m.obj", "up": "+z", "height_m": 1}]})");
   } else if (step == "fifo_plugin") {
     fs::create_directories(t + "/plugins");
     ASSERT_EQ(::mkfifo((t + "/plugins/libfurnihost_fifo.so").c_str(), 0644), 0);
