@@ -18,6 +18,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -277,9 +278,12 @@ void CheckPlyHeader(const std::string& path) {
   static const std::set<std::string> kTypes = {"char", "uchar", "short", "ushort", "int", "uint", "float",
                                                "double", "int8", "uint8", "int16", "uint16", "int32",
                                                "uint32", "float32", "float64"};
-  auto bad = [&](const std::string& why) { return InputError(path + ": malformed PLY header (" + why + ")"); };
+  auto bad = [&](const std::string& why) { return InputError(path + ": malformed PLY file (" + why + ")"); };
   size_t read = line.size();
-  bool format = false, element = false;
+  bool format = false, element = false, ascii = false;
+  std::vector<std::pair<std::string, long long>> elements;  // name, count
+  bool face_list_first = false;  // the face element's first property is its index list
+  int face_props = 0;
   while (read < (1u << 16) && std::getline(in, line)) {
     read += line.size() + 1;
     if (!line.empty() && line.back() == '\r') line.pop_back();
@@ -291,25 +295,42 @@ void CheckPlyHeader(const std::string& path) {
     if (t.empty() || t[0] == "comment" || t[0] == "obj_info") continue;
     if (t[0] == "end_header") {
       if (!format || !element) throw bad("no format or no element before end_header");
-      return;
+      break;
     }
     if (t[0] == "format") {
       if (t.size() != 3 || (t[1] != "ascii" && t[1] != "binary_little_endian" && t[1] != "binary_big_endian"))
         throw bad("bad format line");
       format = true;
+      ascii = t[1] == "ascii";
     } else if (t[0] == "element") {
       if (t.size() != 3 || t[2].find_first_not_of("0123456789") != std::string::npos || t[2].size() > 10)
         throw bad("bad element line '" + line.substr(0, 40) + "'");
       element = true;
+      elements.emplace_back(t[1], std::stoll(t[2]));
     } else if (t[0] == "property") {
       const bool list = t.size() == 5 && t[1] == "list" && kTypes.count(t[2]) && kTypes.count(t[3]);
       if (!element || !(list || (t.size() == 3 && kTypes.count(t[1]))))
         throw bad("bad property line '" + line.substr(0, 40) + "'");
+      if (elements.size() == 2 && elements[1].first == "face" && face_props++ == 0) face_list_first = list;
     } else {
       throw bad("unknown line '" + line.substr(0, 40) + "'");
     }
   }
-  throw InputError(path + ": PLY header has no end_header in its first 64 KB (truncated file?)");
+  if (line.rfind("end_header", 0) != 0) throw InputError(path + ": PLY header has no end_header in its first 64 KB (truncated file?)");
+  // assimp does not check face indices either (it reads past its vertex array): check them in
+  // the common ascii layout, vertices then faces led by their index list.
+  if (!ascii || elements.size() < 2 || elements[0].first != "vertex" || !face_list_first) return;
+  const long long nv = elements[0].second;
+  for (long long i = 0; i < nv; ++i)
+    if (!std::getline(in, line)) return;  // short files are assimp's to refuse
+  for (long long f = 0; f < elements[1].second && std::getline(in, line); ++f) {
+    std::istringstream ls(line);
+    long long n = 0, idx = 0;
+    if (!(ls >> n) || n < 0) throw bad("face " + std::to_string(f) + " has no index count");
+    for (long long k = 0; k < n; ++k)
+      if (!(ls >> idx) || idx < 0 || idx >= nv)
+        throw bad("face " + std::to_string(f) + " uses vertex " + std::to_string(idx) + " of " + std::to_string(nv));
+  }
 }
 
 // assimp 5.2's OFF importer reads vertices by unchecked face indices and splits lines at
@@ -338,8 +359,15 @@ void CheckOff(const std::string& path) {
     return end == t.c_str() + t.size() && std::isfinite(v);
   };
   std::vector<std::string> tok;
-  if (!next(tok) || (tok[0] != "OFF" && tok[0] != "COFF" && tok[0] != "NOFF" && tok[0] != "CNOFF"))
-    return;  // not a plain OFF file: assimp's other OFF flavours or another format
+  std::string ext = fs::path(path).extension().string();
+  for (auto& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (!next(tok)) return;
+  std::string head = tok[0];
+  for (auto& c : head) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  if (ext != ".off" && head.find("OFF") == std::string::npos) return;  // another format
+  // assimp also reads "OFF<digits>", "4OFF", "STOFF"...: only the plain headers are imported.
+  if (tok[0] != "OFF" && tok[0] != "COFF" && tok[0] != "NOFF" && tok[0] != "CNOFF")
+    throw bad("unsupported header '" + tok[0].substr(0, 20) + "'");
   tok.erase(tok.begin());
   if (tok.empty() && !next(tok)) throw bad("no counts");
   double nv = 0, nf = 0;

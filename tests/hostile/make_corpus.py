@@ -322,6 +322,11 @@ def main():
           b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n{\nproperty float y\nproperty float z\n"
           b"element face 1\nproperty list uchar int ve \"furn47\x0c\x00\"z [\nend_header\n0 0 0\n1 0 0\n0 1 1\n3 0 1 2\n")
     write("catalogs/fuzz_ply_bad_header/catalog.json", catalog([entry("garbled.ply")]))
+    # fuzz_catalog finding: "OFF<digits>" made assimp allocate 50 GB (std::bad_alloc, or the
+    # OOM killer).
+    write("catalogs/fuzz_off_header_count/huge.off", "OFF66666666666666666666666666\n4 2 0\n0 0 0\n1 0 0\n1 1 0\n0 1 1\n"
+          "3 0 1 2\n3 0 2 3\n")
+    write("catalogs/fuzz_off_header_count/catalog.json", catalog([entry("huge.off", up="+y", height_m=0.7)]))
     write("catalogs/bad_scale/catalog.json", catalog([entry("../tiny/cube.obj", scale=-1)]))
     write("catalogs/overflow_scale/catalog.json", catalog([entry("../tiny/cube.obj", scale=1e300)]))
 

@@ -213,7 +213,8 @@ TEST(Catalog, BundledDataIsRedistributableAndTheDemoIsHeldOut) {
     EXPECT_TRUE(std::count(c.begin(), c.end(), cls)) << "training catalog lacks " << cls;
   }
   for (const std::string file : {"/catalog/catalog.json", "/demo/catalog.json"}) {
-    for (const auto& e : json::parse(std::ifstream(root + file))["models"]) {
+    const json parsed = json::parse(std::ifstream(root + file));  // must outlive the loop
+    for (const auto& e : parsed["models"]) {
       const std::string lic = e.value("license", "");
       EXPECT_TRUE(lic.rfind("MIT-0", 0) == 0 || lic.rfind("CC-BY-3.0", 0) == 0)
           << file << ": " << e["id"] << " has licence \"" << lic << "\"";
