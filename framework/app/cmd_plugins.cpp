@@ -42,7 +42,8 @@ int RunPlugins(const std::vector<std::string>& args) {
           std::cout << ":";
           for (const auto& c : s.choices) std::cout << " " << c;
         }
-        std::cout << ", default " << s.default_value.dump() << ")  " << s.help << "\n";
+        std::cout << ", default " << s.default_value.dump() << (s.training ? "" : ", detection only") << ")  "
+                  << s.help << "\n";
       }
     }
   }

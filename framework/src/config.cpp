@@ -205,6 +205,7 @@ GraphConfig ValidateGraph(const std::string& path, const nlohmann::json& config,
     const ParamSchema& schema = registry.Find(s.type)->params;
     s.params = schema.Resolve(it.value().contains("params") ? it.value()["params"] : nlohmann::json(),
                               w + s.pointer + "/params");
+    s.training_params = schema.TrainingParams(s.params);
     for (const auto& rule : kLimitRules) {
       const ParamSpec* spec = schema.Find(rule.key);
       if (s.kind != rule.kind || !spec || spec->type != ParamType::Int || !config.contains("limits") ||

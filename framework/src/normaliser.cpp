@@ -1,6 +1,8 @@
 #include "furnihost/normaliser.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <limits>
 
 namespace furnihost {
 
@@ -30,13 +32,23 @@ size_t Normaliser::Apply(FeatureMatrix& f) const {
                      " differs from the trained normaliser's " + std::to_string(min.size()) +
                      " (model trained with another features plugin?)");
   size_t clamped = 0;
+  f.excess = Eigen::VectorXf::Zero(f.values.rows());
   for (Eigen::Index c = 0; c < f.values.cols(); ++c) {
     const float range = max[c] - min[c];
     for (Eigen::Index r = 0; r < f.values.rows(); ++r) {
       float v = f.values(r, c);
       float x = range > 0 ? (v - min[c]) / range : 0.f;
-      if (!(x >= 0.f)) { x = 0.f; ++clamped; }  // also catches NaN
-      else if (x > 1.f) { x = 1.f; ++clamped; }
+      if (!(x >= 0.f)) {  // also catches NaN (no excess: the value is unknown, not large)
+        if (x < 0.f) f.excess[r] = std::max(f.excess[r], -x);
+        x = 0.f;
+        ++clamped;
+      } else if (x > 1.f) {
+        f.excess[r] = std::max(f.excess[r], std::isfinite(x) ? x - 1.f : std::numeric_limits<float>::max());
+        x = 1.f;
+        ++clamped;
+      } else if (range <= 0 && v != min[c]) {  // a constant training column: any other value is outside
+        f.excess[r] = std::max(f.excess[r], 1.f);
+      }
       f.values(r, c) = x;
     }
   }

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <sstream>
+#include <stdexcept>
 
 namespace furnihost {
 
@@ -152,6 +153,20 @@ nlohmann::json ParamSchema::Resolve(const nlohmann::json& given, const std::stri
   return out;
 }
 
+ParamSchema& ParamSchema::DetectionOnly() {
+  if (specs_.empty()) throw std::logic_error("ParamSchema::DetectionOnly() before any parameter");
+  specs_.back().training = false;
+  return *this;
+}
+
+nlohmann::json ParamSchema::TrainingParams(const nlohmann::json& resolved) const {
+  nlohmann::json out = resolved;
+  if (!out.is_object()) return out;
+  for (const auto& s : specs_)
+    if (!s.training) out.erase(s.name);
+  return out;
+}
+
 nlohmann::json ParamSchema::ToJson() const {
   nlohmann::json a = nlohmann::json::array();
   for (const auto& s : specs_) {
@@ -160,6 +175,7 @@ nlohmann::json ParamSchema::ToJson() const {
     if (s.min) p["min"] = *s.min;
     if (s.max) p["max"] = *s.max;
     if (!s.choices.empty()) p["choices"] = s.choices;
+    if (!s.training) p["detection_only"] = true;
     a.push_back(p);
   }
   return a;

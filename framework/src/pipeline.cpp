@@ -19,7 +19,8 @@ const char kMagic[] = "furnihost-model\n";
 
 nlohmann::json StageKey(const StageConfig* s) {
   if (!s) return nullptr;
-  return {{"type", s->type}, {"version", s->version}, {"params", s->params}};
+  return {{"type", s->type}, {"version", s->version},
+          {"params", s->training_params.is_null() ? s->params : s->training_params}};
 }
 
 // nlohmann's CBOR reader recurses once per nesting level, so a tampered model of 10^6 nested

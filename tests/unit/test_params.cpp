@@ -65,6 +65,24 @@ TEST(Params, SchemaJsonListsRanges) {
   EXPECT_EQ(j[3]["choices"], json({"a", "b"}));
 }
 
+TEST(Params, DetectionOnlyParamsLeaveTheTrainingKey) {
+  ParamSchema s = ParamSchema()
+                      .Int("k", 40, 1, 1e6, "words")
+                      .Object("thresholds", json{{"chair", 0.6}}, "per class")
+                      .DetectionOnly()
+                      .Number("max_distance", 0, 0, 10, "cut")
+                      .DetectionOnly();
+  const json a = s.Resolve({{"thresholds", {{"chair", 2.0}}}}, "w");
+  const json b = s.Resolve({{"max_distance", 0.3}}, "w");
+  EXPECT_NE(a, b);
+  EXPECT_EQ(s.TrainingParams(a), s.TrainingParams(b));
+  EXPECT_EQ(s.TrainingParams(a), json({{"k", 40}}));
+  EXPECT_NE(s.TrainingParams(s.Resolve({{"k", 20}}, "w")), s.TrainingParams(a));
+  EXPECT_FALSE(s.ToJson()[0].contains("detection_only"));
+  EXPECT_EQ(s.ToJson()[1]["detection_only"], true);
+  EXPECT_THROW(ParamSchema().DetectionOnly(), std::logic_error);
+}
+
 TEST(Normaliser, RoundTripAndClamping) {
   furnihost::FeatureMatrix a, b;
   a.values.resize(2, 2);
@@ -83,6 +101,15 @@ TEST(Normaliser, RoundTripAndClamping) {
   EXPECT_FLOAT_EQ(t.values(0, 1), 0.5f);
   EXPECT_FLOAT_EQ(t.values(1, 0), 1.f);
   EXPECT_FLOAT_EQ(t.values(1, 1), 0.f);
+  // Excess in ranges: row 0 inside; row 1: column 0 is 4 with range [0, 2] -> 1 range beyond.
+  ASSERT_EQ(t.excess.size(), 2);
+  EXPECT_FLOAT_EQ(t.excess[0], 0.f);
+  EXPECT_FLOAT_EQ(t.excess[1], 1.f);
+  furnihost::FeatureMatrix below;
+  below.values.resize(1, 2);
+  below.values << 1, 5;  // 10 - 5 = 5 below the min of a range of 20
+  n2.Apply(below);
+  EXPECT_FLOAT_EQ(below.excess[0], 0.25f);
   furnihost::FeatureMatrix wrong;
   wrong.values.resize(1, 3);
   EXPECT_THROW(n2.Apply(wrong), InputError);

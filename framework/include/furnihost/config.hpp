@@ -30,6 +30,7 @@ struct StageConfig {
   StageKind kind;
   std::vector<std::string> inputs;
   nlohmann::json params;  // resolved: every default filled
+  nlohmann::json training_params;  // params without the detection-only ones (model cache key)
   std::string pointer;    // "/stages/<tag>"
 };
 

@@ -12,7 +12,7 @@ struct FURNIHOST_API Normaliser {
 
   static Normaliser Fit(const std::vector<const FeatureMatrix*>& training);
   // Maps each column to [0, 1]; values outside the training range are clamped. Returns the
-  // number of clamped values. Constant columns map to 0.
+  // number of clamped values. Constant columns map to 0. Fills features.excess.
   size_t Apply(FeatureMatrix& features) const;
   nlohmann::json ToJson() const;
   static Normaliser FromJson(const nlohmann::json& j);

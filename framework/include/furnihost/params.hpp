@@ -21,6 +21,9 @@ struct ParamSpec {
   std::optional<double> min, max;     // inclusive range for Int/Number (and NumberList items)
   std::vector<std::string> choices;   // for Enum
   std::string help;
+  // False for parameters that only matter at detection time (e.g. a voter's thresholds): they
+  // are left out of the model cache key, so changing them does not retrain the model.
+  bool training = true;
 };
 
 class FURNIHOST_API ParamSchema {
@@ -37,6 +40,10 @@ class FURNIHOST_API ParamSchema {
                           std::optional<double> min, std::optional<double> max,
                           const std::string& help);
   ParamSchema& Object(const std::string& name, nlohmann::json def, const std::string& help);
+  // Marks the parameter declared last as detection-only (ParamSpec::training = false).
+  ParamSchema& DetectionOnly();
+  // `resolved` without its detection-only parameters: what a trained model depends on.
+  nlohmann::json TrainingParams(const nlohmann::json& resolved) const;
 
   const std::vector<ParamSpec>& Specs() const { return specs_; }
   const ParamSpec* Find(const std::string& name) const;

@@ -74,6 +74,10 @@ struct Segmentation {
 struct FeatureMatrix {
   Eigen::MatrixXf values;
   std::vector<std::string> names;  // one per column
+  // Filled by Normaliser::Apply, one per row: how far the row's raw values lay outside the
+  // training range before clamping, in units of each column's range (max over the columns;
+  // 0 = inside). Voters use it to recognise parts unlike any training part (walls, floors).
+  Eigen::VectorXf excess;
 };
 
 // The stage inputs of one scene for voting (several when views are fused).

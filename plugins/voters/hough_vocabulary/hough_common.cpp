@@ -131,6 +131,7 @@ TrainingParts CollectTrainingParts(const std::vector<TrainingView>& views) {
       }
       for (Eigen::Index j = 0; j < F.cols(); ++j) rows.push_back(F(i, j));
       out.d.push_back(to_view * (v.object_centroid - v.segmentation.parts[i].centroid));
+      out.height.push_back(v.segmentation.parts[i].centroid.z());
       out.cls.push_back(c);
       out.model.push_back(m);
       out.view.push_back(v.view);
@@ -311,6 +312,7 @@ Codebook BuildCodebook(const TrainingParts& parts, const RowMatrixXf& words,
   b.element_class.resize(n);
   b.element_model.resize(n);
   b.element_view.resize(n);
+  b.element_height.resize(n);
   std::vector<int> next(b.element_begin.begin(), b.element_begin.end() - 1);
   for (size_t i = 0; i < n; ++i) {
     const int e = next[labels[i]]++;
@@ -318,6 +320,7 @@ Codebook BuildCodebook(const TrainingParts& parts, const RowMatrixXf& words,
     b.element_class[e] = parts.cls[i];
     b.element_model[e] = parts.model[i];
     b.element_view[e] = parts.view[i];
+    b.element_height[e] = parts.height[i];
   }
   b.ComputeNorms();
   return b;
@@ -353,6 +356,7 @@ nlohmann::json Codebook::ToJson(const std::string& format) const {
   j["class"] = element_class;
   j["model"] = element_model;
   j["view"] = element_view;
+  j["height"] = FlatArray(element_height);
   return j;
 }
 
@@ -378,8 +382,10 @@ Codebook Codebook::FromJson(const nlohmann::json& j, const std::string& format) 
     b.element_class = j.at("class").get<std::vector<int>>();
     b.element_model = j.at("model").get<std::vector<int>>();
     b.element_view = j.at("view").get<std::vector<int>>();
+    b.element_height = j.at("height").get<std::vector<float>>();
     const size_t n = b.element_class.size();
-    if (flat.size() != 3 * n || b.element_model.size() != n || b.element_view.size() != n)
+    if (flat.size() != 3 * n || b.element_model.size() != n || b.element_view.size() != n ||
+        b.element_height.size() != n)
       throw bad("element arrays differ in length");
     if (b.element_begin.size() != static_cast<size_t>(b.Words()) + 1 || b.element_begin.front() != 0 ||
         b.element_begin.back() != static_cast<int>(n) ||
@@ -390,6 +396,7 @@ Codebook Codebook::FromJson(const nlohmann::json& j, const std::string& format) 
           b.element_model[i] < 0 || b.element_model[i] >= static_cast<int>(b.models.size()))
         throw bad("element " + std::to_string(i) + " has an invalid class or model index");
       b.d.emplace_back(flat[3 * i], flat[3 * i + 1], flat[3 * i + 2]);
+      if (!std::isfinite(b.element_height[i])) throw bad("element " + std::to_string(i) + " has a non-finite height");
     }
   } catch (const nlohmann::json::exception& e) {
     throw bad(std::string("malformed: ") + e.what());
@@ -402,29 +409,46 @@ Codebook Codebook::FromJson(const nlohmann::json& j, const std::string& format) 
 
 void SelectionOptions::Declare(ParamSchema& s) {
   s.Number("max_distance", 0.0, 0.0, 100.0,
-           "feature-space distance beyond which a word/part is not activated (0 = off, paper)")
-      .Number("cell", 0.05, 0.005, 1.0, "vote grid cell size on the floor plane [m]")
+           "feature-space distance beyond which a word/part is not activated (0 = off, paper)").DetectionOnly()
+      .Number("max_out_of_range", 0.0, 0.0, 1e6,
+              "a part whose raw features lie more than this many training ranges outside the range of "
+              "the training parts (any column) does not vote: walls and floors clamp to the largest "
+              "training part otherwise (0 = off, paper)").DetectionOnly()
+      .Number("height_tolerance_m", 0.0, 0.0, 100.0,
+              "a shape-model element votes only when the part's height above the floor is within this "
+              "of its training part's height (objects stand on the floor, Sect. VI-B) [m] (0 = off, paper)")
+      .DetectionOnly()
+      .Enum("floor", "auto", {"auto", "fixed"},
+            "scene floor height for height_tolerance_m: 'auto' = densest 2 cm z-slice among the lowest 30 % "
+            "of the points, 'fixed' = floor_z_m").DetectionOnly()
+      .Number("floor_z_m", 0.0, -1e4, 1e4, "world z of the floor when floor is 'fixed' [m]").DetectionOnly()
+      .Number("cell", 0.05, 0.005, 1.0, "vote grid cell size on the floor plane [m]").DetectionOnly()
       .Number("smoothing", 0.08, 0.0, 1.0,
-              "Gaussian sigma smoothing the vote density before the maxima search [m] (0 = none)")
+              "Gaussian sigma smoothing the vote density before the maxima search [m] (0 = none)").DetectionOnly()
       .Number("window_scale", 1.0, 0.1, 4.0,
-              "search/score window = window_scale x class width (paper: the class width)")
+              "search/score window = window_scale x class width (paper: the class width)").DetectionOnly()
       .Number("refine_radius", 0.15, 0.0, 2.0,
-              "mean-shift radius moving a grid maximum onto the votes [m] (0 = cell centre)")
+              "mean-shift radius moving a grid maximum onto the votes [m] (0 = cell centre)").DetectionOnly()
       .Enum("footprint", "circle", {"circle", "square"},
-            "2-D hull of a hypothesis for the consistency check (Sect. VI-B)")
+            "2-D hull of a hypothesis for the consistency check (Sect. VI-B)").DetectionOnly()
       .Number("footprint_scale", 1.0, 0.0, 4.0,
-              "footprint diameter / side = footprint_scale x class width")
+              "footprint diameter / side = footprint_scale x class width").DetectionOnly()
       .Object("thresholds", {{"chair", 0.6}, {"table", 1.0}, {"cabinet", 1.4}},
-              "minimum score per class (paper: chair 0.6, table 1.0, sideboard 1.4)")
-      .Number("default_threshold", 1.0, 0.0, 1e9, "minimum score of classes not in thresholds")
-      .String("classes", "", "comma-separated classes to detect (empty = every trained class)")
+              "minimum score per class (paper: chair 0.6, table 1.0, sideboard 1.4)").DetectionOnly()
+      .Number("default_threshold", 1.0, 0.0, 1e9, "minimum score of classes not in thresholds").DetectionOnly()
+      .String("classes", "", "comma-separated classes to detect (empty = every trained class)").DetectionOnly()
       .Int("max_grid_cells", 4000000, 1000, 1e9,
-           "cap on grid cells per class; the cell grows beyond it (far outliers)");
+           "cap on grid cells per class; the cell grows beyond it (far outliers)")
+      .DetectionOnly();
 }
 
 SelectionOptions SelectionOptions::FromParams(const nlohmann::json& p) {
   SelectionOptions o;
   o.max_distance = p.at("max_distance").get<float>();
+  o.max_out_of_range = p.at("max_out_of_range").get<float>();
+  o.height_tolerance = p.at("height_tolerance_m").get<float>();
+  o.floor_auto = p.at("floor").get<std::string>() == "auto";
+  o.floor_z = p.at("floor_z_m").get<float>();
   o.cell = p.at("cell").get<float>();
   o.smoothing = p.at("smoothing").get<float>();
   o.window_scale = p.at("window_scale").get<float>();
@@ -742,6 +766,35 @@ std::vector<Hypothesis> SelectClass(const VoteSet& votes, size_t vb, size_t ve,
 
 }  // namespace
 
+float EstimateFloor(const std::vector<SceneParts>& scenes) {
+  std::vector<float> z;
+  for (const auto& sc : scenes) {
+    if (!sc.scan) continue;
+    const size_t n = sc.scan->points.size();
+    const size_t step = std::max<size_t>(1, n / 200000);  // a sample is plenty for a histogram
+    for (size_t i = 0; i < n; i += step) {
+      const float w = (sc.scan->pose * sc.scan->points[i]).z();
+      if (std::isfinite(w)) z.push_back(w);
+    }
+  }
+  if (z.empty()) return 0.f;
+  const size_t cut = std::min(z.size() - 1, z.size() * 3 / 10);
+  std::nth_element(z.begin(), z.begin() + cut, z.end());
+  const float hi = z[cut];
+  const float lo = *std::min_element(z.begin(), z.begin() + cut + 1);
+  const float bin = 0.02f;
+  const int bins = std::min(100000, static_cast<int>((hi - lo) / bin) + 1);
+  std::vector<int> count(bins, 0);
+  std::vector<double> sum(bins, 0.0);
+  for (size_t i = 0; i <= cut; ++i) {
+    const int b = std::clamp(static_cast<int>((z[i] - lo) / bin), 0, bins - 1);
+    ++count[b];
+    sum[b] += z[i];
+  }
+  const int best = static_cast<int>(std::max_element(count.begin(), count.end()) - count.begin());
+  return static_cast<float>(sum[best] / std::max(1, count[best]));
+}
+
 VoteResult VoteAndSelect(const Codebook& book, const WordIndex& index,
                          const std::vector<SceneParts>& scenes, const SelectionOptions& opt) {
   VoteResult res;
@@ -768,7 +821,7 @@ VoteResult VoteAndSelect(const Codebook& book, const WordIndex& index,
   std::vector<long> idx(act);
   std::vector<float> d2(act), q(dim);
   std::vector<double> wv(act);
-  size_t skipped = 0;
+  size_t skipped = 0, out_of_range = 0;
   for (size_t s = 0; s < scenes.size(); ++s) {
     const SceneParts& sc = scenes[s];
     const std::string where = "scene " + std::to_string(s) + ": ";
@@ -787,6 +840,11 @@ VoteResult VoteAndSelect(const Codebook& book, const WordIndex& index,
     for (Eigen::Index i = 0; i < F.rows(); ++i) {
       if (!F.row(i).allFinite() || !segs[i].centroid.allFinite()) {
         ++skipped;
+        continue;
+      }
+      const auto& ex = sc.features->excess;
+      if (opt.max_out_of_range > 0.f && ex.size() == F.rows() && ex[i] > opt.max_out_of_range) {
+        ++out_of_range;
         continue;
       }
       for (int j = 0; j < dim; ++j) q[j] = F(i, j);
@@ -812,17 +870,34 @@ VoteResult VoteAndSelect(const Codebook& book, const WordIndex& index,
     }
   }
   if (skipped) spdlog::warn("voter: skipped {} scene parts with non-finite features", skipped);
+  if (out_of_range)
+    spdlog::debug("voter: {} scene parts lie more than {} training ranges outside the training features",
+                  out_of_range, opt.max_out_of_range);
+  // Height consistency: an element votes only when its training part sat at about the scene
+  // part's height above the floor (objects stand on the floor).
+  const bool gate = opt.height_tolerance > 0.f && !book.element_height.empty();
+  const float floor_z = gate ? (opt.floor_auto ? EstimateFloor(scenes) : opt.floor_z) : 0.f;
+  if (gate) spdlog::debug("voter: floor at z = {:.3f} m ({})", floor_z, opt.floor_auto ? "estimated" : "fixed");
+  auto height_ok = [&](const PartRef& pr, int e) {
+    return !gate || std::abs(pr.world.z() - floor_z - book.element_height[e]) <= opt.height_tolerance;
+  };
 
   // ---- votes x_v = l + d with weight p(A_i|f) / #(A_i, o) (eq. 5), grouped by class ----
-  std::vector<int> word_class(static_cast<size_t>(K) * C, 0);
-  for (int k = 0; k < K; ++k)
-    for (int e = book.element_begin[k]; e < book.element_begin[k + 1]; ++e)
-      ++word_class[static_cast<size_t>(k) * C + book.element_class[e]];
   VoteSet votes;
   votes.class_begin.assign(C + 1, 0);
-  for (const auto& a : acts)
-    for (int c = 0; c < C; ++c)
-      if (active[c]) votes.class_begin[c + 1] += word_class[static_cast<size_t>(a.word) * C + c];
+  if (!gate) {
+    std::vector<int> word_class(static_cast<size_t>(K) * C, 0);
+    for (int k = 0; k < K; ++k)
+      for (int e = book.element_begin[k]; e < book.element_begin[k + 1]; ++e)
+        ++word_class[static_cast<size_t>(k) * C + book.element_class[e]];
+    for (const auto& a : acts)
+      for (int c = 0; c < C; ++c)
+        if (active[c]) votes.class_begin[c + 1] += word_class[static_cast<size_t>(a.word) * C + c];
+  } else {
+    for (const auto& a : acts)
+      for (int e = book.element_begin[a.word]; e < book.element_begin[a.word + 1]; ++e)
+        if (active[book.element_class[e]] && height_ok(parts[a.part], e)) ++votes.class_begin[book.element_class[e] + 1];
+  }
   std::partial_sum(votes.class_begin.begin(), votes.class_begin.end(), votes.class_begin.begin());
   const size_t total = votes.class_begin.back();
   votes.x.resize(total);
@@ -845,7 +920,7 @@ VoteResult VoteAndSelect(const Codebook& book, const WordIndex& index,
       }
       for (int e = book.element_begin[a.word]; e < book.element_begin[a.word + 1]; ++e) {
         const int c = book.element_class[e];
-        if (!active[c]) continue;
+        if (!active[c] || !height_ok(pr, e)) continue;
         const size_t i = next[c]++;
         const Eigen::Vector3f x = pr.world + rd[e];
         votes.x[i] = x.x();
@@ -898,6 +973,11 @@ VoteResult VoteAndSelect(const Codebook& book, const WordIndex& index,
     grid.width = W;
     grid.height = H;
     const size_t vb = votes.class_begin[c], ve = votes.class_begin[c + 1];
+    if (spdlog::should_log(spdlog::level::debug)) {
+      double mass = 0.0;
+      for (size_t i = vb; i < ve; ++i) mass += votes.w[i];
+      spdlog::debug("voter: class {}: {} votes, mass {:.2f}", grid.cls, ve - vb, mass);
+    }
     if (vb == ve || W == 0) {
       grid.width = grid.height = 0;
     } else {

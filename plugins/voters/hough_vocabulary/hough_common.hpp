@@ -67,6 +67,7 @@ struct Codebook {
   std::vector<int> element_model;          // index into models
   std::vector<int> element_view;           // TrainingView::view
   std::vector<float> element_norm;         // 1 / #(A_i, o) of the element's word and class
+  std::vector<float> element_height;       // part centroid height above the training floor [m]
 
   int Words() const { return static_cast<int>(words.rows()); }
   int Dim() const { return static_cast<int>(words.cols()); }
@@ -82,6 +83,7 @@ struct TrainingParts {
   RowMatrixXf features;  // N x D, normalised
   std::vector<std::string> feature_names;
   std::vector<Eigen::Vector3f> d;
+  std::vector<float> height;  // part centroid z in the view (catalog models stand on z = 0)
   std::vector<int> cls, model, view;
   std::vector<ClassModel> classes;
   std::vector<std::string> models;
@@ -116,6 +118,12 @@ Codebook BuildCodebook(const TrainingParts& parts, const RowMatrixXf& words,
 struct SelectionOptions {
   int activations = 2;          // words activated per part (paper: 2)
   float max_distance = 0.f;     // feature distance beyond which a word is not activated (0 = off)
+  float max_out_of_range = 0.f; // parts whose raw features exceed the training range by more
+                                // than this (in ranges, FeatureMatrix::excess) do not vote (0 = off)
+  float height_tolerance = 0.f; // element votes only when |part height - training part height|
+                                // <= this [m] (0 = off); heights above the scene floor
+  bool floor_auto = true;       // scene floor height: estimated from the points, or floor_z
+  float floor_z = 0.f;          // world z of the floor when !floor_auto [m]
   bool unit_weight = false;     // NN baseline: weight 1 per vote instead of eq. 4/5
   bool inverse_distance = false;// NN baseline: weight 1 / (1 + feature distance)
   float cell = 0.05f;           // grid cell [m]
@@ -154,6 +162,10 @@ class WordIndex {
 };
 
 // Votes with every scene part and selects hypotheses (Sect. VI-A, VI-B).
+// World z of the floor under the scenes: the densest 2 cm slice of point heights among the
+// lowest 30 % of the points (a floor is the largest horizontal surface at the bottom of a room).
+float EstimateFloor(const std::vector<SceneParts>& scenes);
+
 VoteResult VoteAndSelect(const Codebook& book, const WordIndex& index,
                          const std::vector<SceneParts>& scenes, const SelectionOptions& opt);
 

@@ -12,7 +12,7 @@
 namespace furnihost::voters {
 
 namespace {
-constexpr const char* kFormat = "voters.hough_vocabulary/1";
+constexpr const char* kFormat = "voters.hough_vocabulary/2";
 }
 
 class HoughVocabularyVoter : public Voter {
@@ -22,7 +22,8 @@ class HoughVocabularyVoter : public Voter {
     s.Int("k", 40, 1, 100000, "vocabulary size: k-means clusters over training part features (paper: 40)")
         .Int("max_iterations", 100, 1, 100000, "Lloyd iterations per k-means run")
         .Int("restarts", 3, 1, 1000, "k-means runs from different k-means++ seeds; the lowest inertia wins")
-        .Int("activations", 2, 1, 1000, "words activated per scene part (paper: 2)");
+        .Int("activations", 2, 1, 1000, "words activated per scene part (paper: 2)")
+        .DetectionOnly();
     SelectionOptions::Declare(s);
     return s;
   }
@@ -70,5 +71,5 @@ class HoughVocabularyVoter : public Voter {
 
 }  // namespace furnihost::voters
 
-FURNIHOST_PLUGIN(furnihost::voters::HoughVocabularyVoter, "voters.hough_vocabulary", "1.0.0",
+FURNIHOST_PLUGIN(furnihost::voters::HoughVocabularyVoter, "voters.hough_vocabulary", "1.1.0",
                  "k-means vocabulary of parts + probabilistic Hough voting (Mozos et al. Sect. V-VI)")

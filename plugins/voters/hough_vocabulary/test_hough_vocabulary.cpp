@@ -176,7 +176,7 @@ TEST(HoughVocabulary, TrainingIsDeterministicForASeed) {
   const json a = MakeVoter(BaseParams())->Train(views, ctx);
   const json b = MakeVoter(BaseParams())->Train(views, ctx);
   EXPECT_EQ(a, b);
-  EXPECT_EQ(a.at("format"), "voters.hough_vocabulary/1");
+  EXPECT_EQ(a.at("format"), "voters.hough_vocabulary/2");
   EXPECT_EQ(a.at("words").size(), 8u * synth::kDim);
   EXPECT_EQ(a.at("class").size(), 2u * 4u * (6u + 5u));  // every training part is an element
 }

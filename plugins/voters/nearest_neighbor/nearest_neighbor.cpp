@@ -15,7 +15,7 @@
 namespace furnihost::voters {
 
 namespace {
-constexpr const char* kFormat = "voters.nearest_neighbor/1";
+constexpr const char* kFormat = "voters.nearest_neighbor/2";
 }
 
 class NearestNeighborVoter : public Voter {
@@ -23,7 +23,8 @@ class NearestNeighborVoter : public Voter {
   static ParamSchema Schema() {
     ParamSchema s;
     s.Enum("weighting", "unit", {"unit", "inverse_distance"},
-           "vote weight: 1, or 1 / (1 + feature distance to the nearest training part)");
+           "vote weight: 1, or 1 / (1 + feature distance to the nearest training part)")
+        .DetectionOnly();
     SelectionOptions::Declare(s);
     return s;
   }
@@ -65,5 +66,5 @@ class NearestNeighborVoter : public Voter {
 
 }  // namespace furnihost::voters
 
-FURNIHOST_PLUGIN(furnihost::voters::NearestNeighborVoter, "voters.nearest_neighbor", "1.0.0",
+FURNIHOST_PLUGIN(furnihost::voters::NearestNeighborVoter, "voters.nearest_neighbor", "1.1.0",
                  "paper's NN baseline: each scene part votes with its nearest training part only")

@@ -326,30 +326,31 @@ struct IsmOptions {
                 "0.1 makes ISM's learned weights so small that tables cast no vote at all")
         .Bool("n_vot", true, "ISM's normalisation of vote weights by the number of votes of a word")
         .Number("peak_radius_fraction", 1.0, 0.05, 4.0,
-                "non-maxima radius of findStrongestPeaks = this x class footprint radius")
+                "non-maxima radius of findStrongestPeaks = this x class footprint radius").DetectionOnly()
         .Object("thresholds", nlohmann::json::object(),
                 "minimum score per class (score = ISM peak density x number of the class's words, "
-                "about the number of agreeing key points)")
-        .Number("default_threshold", 0.0, 0.0, 1e9, "minimum score of classes not in thresholds")
-        .Int("max_hypotheses", 10, 1, 1000, "at most this many hypotheses per class, strongest first")
-        .String("classes", "", "comma-separated classes to detect (empty = every trained class)")
+                "about the number of agreeing key points)").DetectionOnly()
+        .Number("default_threshold", 0.0, 0.0, 1e9, "minimum score of classes not in thresholds").DetectionOnly()
+        .Int("max_hypotheses", 10, 1, 1000, "at most this many hypotheses per class, strongest first").DetectionOnly()
+        .String("classes", "", "comma-separated classes to detect (empty = every trained class)").DetectionOnly()
         .Number("floor_cut_m", 0.05, -1e3, 1e3,
                 "scene points below this world height [m] are dropped before voting (the floor: ISM "
-                "learns isolated objects and a floor votes like a huge seat or table top); -1e3 = keep all")
+                "learns isolated objects and a floor votes like a huge seat or table top); -1e3 = keep all").DetectionOnly()
         .Number("viewpoint_height_m", 1.5, -100.0, 100.0,
-                "scenes without sensor origin: normals face (centroid x, centroid y, this height)")
-        .Number("grid_cell_m", 0.05, 0.005, 1.0, "cell of the per-class vote density grids [m]")
+                "scenes without sensor origin: normals face (centroid x, centroid y, this height)").DetectionOnly()
+        .Number("grid_cell_m", 0.05, 0.005, 1.0, "cell of the per-class vote density grids [m]").DetectionOnly()
         .Int("max_plot_votes", 200000, 0, 1e9,
-             "raw votes kept for plots (every n-th, weight x n); 0 = all")
+             "raw votes kept for plots (every n-th, weight x n); 0 = all").DetectionOnly()
         .Number("min_vote_weight", 1e-3, 0.0, 1.0,
                 "a vote is dropped when its strength is below this x the class's largest statistical "
                 "weight, or below FLT_EPSILON (PCL's own cut), whichever is lower; 0 = PCL's cut only, "
-                "which lets almost no vote through once the training set has ~1e5 words")
+                "which lets almost no vote through once the training set has ~1e5 words").DetectionOnly()
         .Number("vote_cell_fraction", 0.25, 0.0, 1.0,
                 "votes in one cube of this x sigma are merged (mean position, summed strength) before "
-                "ISM's mean shift, whose cost grows with the votes within 3 sigma; 0 = PCL's raw votes")
+                "ISM's mean shift, whose cost grows with the votes within 3 sigma; 0 = PCL's raw votes").DetectionOnly()
         .Int("max_votes", 200000, 1000, 2e9,
-             "per class, merged votes beyond this are thinned (every n-th, strength x n)");
+             "per class, merged votes beyond this are thinned (every n-th, strength x n)")
+        .DetectionOnly();
     return s;
   }
 
