@@ -170,6 +170,7 @@ RunFigures RunOne(Loaded& cfg, const Registry& reg, const RunContext& ctx, const
   const bool reset_ok = ResetPeakRss();
   std::vector<Pipeline::Result> results(n);
   std::vector<SceneRecord> records(n);
+  std::vector<std::vector<Eigen::Vector3f>> voter_centres(n);  // before a fitter moved them
   std::vector<std::unique_ptr<Pipeline>> pipelines;
   pipelines.push_back(std::make_unique<Pipeline>(cfg.graph, reg));
   Progress progress("eval " + cfg.name + " seed " + std::to_string(ctx.seed), n);
@@ -195,6 +196,7 @@ RunFigures RunOne(Loaded& cfg, const Registry& reg, const RunContext& ctx, const
     records[i].detections = static_cast<int>(r.detections.size());
     records[i].timings_ms = r.timings_ms;
     // Keep only what the evaluation needs: scans and features of every scene would add up.
+    for (const auto& h : r.votes.hypotheses) voter_centres[i].push_back(h.center);
     Pipeline::Result keep;
     keep.detections = std::move(r.detections);
     keep.fitted = r.fitted;
@@ -254,6 +256,8 @@ RunFigures RunOne(Loaded& cfg, const Registry& reg, const RunContext& ctx, const
     evals[i].detections = std::move(results[i].detections);
     evals[i].truth = (*in.truth)[i];
     evals[i].fitted = results[i].fitted;
+    evals[i].name = fs::path(scenes[i].scan).stem().string();
+    evals[i].voter_centres = std::move(voter_centres[i]);
     for (const auto& [tag, ms] : records[i].timings_ms) {
       auto it = std::find_if(f.stage_ms.begin(), f.stage_ms.end(), [&](const auto& t) { return t.first == tag; });
       if (it == f.stage_ms.end()) f.stage_ms.emplace_back(tag, ms);

@@ -69,6 +69,11 @@ double YawErrorDeg(double a, double b) {
 
 float PlaneDistance(const Eigen::Vector3f& a, const Eigen::Vector3f& b) { return (a - b).head<2>().norm(); }
 
+void FinishRates(VerificationFigures* v) {
+  v->tp_kept_rate = SafeDiv(v->tp_kept, v->tp);
+  v->fp_removal_rate = SafeDiv(v->fp_removed, v->fp);
+}
+
 // One evaluated detection after matching.
 struct Scored {
   float score;
@@ -144,6 +149,52 @@ OperatingPoint OperatingPointFromJson(const json& j, const std::string& where) {
   return p;
 }
 
+json ToJson(const VerificationFigures& v) {
+  return {{"tp", v.tp},
+          {"tp_kept", v.tp_kept},
+          {"tp_kept_rate", Num(v.tp_kept_rate)},
+          {"fp", v.fp},
+          {"fp_removed", v.fp_removed},
+          {"fp_removal_rate", Num(v.fp_removal_rate)}};
+}
+VerificationFigures VerificationFromJson(const json& j, const std::string& where) {
+  VerificationFigures v;
+  v.tp = static_cast<int>(GetNum(j, "tp", where));
+  v.tp_kept = static_cast<int>(GetNum(j, "tp_kept", where));
+  v.fp = static_cast<int>(GetNum(j, "fp", where));
+  v.fp_removed = static_cast<int>(GetNum(j, "fp_removed", where));
+  FinishRates(&v);
+  return v;
+}
+
+json ToJson(const ObjectRecord& r) {
+  return {{"scene", r.scene},
+          {"index", r.index},
+          {"class", r.cls},
+          {"gt_model", r.gt_model},
+          {"status", r.status},
+          {"model", r.model},
+          {"centre_error_m", Num(r.centre_error_m)},
+          {"yaw_error_deg", Num(r.yaw_error_deg)},
+          {"coverage", Num(r.coverage)},
+          {"rejection", r.rejection}};
+}
+ObjectRecord ObjectRecordFromJson(const json& j, const std::string& where) {
+  if (!j.is_object()) throw InputError(where + ": expected an object");
+  ObjectRecord r;
+  r.scene = j.value("scene", "");
+  r.index = static_cast<int>(GetNum(j, "index", where));
+  r.cls = j.value("class", "");
+  r.gt_model = j.value("gt_model", "");
+  r.status = j.value("status", "");
+  r.model = j.value("model", "");
+  r.centre_error_m = GetNum(j, "centre_error_m", where);
+  r.yaw_error_deg = GetNum(j, "yaw_error_deg", where);
+  r.coverage = GetNum(j, "coverage", where);
+  r.rejection = j.value("rejection", "");
+  return r;
+}
+
 json TimingsToJson(const std::vector<std::pair<std::string, double>>& t) {
   json a = json::array();
   for (const auto& [tag, ms] : t) a.push_back({{"stage", tag}, {"ms", ms}});
@@ -159,6 +210,15 @@ std::vector<std::pair<std::string, double>> TimingsFromJson(const json& j, const
     t.emplace_back(j[i]["stage"].get<std::string>(), GetNum(j[i], "ms", w));
   }
   return t;
+}
+
+void AddVerificationFigures(std::map<std::string, double>& f, const std::string& prefix, const VerificationFigures& v) {
+  f[prefix + "/verification/tp"] = v.tp;
+  f[prefix + "/verification/tp_kept"] = v.tp_kept;
+  f[prefix + "/verification/tp_kept_rate"] = v.tp_kept_rate;
+  f[prefix + "/verification/fp"] = v.fp;
+  f[prefix + "/verification/fp_removed"] = v.fp_removed;
+  f[prefix + "/verification/fp_removal_rate"] = v.fp_removal_rate;
 }
 
 void AddPointFigures(std::map<std::string, double>& f, const std::string& prefix, const OperatingPoint& p) {
@@ -379,6 +439,7 @@ EvalMetrics Evaluate(const std::vector<SceneEval>& scenes, const ClassMap& class
   std::map<std::string, std::vector<Scored>> scored;
   std::map<std::string, std::pair<int, int>> hyp_counts, ver_counts;
   std::map<std::string, ErrorAccumulator> hyp_err, ver_err;
+  std::map<std::string, VerificationFigures> ver_fig;
   for (size_t s = 0; s < scenes.size(); ++s) {
     const SceneEval& se = scenes[s];
     out.fitted = out.fitted || se.fitted;
@@ -402,6 +463,58 @@ EvalMetrics Evaluate(const std::vector<SceneEval>& scenes, const ClassMap& class
       if (d.verified.value_or(true)) kept.push_back(d);
     const SceneMatch mv = MatchScene(kept, se.truth, classes, width);
     Accumulate(kept, se.truth, mv, se.fitted, ver_counts, ver_err);
+
+    // The voter's hypotheses where the voter put them: which were true, and what did the
+    // verification do with each.
+    std::vector<Detection> placed = se.detections;
+    if (se.voter_centres.size() == placed.size())
+      for (size_t i = 0; i < placed.size(); ++i) placed[i].center = se.voter_centres[i];
+    const SceneMatch mh = MatchScene(placed, se.truth, classes, width);
+    if (se.fitted)
+      for (size_t i = 0; i < placed.size(); ++i) {
+        if (mh.det_to_gt[i] == SceneMatch::kIgnored) continue;
+        VerificationFigures& v = ver_fig[mh.det_class[i]];
+        const bool ok = se.detections[i].verified.value_or(true);
+        if (mh.det_to_gt[i] >= 0) {
+          ++v.tp;
+          v.tp_kept += ok;
+        } else {
+          ++v.fp;
+          v.fp_removed += !ok;
+        }
+      }
+
+    // Per object: the verified detection on it, else the hypothesis on it, else nothing.
+    std::vector<int> kept_index;
+    for (size_t i = 0; i < se.detections.size(); ++i)
+      if (se.detections[i].verified.value_or(true)) kept_index.push_back(static_cast<int>(i));
+    for (size_t g = 0; g < se.truth.size(); ++g) {
+      if (m.gt_class[g].empty()) continue;
+      ObjectRecord r;
+      r.scene = se.name;
+      r.index = static_cast<int>(g);
+      r.cls = m.gt_class[g];
+      r.gt_model = se.truth[g].model;
+      int shown = -1;
+      if (mv.gt_to_det[g] >= 0) {
+        shown = kept_index[mv.gt_to_det[g]];
+        r.status = se.fitted ? "verified" : "hypothesis";
+      } else if (mh.gt_to_det[g] >= 0) {
+        shown = mh.gt_to_det[g];
+        r.status = se.fitted ? "rejected" : "hypothesis";
+      } else {
+        r.status = "missed";
+      }
+      if (shown >= 0) {
+        const Detection& d = se.detections[shown];
+        r.model = d.model;
+        r.centre_error_m = PlaneDistance(d.center, se.truth[g].center);
+        if (se.fitted && !d.model.empty() && se.truth[g].yaw) r.yaw_error_deg = YawErrorDeg(d.yaw, *se.truth[g].yaw);
+        if (d.coverage >= 0) r.coverage = d.coverage;
+        r.rejection = d.rejection;
+      }
+      out.objects.push_back(std::move(r));
+    }
   }
 
   int tp_h = 0, fp_h = 0, tp_v = 0, fp_v = 0, gt_all = 0;
@@ -449,12 +562,20 @@ EvalMetrics Evaluate(const std::vector<SceneEval>& scenes, const ClassMap& class
       fp_v += v.second;
       all_v.centre.insert(all_v.centre.end(), ver_err[c].centre.begin(), ver_err[c].centre.end());
       all_v.yaw.insert(all_v.yaw.end(), ver_err[c].yaw.begin(), ver_err[c].yaw.end());
+      VerificationFigures vf = ver_fig[c];
+      FinishRates(&vf);
+      cm.verification = vf;
+      out.verification.tp += vf.tp;
+      out.verification.tp_kept += vf.tp_kept;
+      out.verification.fp += vf.fp;
+      out.verification.fp_removed += vf.fp_removed;
     }
     out.classes.push_back(std::move(cm));
   }
   out.map = ap_n ? ap_sum / ap_n : NAN;
   out.hypotheses = MakePoint(tp_h, fp_h, gt_all, all_h);
   if (out.fitted) out.verified = MakePoint(tp_v, fp_v, gt_all, all_v);
+  FinishRates(&out.verification);
   return out;
 }
 
@@ -472,15 +593,22 @@ json ToJson(const EvalMetrics& m) {
                        {"ap", Num(c.ap)},
                        {"hypotheses", ToJson(c.hypotheses)},
                        {"verified", c.verified ? ToJson(*c.verified) : json(nullptr)},
+                       {"verification", c.verification ? ToJson(*c.verification) : json(nullptr)},
                        {"pr_curve_columns", {"score", "tp", "fp", "precision", "recall"}},
                        {"pr_curve", curve}});
   }
+  json objects = json::array();
+  for (const auto& r : m.objects) objects.push_back(ToJson(r));
   return {{"classes", classes},
           {"map", Num(m.map)},
           {"fitted", m.fitted},
-          {"all", {{"hypotheses", ToJson(m.hypotheses)}, {"verified", m.fitted ? ToJson(m.verified) : json(nullptr)}}},
+          {"all",
+           {{"hypotheses", ToJson(m.hypotheses)},
+            {"verified", m.fitted ? ToJson(m.verified) : json(nullptr)},
+            {"verification", m.fitted ? ToJson(m.verification) : json(nullptr)}}},
           {"ignored_gt", m.ignored_gt},
-          {"ignored_detections", m.ignored_detections}};
+          {"ignored_detections", m.ignored_detections},
+          {"objects", objects}};
 }
 
 EvalMetrics EvalMetricsFromJson(const json& j, const std::string& where) {
@@ -500,6 +628,8 @@ EvalMetrics EvalMetricsFromJson(const json& j, const std::string& where) {
     cm.hypotheses = OperatingPointFromJson(c["hypotheses"], w + "/hypotheses");
     if (c.contains("verified") && !c["verified"].is_null())
       cm.verified = OperatingPointFromJson(c["verified"], w + "/verified");
+    if (c.contains("verification") && !c["verification"].is_null())
+      cm.verification = VerificationFromJson(c["verification"], w + "/verification");
     if (c.contains("pr_curve")) {
       if (!c["pr_curve"].is_array()) throw InputError(w + "/pr_curve: expected a list");
       for (size_t k = 0; k < c["pr_curve"].size(); ++k) {
@@ -518,7 +648,12 @@ EvalMetrics EvalMetricsFromJson(const json& j, const std::string& where) {
     if (j["all"].contains("hypotheses")) m.hypotheses = OperatingPointFromJson(j["all"]["hypotheses"], where + "/all/hypotheses");
     if (j["all"].contains("verified") && !j["all"]["verified"].is_null())
       m.verified = OperatingPointFromJson(j["all"]["verified"], where + "/all/verified");
+    if (j["all"].contains("verification") && !j["all"]["verification"].is_null())
+      m.verification = VerificationFromJson(j["all"]["verification"], where + "/all/verification");
   }
+  if (j.contains("objects") && j["objects"].is_array())
+    for (size_t i = 0; i < j["objects"].size(); ++i)
+      m.objects.push_back(ObjectRecordFromJson(j["objects"][i], where + "/objects/" + std::to_string(i)));
   if (j.contains("ignored_gt") && j["ignored_gt"].is_object())
     m.ignored_gt = j["ignored_gt"].get<std::map<std::string, int>>();
   if (j.contains("ignored_detections") && j["ignored_detections"].is_object())
@@ -597,10 +732,14 @@ std::map<std::string, double> FlatFigures(const RunFigures& r) {
     f[c.cls + "/ap"] = c.ap;
     AddPointFigures(f, c.cls + "/hypotheses", c.hypotheses);
     if (c.verified) AddPointFigures(f, c.cls + "/verified", *c.verified);
+    if (c.verification) AddVerificationFigures(f, c.cls, *c.verification);
   }
   f["all/map"] = r.metrics.map;
   AddPointFigures(f, "all/hypotheses", r.metrics.hypotheses);
-  if (r.metrics.fitted) AddPointFigures(f, "all/verified", r.metrics.verified);
+  if (r.metrics.fitted) {
+    AddPointFigures(f, "all/verified", r.metrics.verified);
+    AddVerificationFigures(f, "all", r.metrics.verification);
+  }
   const double n = static_cast<double>(r.scenes.size());
   std::vector<double> scene_ms;
   for (const auto& s : r.scenes) scene_ms.push_back(s.total_ms);
@@ -663,6 +802,33 @@ std::vector<Row> PointRows(const std::string& prefix, const std::string& which) 
           {"yaw error p90 [deg] (" + which + ")", prefix + "/" + which + "/yaw_error_p90_deg", 1, true}};
 }
 
+// Voter hypotheses (at the voter's centres) that verification kept or removed.
+std::vector<Row> VerificationRows(const std::string& prefix) {
+  const std::string v = prefix + "/verification/";
+  return {{"true hypotheses (voter centres)", v + "tp", -1, true},
+          {"true hypotheses kept by verification", v + "tp_kept", -1, true},
+          {"share of true hypotheses kept", v + "tp_kept_rate", 3, true},
+          {"false hypotheses (voter centres)", v + "fp", -1, true},
+          {"false hypotheses removed by verification", v + "fp_removed", -1, true},
+          {"share of false hypotheses removed", v + "fp_removal_rate", 3, true}};
+}
+
+std::string Cell(double v, int decimals) { return std::isfinite(v) ? Fixed(v, decimals) : "–"; }
+
+// Markdown table of the per-object records of one run.
+void ObjectTable(std::ostringstream& o, const std::vector<ObjectRecord>& objects) {
+  o << "| scene | # | class | gt model | status | fitted model | centre err [m] | yaw err [deg] | yaw err mod 180° | coverage | rejection |\n"
+       "|---|---:|---|---|---|---|---:|---:|---:|---:|---|\n";
+  for (const auto& r : objects) {
+    const double folded = std::isfinite(r.yaw_error_deg) ? std::min(r.yaw_error_deg, 180.0 - r.yaw_error_deg) : NAN;
+    o << "| " << r.scene << " | " << r.index << " | " << r.cls << " | " << (r.gt_model.empty() ? "?" : r.gt_model)
+      << " | " << r.status << " | " << (r.model.empty() ? "–" : r.model) << " | " << Cell(r.centre_error_m, 3) << " | "
+      << Cell(r.yaw_error_deg, 1) << " | " << Cell(folded, 1) << " | " << Cell(r.coverage, 2) << " | "
+      << (r.rejection.empty() ? "" : r.rejection) << " |\n";
+  }
+  o << "\n";
+}
+
 }  // namespace
 
 std::string RenderReport(const std::vector<ConfigSummary>& configs, const ReportInfo& info) {
@@ -676,7 +842,9 @@ std::string RenderReport(const std::vector<ConfigSummary>& configs, const Report
     << "(size x, size y) / 2; greedy by descending score, each ground-truth object matches at most one detection\n";
   o << "- AP: all-point interpolated (VOC 2010+) area under the precision envelope of the score-threshold sweep; "
        "\"hypotheses\" = every detection the pipeline output (the voter's own threshold), \"verified\" = "
-       "detections with verified != false (only when a fitter ran)\n";
+       "detections with verified != false (only when a fitter ran); \"true / false hypotheses\" = the voter's "
+       "hypotheses matched at the centres the voter gave them (before fitting), then counted as kept or removed by "
+       "the fitter's verification\n";
   size_t max_runs = 0;
   for (const auto& c : configs) max_runs = std::max(max_runs, c.runs.size());
   o << "- values: " << (max_runs > 1 ? "mean ± sample std over the detection seeds" : "one seed per config")
@@ -762,6 +930,8 @@ std::string RenderReport(const std::vector<ConfigSummary>& configs, const Report
       auto pr = PointRows(cls, which);
       rows.insert(rows.end(), pr.begin(), pr.end());
     }
+    const auto vr = VerificationRows(cls);
+    rows.insert(rows.end(), vr.begin(), vr.end());
     table(cls + " (" + std::to_string(std::max(gt, 0)) + (gt == 1 ? " ground-truth object)" : " ground-truth objects)"), rows);
   }
   std::vector<Row> all = {{"mAP (mean AP over classes with ground truth)", "all/map", 3, false}};
@@ -769,7 +939,20 @@ std::string RenderReport(const std::vector<ConfigSummary>& configs, const Report
     auto pr = PointRows("all", which);
     all.insert(all.end(), pr.begin(), pr.end());
   }
+  const auto vr = VerificationRows("all");
+  all.insert(all.end(), vr.begin(), vr.end());
   table("all classes (micro totals)", all);
+
+  // Per ground-truth object, first seed of each config: what the pipeline made of it.
+  for (size_t i = 0; i < configs.size(); ++i) {
+    if (configs[i].runs.empty() || configs[i].runs.front().metrics.objects.empty()) continue;
+    const RunFigures& r = configs[i].runs.front();
+    o << "### per object: " << Letter(i) << " = " << configs[i].name << " (seed " << r.seed << ")\n\n";
+    o << "Errors of the detection shown: the verified one on the object, else the rejected hypothesis on it. "
+         "Yaw errors are raw (the catalog declares no symmetries); the folded column is min(e, 180° − e), for "
+         "models that look alike turned by 180°.\n\n";
+    ObjectTable(o, r.metrics.objects);
+  }
 
   // Stage tags in first-seen order.
   std::vector<std::string> stages;

@@ -120,7 +120,7 @@ TEST(Matcher, ClassMapAppliesToTruthAndDetections) {
   EXPECT_EQ(m.gt_class[0], "table");
   EXPECT_EQ(m.det_class[1], "chair");
   // Ignored classes are neither false positives nor misses.
-  const EvalMetrics e = Evaluate({{dets, gt, false}}, Classes(), WidthConvention::Max);
+  const EvalMetrics e = Evaluate({{dets, gt, false, "", {}}}, Classes(), WidthConvention::Max);
   EXPECT_EQ(e.hypotheses.tp, 2);
   EXPECT_EQ(e.hypotheses.fp, 0);
   EXPECT_EQ(e.hypotheses.fn, 0);
@@ -154,7 +154,7 @@ TEST(Metrics, AveragePrecisionOfAHandComputedCurve) {
                                        Gt("chair", 4, 0, 0.5f, 0.5f)};
   std::vector<Detection> dets = {Det("chair", 0, 0, 0.9f), Det("chair", 10, 10, 0.8f), Det("chair", 2, 0, 0.7f),
                                  Det("chair", 20, 10, 0.6f), Det("chair", 4, 0, 0.5f)};
-  const EvalMetrics e = Evaluate({{dets, gt, false}}, Classes(), WidthConvention::Max);
+  const EvalMetrics e = Evaluate({{dets, gt, false, "", {}}}, Classes(), WidthConvention::Max);
   const ClassMetrics& c = e.classes[0];
   ASSERT_EQ(c.cls, "chair");
   ASSERT_EQ(c.curve.size(), 5u);
@@ -172,8 +172,8 @@ TEST(Metrics, AveragePrecisionOfAHandComputedCurve) {
 TEST(Metrics, TiedScoresGiveOnePointAndScenesPool) {
   // Two scenes; the TP in scene 1 and the FP in scene 0 share a score: one threshold, one point.
   const std::vector<GroundTruthObject> gt = {Gt("table", 0, 0, 1, 1)};
-  const std::vector<SceneEval> scenes = {{{Det("table", 5, 5, 0.7f)}, gt, false},
-                                         {{Det("table", 0, 0, 0.7f), Det("table", 0.1f, 0, 0.2f)}, gt, false}};
+  const std::vector<SceneEval> scenes = {{{Det("table", 5, 5, 0.7f)}, gt, false, "", {}},
+                                         {{Det("table", 0, 0, 0.7f), Det("table", 0.1f, 0, 0.2f)}, gt, false, "", {}}};
   const EvalMetrics e = Evaluate(scenes, Classes(), WidthConvention::Max);
   const ClassMetrics& t = e.classes[1];
   ASSERT_EQ(t.curve.size(), 2u);
@@ -195,7 +195,7 @@ TEST(Metrics, VerifiedDetectionsAreMatchedOnTheirOwnAndErrorsMeasured) {
   kept.verified = true;
   kept.model = "m2";
   kept.yaw = 350.f * float(M_PI) / 180.f;  // 20 deg from the gt across 0
-  const EvalMetrics e = Evaluate({{{rejected, kept}, {g}, true}}, Classes(), WidthConvention::Max);
+  const EvalMetrics e = Evaluate({{{rejected, kept}, {g}, true, "", {}}}, Classes(), WidthConvention::Max);
   const ClassMetrics& c = e.classes[0];
   EXPECT_EQ(c.hypotheses.tp, 1);
   EXPECT_EQ(c.hypotheses.fp, 1);
@@ -209,6 +209,68 @@ TEST(Metrics, VerifiedDetectionsAreMatchedOnTheirOwnAndErrorsMeasured) {
   EXPECT_NEAR(c.verified->yaw_error_deg.median, 20.0, 1e-3);
   EXPECT_TRUE(e.fitted);
   EXPECT_EQ(e.verified.tp, 1);
+}
+
+// Verification figures count the voter's hypotheses where the voter put them; the per-object
+// records show the verified detection, else the rejected hypothesis, else "missed".
+TEST(Metrics, VerificationRemovalRatesAndObjectRecords) {
+  GroundTruthObject a = Gt("chair", 1, 1, 0.6f, 0.6f), b = Gt("chair", 4, 4, 0.6f, 0.6f), c = Gt("table", 8, 8, 1, 1);
+  a.yaw = 0.f;
+  a.model = "chair_a";
+  // Hypothesis 0: true at the voter's centre, moved 0.12 m by the fitter, kept.
+  Detection d0 = Det("chair", 1.12f, 1.0f, 0.9f);
+  d0.verified = true;
+  d0.model = "chair_a";
+  d0.yaw = 170.f * float(M_PI) / 180.f;
+  d0.coverage = 0.8f;
+  // Hypothesis 1: true (on b), rejected.
+  Detection d1 = Det("chair", 4.1f, 4.0f, 0.8f);
+  d1.verified = false;
+  d1.model = "chair_b";
+  d1.rejection = "coverage 0.30 < 0.50";
+  // Hypotheses 2 and 3: false; the fitter moved 2 onto object a (it is still a false
+  // hypothesis), 2 is removed, 3 is kept.
+  Detection d2 = Det("chair", 1.0f, 1.0f, 0.7f);
+  d2.verified = false;
+  Detection d3 = Det("chair", 6.0f, 6.0f, 0.6f);
+  d3.verified = true;
+  SceneEval se{{d0, d1, d2, d3}, {a, b, c}, true, "room", {{1.0f, 1.0f, 0.5f}, {4.1f, 4.0f, 0.5f}, {2.5f, 2.5f, 0.5f}, {6.0f, 6.0f, 0.5f}}};
+  const EvalMetrics e = Evaluate({se}, Classes(), WidthConvention::Max);
+  ASSERT_TRUE(e.classes[0].verification.has_value());
+  const VerificationFigures& v = *e.classes[0].verification;
+  EXPECT_EQ(v.tp, 2);
+  EXPECT_EQ(v.tp_kept, 1);
+  EXPECT_EQ(v.fp, 2);
+  EXPECT_EQ(v.fp_removed, 1);
+  EXPECT_NEAR(v.fp_removal_rate, 0.5, 1e-12);
+  EXPECT_NEAR(v.tp_kept_rate, 0.5, 1e-12);
+  EXPECT_EQ(e.verification.fp, 2);
+  EXPECT_TRUE(std::isnan(e.classes[1].verification->fp_removal_rate));  // no table hypotheses
+
+  ASSERT_EQ(e.objects.size(), 3u);
+  EXPECT_EQ(e.objects[0].scene, "room");
+  EXPECT_EQ(e.objects[0].status, "verified");
+  EXPECT_EQ(e.objects[0].model, "chair_a");
+  EXPECT_EQ(e.objects[0].gt_model, "chair_a");
+  EXPECT_NEAR(e.objects[0].centre_error_m, 0.12, 1e-5);
+  EXPECT_NEAR(e.objects[0].yaw_error_deg, 170.0, 1e-3);  // raw: no symmetry folding
+  EXPECT_NEAR(e.objects[0].coverage, 0.8, 1e-6);
+  EXPECT_EQ(e.objects[1].status, "rejected");
+  EXPECT_EQ(e.objects[1].rejection, "coverage 0.30 < 0.50");
+  EXPECT_EQ(e.objects[2].status, "missed");
+  EXPECT_EQ(e.objects[2].cls, "table");
+  EXPECT_TRUE(std::isnan(e.objects[2].centre_error_m));
+
+  // The records survive the run record round trip and reach the report.
+  RunFigures f;
+  f.metrics = e;
+  const RunFigures back = RunFiguresFromJson(ToJson(f), "test");
+  ASSERT_EQ(back.metrics.objects.size(), 3u);
+  EXPECT_EQ(back.metrics.objects[1].rejection, "coverage 0.30 < 0.50");
+  EXPECT_EQ(back.metrics.verification.fp_removed, 1);
+  const std::string md = RenderReport({{"A", "a.json", {back}}}, ReportInfo{});
+  EXPECT_NE(md.find("share of false hypotheses removed | 0.500"), std::string::npos) << md;
+  EXPECT_NE(md.find("| room | 1 | chair | ? | rejected | chair_b |"), std::string::npos) << md;
 }
 
 TEST(Metrics, SummariseInterpolatesBetweenOrderStatistics) {
@@ -295,7 +357,7 @@ RunFigures Figures(uint64_t seed, const std::vector<Detection>& dets) {
   const std::vector<GroundTruthObject> gt = {Gt("chair", 0, 0, 0.5f, 0.5f), Gt("chair", 2, 0, 0.5f, 0.5f)};
   RunFigures f;
   f.seed = seed;
-  f.metrics = Evaluate({{dets, gt, false}}, Classes(), WidthConvention::Max);
+  f.metrics = Evaluate({{dets, gt, false, "", {}}}, Classes(), WidthConvention::Max);
   f.scenes = {{"a.ply", 100.0, static_cast<int>(dets.size()), {{"input", 10.0}, {"segment", 90.0}}}};
   f.stage_ms = {{"input", 10.0}, {"segment", 90.0}};
   f.wall_ms = 100;

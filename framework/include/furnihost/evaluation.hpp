@@ -116,6 +116,32 @@ struct OperatingPoint {
   ErrorStats yaw_error_deg;              // |yaw - gt yaw| in [0, 180] of fitted TPs with gt yaw
 };
 
+// Verification as a filter of the voter's hypotheses: each hypothesis is matched at the centre
+// the voter gave it (before a fitter moved it), then counted by whether the fitter kept it.
+struct VerificationFigures {
+  int tp = 0, tp_kept = 0;     // hypotheses that matched a gt object / of those, verified
+  int fp = 0, fp_removed = 0;  // hypotheses that matched none / of those, rejected
+  double tp_kept_rate = NAN;     // tp_kept / tp, NaN when tp = 0
+  double fp_removal_rate = NAN;  // fp_removed / fp, NaN when fp = 0
+};
+
+// One ground-truth object and what became of it (for the per-object table of the report).
+struct ObjectRecord {
+  std::string scene;     // scene label (the scan file's stem)
+  int index = 0;         // object index in the scene's gt file
+  std::string cls;       // evaluated class
+  std::string gt_model;  // catalog model of the ground truth, "" when unknown
+  // "verified": a verified detection matched it; "rejected": a voter hypothesis matched it but
+  // the fitter rejected every such detection; "missed": no hypothesis; "hypothesis": matched
+  // when no fitter ran.
+  std::string status;
+  // Of the detection shown (the verified one, else the rejected hypothesis):
+  std::string model;                                 // fitted model id, "" when none
+  double centre_error_m = NAN, yaw_error_deg = NAN;  // floor-plane centre distance; raw yaw in [0, 180]
+  double coverage = NAN;
+  std::string rejection;
+};
+
 struct ClassMetrics {
   std::string cls;
   int gt = 0;          // evaluated gt objects
@@ -127,6 +153,7 @@ struct ClassMetrics {
   // "verified": only detections with verified != false, matched again on their own; present
   // when a fitter ran.
   std::optional<OperatingPoint> verified;
+  std::optional<VerificationFigures> verification;  // present when a fitter ran
 };
 
 struct EvalMetrics {
@@ -135,12 +162,18 @@ struct EvalMetrics {
   OperatingPoint hypotheses, verified;  // micro totals over the classes (verified: fitted only)
   bool fitted = false;
   std::map<std::string, int> ignored_gt, ignored_detections;  // original class -> count
+  VerificationFigures verification;  // micro totals (fitted only)
+  std::vector<ObjectRecord> objects;  // every evaluated gt object, scene by scene
 };
 
 struct SceneEval {
   std::vector<Detection> detections;
   std::vector<GroundTruthObject> truth;
   bool fitted = false;  // a fitter ran (Detection::verified is meaningful)
+  std::string name;     // label in the per-object records (e.g. the scan's stem)
+  // The voter's centre of each detection before a fitter moved it (same order and size as
+  // `detections`); empty = the detections' own centres. Used for the verification figures.
+  std::vector<Eigen::Vector3f> voter_centres;
 };
 
 FURNIHOST_API EvalMetrics Evaluate(const std::vector<SceneEval>& scenes, const ClassMap& classes,
