@@ -27,6 +27,8 @@
 
 #include <cmath>
 #include <map>
+#include <memory>
+#include <mutex>
 #include <set>
 
 #include "furnihost/geometry.hpp"
@@ -133,19 +135,17 @@ class IcpRefine : public furnihost::Fitter {
   std::vector<furnihost::Detection> Fit(const std::vector<furnihost::Detection>& input,
                                         const furnihost::FitContext& ctx) override {
     std::vector<furnihost::Detection> out = input;
-    // Sample each model used once (model frame), deterministic per (seed, model id).
+    // Each model used is sampled once per stage object (model frame), deterministic per
+    // (seed, model id), and reused by later Fit calls (the scans of a run).
     const uint64_t seed = o_.seed != 0 ? uint64_t(o_.seed) : ctx.run.seed;
-    std::map<std::string, furnihost::Points> samples;
+    std::map<std::string, std::shared_ptr<const furnihost::Points>> samples;
     for (const auto& d : input) {
       if (d.model.empty() || samples.count(d.model)) continue;
       const furnihost::CatalogModel* m = nullptr;
       for (const auto* c : ctx.catalog)
         if (c && c->id == d.model) m = c;
       if (!m) throw furnihost::StageError("detection of model \"" + d.model + "\": model not in the catalog");
-      samples[d.model] = furnihost::SampleSurface(m->mesh, float(o_.sample_density_per_m2),
-                                                  seed ^ Fnv1a(d.model));
-      if (samples[d.model].size() < 3)
-        throw furnihost::StageError("model \"" + d.model + "\" has no surface to sample");
+      samples[d.model] = Samples(*m, seed);
     }
     // World-frame copies of the scans, only when a detection needs the nearby points.
     std::vector<furnihost::Points> world;
@@ -161,13 +161,28 @@ class IcpRefine : public furnihost::Fitter {
     tbb::task_arena arena(ctx.run.threads > 0 ? ctx.run.threads : tbb::task_arena::automatic);
     arena.execute([&] {
       tbb::parallel_for(size_t(0), out.size(), [&](size_t k) {
-        if (!out[k].model.empty()) Refine(out[k], samples.at(out[k].model), ctx, world);
+        if (!out[k].model.empty()) Refine(out[k], *samples.at(out[k].model), ctx, world);
       });
     });
     return out;
   }
 
  private:
+  // The sampled surface of `m` for `seed`, from the cache or sampled now.
+  std::shared_ptr<const furnihost::Points> Samples(const furnihost::CatalogModel& m, uint64_t seed) {
+    // The id alone could name another mesh in another catalog: key by the mesh size too.
+    const std::string key = m.id + "|" + std::to_string(m.mesh.vertices.size()) + "|" +
+                            std::to_string(m.mesh.triangles.size()) + "|" + std::to_string(seed);
+    std::lock_guard<std::mutex> lock(mu_);
+    auto it = cache_.find(key);
+    if (it != cache_.end()) return it->second;
+    auto pts = std::make_shared<const furnihost::Points>(
+        furnihost::SampleSurface(m.mesh, float(o_.sample_density_per_m2), seed ^ Fnv1a(m.id)));
+    if (pts->size() < 3) throw furnihost::StageError("model \"" + m.id + "\" has no surface to sample");
+    cache_.emplace(key, pts);
+    return pts;
+  }
+
   void Refine(furnihost::Detection& d, const furnihost::Points& model_pts,
               const furnihost::FitContext& ctx, const std::vector<furnihost::Points>& world) const {
     const Eigen::Vector3d c0 = d.model_pose.translation().cast<double>();
@@ -308,6 +323,8 @@ class IcpRefine : public furnihost::Fitter {
   }
 
   IcpRefineOptions o_;
+  std::mutex mu_;  // guards cache_
+  std::map<std::string, std::shared_ptr<const furnihost::Points>> cache_;
 };
 
 }  // namespace

@@ -1,5 +1,7 @@
 #include "model_cloud.hpp"
 
+#include "furnihost/geometry.hpp"
+
 #include <nanoflann.hpp>
 
 #include <algorithm>
@@ -26,6 +28,14 @@ void SamplingOptions::Check() const {
 }
 
 namespace {
+
+// A second stream for the budget subset, independent of the one SampleSurface used.
+uint64_t SplitSeed(uint64_t x) {
+  x += 0x9e3779b97f4a7c15ull;
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
+  return x ^ (x >> 31);
+}
 
 // nanoflann reads the points where they are (no copy).
 struct PointsAdaptor {
@@ -132,50 +142,25 @@ ModelCloud::ModelCloud(const CatalogModel& model, const SamplingOptions& o, uint
     : id_(model.id), inlier_(o.inlier_distance), min_h_(o.min_horizontal_normal) {
   const Mesh& mesh = model.mesh;
   const int nv = static_cast<int>(mesh.vertices.size());
-  // Cumulative face areas; degenerate or invalid faces get zero weight (no defined normal).
-  std::vector<double> cum(mesh.triangles.size() + 1, 0.0);
-  for (size_t t = 0; t < mesh.triangles.size(); ++t) {
-    const Eigen::Vector3i& f = mesh.triangles[t];
-    double a = 0.0;
+  // Total area of the valid faces (the same faces SampleSurface samples).
+  area_ = 0.0;
+  for (const Eigen::Vector3i& f : mesh.triangles)
     if (f.minCoeff() >= 0 && f.maxCoeff() < nv) {
-      const Eigen::Vector3f e1 = mesh.vertices[f[1]] - mesh.vertices[f[0]];
-      const Eigen::Vector3f e2 = mesh.vertices[f[2]] - mesh.vertices[f[0]];
-      a = 0.5 * static_cast<double>(e1.cross(e2).norm());
-      if (!std::isfinite(a) || a < 1e-12) a = 0.0;
+      const double a = 0.5 * static_cast<double>(
+                                 (mesh.vertices[f[1]] - mesh.vertices[f[0]]).cross(mesh.vertices[f[2]] - mesh.vertices[f[0]]).norm());
+      if (std::isfinite(a)) area_ += a;
     }
-    cum[t + 1] = cum[t] + a;
-  }
-  area_ = cum.back();
   if (!(area_ > 0.0)) throw StageError("catalog model " + model.id + " has no faces with area");
   // Dense pass over all faces (up to 4x the final budget), then only the outer surface is kept
   // (paper: "filling the outer triangle faces with points"), then a uniform subset within the
   // budget. Faces inside closed furniture (drawer interiors, doubled walls) never face a sensor.
   const double wanted = area_ * o.density_per_m2;
-  const int n = static_cast<int>(std::clamp(wanted, double(o.min_points), 4.0 * o.max_points));
+  const double n = std::clamp(wanted, double(o.min_points), 4.0 * o.max_points);
   const double dense_spacing = std::sqrt(area_ / n);
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<double> uni(0.0, 1.0);
-  Points pts, nrm;
-  pts.reserve(n);
-  nrm.reserve(n);
-  // Systematic area-weighted sampling: point k lands at cumulative area (u0 + k) * A / n, so
-  // every face gets its share up to one point, then a uniform position inside the face.
-  const double u0 = uni(rng);
-  size_t t = 0;
-  for (int k = 0; k < n; ++k) {
-    const double target = (u0 + k) * area_ / n;
-    while (t + 1 < mesh.triangles.size() && cum[t + 1] <= target) ++t;
-    const Eigen::Vector3i& f = mesh.triangles[t];
-    const Eigen::Vector3f& a = mesh.vertices[f[0]];
-    const Eigen::Vector3f e1 = mesh.vertices[f[1]] - a, e2 = mesh.vertices[f[2]] - a;
-    double r1 = uni(rng), r2 = uni(rng);
-    if (r1 + r2 > 1.0) {  // fold the square onto the triangle: uniform barycentric sample
-      r1 = 1.0 - r1;
-      r2 = 1.0 - r2;
-    }
-    pts.push_back(a + static_cast<float>(r1) * e1 + static_cast<float>(r2) * e2);
-    nrm.push_back(e1.cross(e2).normalized());
-  }
+  Points nrm;
+  const Points pts = SampleSurface(mesh, static_cast<float>(n / area_), seed, &nrm);
+  if (pts.empty()) throw StageError("catalog model " + model.id + ": surface sampling gave no points");
+  std::mt19937_64 rng(SplitSeed(seed));
   std::vector<int> keep = OuterPoints(pts, static_cast<float>(dense_spacing));
   if (keep.empty()) {  // degenerate (e.g. a single flat face seen edge-on): keep everything
     keep.resize(pts.size());
