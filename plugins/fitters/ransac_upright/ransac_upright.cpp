@@ -13,6 +13,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <limits>
 #include <map>
 #include <mutex>
 #include <set>
@@ -21,6 +22,7 @@
 #include "furnihost/plugin.hpp"
 #include "model_cloud.hpp"
 #include "occupancy.hpp"
+#include "surface_support.hpp"
 #include "upright_ransac.hpp"
 
 namespace furnihost {
@@ -35,7 +37,12 @@ struct RansacUprightOptions {
   FreeSpaceOptions free_space;
   float min_coverage = 0.5f;
   float max_free_space_ratio = 0.2f;
+  float min_surface_support = 0.f;
+  float support_cell = 0.05f;
   int grid_cache_size = 4;
+  float min_point_height = 0.02f;
+  float reach_margin = 0.3f;
+  float part_inside_fraction = 0.8f;
 
   static RansacUprightOptions FromJson(const nlohmann::json& p) {
     RansacUprightOptions o;
@@ -60,9 +67,14 @@ struct RansacUprightOptions {
     r.refine_iterations = p.at("refine_iterations").get<int>();
     o.min_coverage = r.min_coverage = p.at("min_coverage").get<float>();
     o.max_free_space_ratio = p.at("max_free_space_ratio").get<float>();
+    o.min_surface_support = p.at("min_surface_support").get<float>();
+    o.support_cell = p.at("surface_support_cell_m").get<float>();
     o.grid.resolution = p.at("grid_resolution_m").get<double>();
     o.grid.max_range = p.at("grid_max_range_m").get<double>();
     o.grid_cache_size = p.at("grid_cache_size").get<int>();
+    o.min_point_height = p.at("min_point_height_m").get<float>();
+    o.reach_margin = p.at("reach_margin_m").get<float>();
+    o.part_inside_fraction = p.at("part_inside_fraction").get<float>();
     o.free_space.free_margin = p.at("free_space_margin_m").get<float>();
     o.free_space.visibility_margin = p.at("visibility_margin_m").get<float>();
     o.free_space.erosion = p.at("free_space_erosion").get<int>();
@@ -138,8 +150,20 @@ class RansacUprightFitter : public Fitter {
         .Number("model_tie_tolerance", 0.02, 0, 1,
                 "models covering within this share of the best are ranked by explained model surface")
         .Int("refine_iterations", 0, 0, 100, "upright ICP steps after RANSAC (not in the paper; 0 = off)")
+        .Number("min_point_height_m", 0.02, 0, 1,
+                "part points less than this above floor_z are not fitted (floor points; no model explains them) [m]")
+        .Number("reach_margin_m", 0.3, 0, 10,
+                "reach of a hypothesis: its class's largest footprint half-diagonal plus this (the voter's centre error) [m]")
+        .Number("part_inside_fraction", 0.8, 0, 1,
+                "a supporting part is fitted only if this share of its points is within reach (drops floor, wall and "
+                "neighbours' parts); 0 = every part")
         .Number("min_coverage", 0.5, 0, 1, "reject when the model covers less than this share of the part points (paper: 0.5)")
         .Number("max_free_space_ratio", 0.2, 0, 1, "reject when more than this share of the visible model surface is in free space")
+        .Number("min_surface_support", 0.0, 0, 1,
+                "reject when less than this share of the placed model's surface has a scan point within about "
+                "surface_support_cell_m: the stand-in for the free-space test on scans without a sensor origin "
+                "(reconstructions see most surfaces); applied to every scan when > 0 (0 = off, paper)")
+        .Number("surface_support_cell_m", 0.05, 0.005, 1, "grid cell of the surface support test [m]")
         .Number("grid_resolution_m", 0.05, 0.005, 1, "OctoMap voxel edge [m] of the per-scan occupancy grids")
         .Number("grid_max_range_m", 0.0, 0, 1000, "rays longer than this only clear space [m]; 0 = unlimited")
         .Int("grid_cache_size", 4, 1, 1000, "occupancy grids kept between calls (least recently used dropped)")
@@ -172,10 +196,6 @@ class RansacUprightFitter : public Fitter {
 
  private:
   void FitAll(std::vector<Detection>* dets, const FitContext& ctx) {
-    // Scene points of every detection (world frame).
-    std::vector<ScenePoints> scenes(dets->size());
-    for (size_t d = 0; d < dets->size(); ++d) scenes[d] = Gather((*dets)[d], ctx);
-
     // Models per class, in catalog order; sampled once per stage object.
     std::set<std::string> classes;
     for (const auto& d : *dets) classes.insert(d.cls);
@@ -185,6 +205,14 @@ class RansacUprightFitter : public Fitter {
     const std::vector<std::shared_ptr<const ModelCloud>> clouds = Clouds(needed);
     std::map<std::string, std::vector<const ModelCloud*>> by_class;
     for (size_t i = 0; i < needed.size(); ++i) by_class[needed[i]->cls].push_back(clouds[i].get());
+
+    // Scene points of every detection (world frame), from the supporting parts within reach.
+    std::vector<ScenePoints> scenes(dets->size());
+    std::vector<int> dropped_parts(dets->size(), 0);
+    for (size_t d = 0; d < dets->size(); ++d) {
+      auto it = by_class.find((*dets)[d].cls);
+      scenes[d] = Gather((*dets)[d], ctx, it == by_class.end() ? nullptr : &it->second, &dropped_parts[d]);
+    }
 
     // RANSAC per detection, in parallel; each has its own seed so the order does not matter.
     std::vector<FitResult> fits(dets->size());
@@ -207,6 +235,9 @@ class RansacUprightFitter : public Fitter {
         Reject(&det, "no catalog model of class '" + det.cls + "'");
         continue;
       }
+      if (dropped_parts[d] > 0)
+        det.notes.push_back("support: " + std::to_string(dropped_parts[d]) + " of " + std::to_string(det.support.size()) +
+                            " parts out of the class' reach (floor, walls, other objects)");
       if (scenes[d].points.empty()) {
         Reject(&det, "no part points to fit");
         continue;
@@ -233,6 +264,28 @@ class RansacUprightFitter : public Fitter {
       passed[d] = 1;
     }
 
+    // Surface support (optional) against all scans, then free space against every scan with
+    // a sensor origin.
+    if (o_.min_surface_support > 0.f && std::find(passed.begin(), passed.end(), 1) != passed.end()) {
+      std::vector<const Scan*> all;
+      for (const SceneParts& sp : ctx.scenes)
+        if (sp.scan && std::find(all.begin(), all.end(), sp.scan) == all.end()) all.push_back(sp.scan);
+      const SurfaceSupport support(all, o_.support_cell);
+      tbb::parallel_for(size_t(0), dets->size(), [&](size_t d) {
+        if (!passed[d]) return;
+        Detection& det = (*dets)[d];
+        const ModelCloud& m = *by_class.at(det.cls)[fits[d].model];
+        Points pts(m.Cloud().size());
+        for (size_t i = 0; i < pts.size(); ++i) pts[i] = det.model_pose * m.Cloud()[i];
+        const float floor_z = det.model_pose.translation().z();
+        const float ratio = support.Ratio(pts, floor_z + 2.f * o_.support_cell);
+        det.notes.push_back("surface support " + Fixed2(ratio));
+        if (ratio < o_.min_surface_support) {
+          Reject(&det, "surface support " + Fixed2(ratio) + " < " + Fixed2(o_.min_surface_support));
+          passed[d] = 0;
+        }
+      });
+    }
     // Free-space test against every scan that has a sensor origin.
     std::vector<const Scan*> scans;
     for (const SceneParts& sp : ctx.scenes)
@@ -287,8 +340,31 @@ class RansacUprightFitter : public Fitter {
     return s;
   }
 
-  static ScenePoints Gather(const Detection& det, const FitContext& ctx) {
+  // Points of the detection's supporting parts (world frame). With `models` (the class's
+  // models): points less than min_point_height_m above the floor are left out, and a part is
+  // used only when at least part_inside_fraction of its other points lie within reach of the
+  // hypothesis, i.e. inside the upright cylinder around its centre of radius (largest model
+  // footprint half-diagonal + reach_margin_m) and below the tallest model. The voter's support
+  // is every part with a vote near the maximum: floor and wall parts and neighbouring
+  // objects included, which no placement of one model can explain.
+  ScenePoints Gather(const Detection& det, const FitContext& ctx, const std::vector<const ModelCloud*>* models,
+                     int* dropped) const {
     ScenePoints sp;
+    float radius = std::numeric_limits<float>::infinity(), top = radius;
+    if (models && !models->empty()) {
+      radius = 0.f;
+      top = -radius;
+      for (const ModelCloud* m : *models) {
+        const Eigen::AlignedBox3f& b = m->Bounds();
+        radius = std::max(radius, std::hypot(std::max(std::fabs(b.min().x()), std::fabs(b.max().x())),
+                                             std::max(std::fabs(b.min().y()), std::fabs(b.max().y()))));
+        top = std::max(top, o_.ransac.floor_z + b.max().z() + m->InlierDistance());
+      }
+      radius += o_.reach_margin;
+    }
+    const float low = o_.ransac.floor_z + o_.min_point_height;
+    const bool filter = models && o_.part_inside_fraction > 0.f;
+    ScenePoints part;
     std::set<std::pair<int, int>> seen;
     for (const Support& s : det.support) {
       if (!seen.insert({s.scene, s.part}).second) continue;
@@ -304,14 +380,26 @@ class RansacUprightFitter : public Fitter {
                          std::to_string(s.scene) + " which has " + std::to_string(seg.parts.size()));
       const bool normals = seg.normals.size() == scan.points.size();
       const Eigen::Matrix3f R = scan.pose.linear();
+      part.points.clear();
+      part.normals.clear();
+      int inside = 0;
       for (int i : seg.parts[s.part].indices) {
         if (i < 0 || i >= int(scan.points.size()))
           throw StageError("part " + std::to_string(s.part) + " of scene " + std::to_string(s.scene) +
                            " indexes point " + std::to_string(i) + " of " + std::to_string(scan.points.size()));
         if (!scan.points[i].allFinite()) continue;
-        sp.points.push_back(scan.pose * scan.points[i]);
-        sp.normals.push_back(normals ? Eigen::Vector3f(R * seg.normals[i]) : Eigen::Vector3f::Constant(NAN));
+        const Eigen::Vector3f p = scan.pose * scan.points[i];
+        if (filter && p.z() < low) continue;
+        inside += (p - det.center).head<2>().norm() <= radius && p.z() <= top;
+        part.points.push_back(p);
+        part.normals.push_back(normals ? Eigen::Vector3f(R * seg.normals[i]) : Eigen::Vector3f::Constant(NAN));
       }
+      if (filter && (part.points.empty() || inside < o_.part_inside_fraction * float(part.points.size()))) {
+        ++*dropped;
+        continue;
+      }
+      sp.points.insert(sp.points.end(), part.points.begin(), part.points.end());
+      sp.normals.insert(sp.normals.end(), part.normals.begin(), part.normals.end());
     }
     return sp;
   }
@@ -383,5 +471,5 @@ class RansacUprightFitter : public Fitter {
 }  // namespace
 }  // namespace furnihost
 
-FURNIHOST_PLUGIN(furnihost::RansacUprightFitter, "fitters.ransac_upright", "1.0.0",
+FURNIHOST_PLUGIN(furnihost::RansacUprightFitter, "fitters.ransac_upright", "1.1.0",
                  "upright RANSAC fit of catalog models (x, y, yaw) with coverage and OctoMap free-space verification")

@@ -82,11 +82,24 @@ struct Scenes {
   }
 };
 
-Detection Hypothesis(const std::string& cls, int scene, const std::vector<int>& parts) {
+// A voter-like hypothesis: its centre is the mean of its parts' points (world frame); invalid
+// scene or part numbers are kept in the support (the fitter must refuse them).
+Detection Hypothesis(const Scenes& sc, const std::string& cls, int scene, const std::vector<int>& parts) {
   Detection d;
   d.cls = cls;
   d.score = 1.f;
-  for (int p : parts) d.support.push_back({scene, p, 1.f});
+  Eigen::Vector3f sum = Eigen::Vector3f::Zero();
+  int n = 0;
+  for (int p : parts) {
+    d.support.push_back({scene, p, 1.f});
+    if (scene < 0 || scene >= int(sc.scans.size()) || p < 0 || p >= int(sc.segs[scene]->parts.size())) continue;
+    const Scan& scan = sc.scans[scene]->scan;
+    for (int i : sc.segs[scene]->parts[p].indices) {
+      sum += scan.pose * scan.points[i];
+      ++n;
+    }
+  }
+  if (n > 0) d.center = sum / float(n);
   return d;
 }
 
@@ -128,7 +141,7 @@ TEST(RansacUpright, RecoversChairPoseAndModel) {
   const int s = sc.Add(ScanOf(cat.Get("chair_a"), truth, 1), 0, &parts);
   ASSERT_GT(sc.scans[0]->scan.points.size(), 1500u);
   auto fitter = MakeFitter();
-  const auto out = fitter->Fit({Hypothesis("chair", s, parts)}, sc.Ctx(cat));
+  const auto out = fitter->Fit({Hypothesis(sc, "chair", s, parts)}, sc.Ctx(cat));
   ASSERT_EQ(out.size(), 1u);
   const Detection& d = out[0];
   EXPECT_EQ(d.model, "chair_a");
@@ -147,6 +160,35 @@ TEST(RansacUpright, RecoversChairPoseAndModel) {
   EXPECT_LT((d.model_pose * BoundsOf(cat.Get("chair_a").mesh).center() - d.center).norm(), 1e-4f);
 }
 
+// The voter's support holds every part with a vote near the maximum, background parts (floor,
+// walls) included: they are left out of the fit, else they dilute the coverage.
+TEST(RansacUpright, BackgroundPartsInTheSupportAreLeftOut) {
+  const Catalog cat = FurnitureCatalog();
+  Scenes sc;
+  std::vector<int> parts;
+  const Eigen::Isometry3f truth = Upright(1.8f, 0.9f, 2.2f);
+  const int s = sc.Add(ScanOf(cat.Get("chair_a"), truth, 1), 0, &parts);
+  const int background = static_cast<int>(sc.segs[s]->parts.size()) - 1;  // PartsOf puts the rest last
+  ASSERT_EQ(std::find(parts.begin(), parts.end(), background), parts.end());
+  Detection h = Hypothesis(sc, "chair", s, parts);
+  h.support.push_back({s, background, 1.f});
+  const auto out = MakeFitter()->Fit({h}, sc.Ctx(cat));
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].model, "chair_a");
+  const PoseError e = ErrorOf(out[0], cat.Get("chair_a"), truth);
+  EXPECT_LT(e.centre, kCentreTol);
+  EXPECT_LT(e.yaw, kYawTol);
+  EXPECT_TRUE(out[0].verified.value_or(false)) << out[0].rejection;
+  const std::string note = "support: 1 of " + std::to_string(h.support.size()) + " parts out of the class' reach";
+  EXPECT_TRUE(std::any_of(out[0].notes.begin(), out[0].notes.end(),
+                          [&](const std::string& n) { return n.rfind(note, 0) == 0; }));
+  // Without the filter the background's points count against the chair.
+  const auto all = MakeFitter({{"part_inside_fraction", 0.0}})->Fit({h}, sc.Ctx(cat));
+  std::printf("[ support ] coverage %.3f with the background part left out, %.3f with it\n", out[0].coverage,
+              all[0].coverage);
+  EXPECT_LT(all[0].coverage, out[0].coverage - 0.1f);
+}
+
 TEST(RansacUpright, RecoversTablePoseUpToItsSymmetry) {
   const Catalog cat = FurnitureCatalog();
   Scenes sc;
@@ -154,7 +196,7 @@ TEST(RansacUpright, RecoversTablePoseUpToItsSymmetry) {
   const Eigen::Isometry3f truth = Upright(-1.6f, 1.4f, 0.3f);
   const int s = sc.Add(ScanOf(cat.Get("table_a"), truth, 2), 0, &parts);
   auto fitter = MakeFitter();
-  const auto out = fitter->Fit({Hypothesis("table", s, parts)}, sc.Ctx(cat));
+  const auto out = fitter->Fit({Hypothesis(sc, "table", s, parts)}, sc.Ctx(cat));
   ASSERT_EQ(out.size(), 1u);
   EXPECT_EQ(out[0].model, "table_a");
   const PoseError e = ErrorOf(out[0], cat.Get("table_a"), truth, kPi);  // a rectangle: 180° symmetric
@@ -172,7 +214,7 @@ TEST(RansacUpright, WrongShapeIsRejectedByCoverage) {
   std::vector<int> parts;
   const int s = sc.Add(ScanOf(chair, Upright(1.8f, 0.9f, 2.2f), 3), 0, &parts);
   auto fitter = MakeFitter();
-  const auto out = fitter->Fit({Hypothesis("chair", s, parts)}, sc.Ctx(cat));
+  const auto out = fitter->Fit({Hypothesis(sc, "chair", s, parts)}, sc.Ctx(cat));
   ASSERT_EQ(out.size(), 1u);
   const Detection& d = out[0];
   ASSERT_TRUE(d.verified.has_value());
@@ -198,7 +240,7 @@ TEST(RansacUpright, TiedModelsAreRankedByTheShareOfThemselvesExplained) {
   const Eigen::Isometry3f truth = Upright(0.f, 2.5f, 0.f);  // front face towards the sensor
   const int s = sc.Add(ScanOf(cat.Get("narrow_cabinet"), truth, 8), 0, &parts);
   auto fitter = MakeFitter();
-  const auto out = fitter->Fit({Hypothesis("cabinet", s, parts)}, sc.Ctx(cat));
+  const auto out = fitter->Fit({Hypothesis(sc, "cabinet", s, parts)}, sc.Ctx(cat));
   ASSERT_EQ(out.size(), 1u);
   EXPECT_EQ(out[0].model, "narrow_cabinet");
   ASSERT_FALSE(out[0].notes.empty());
@@ -221,7 +263,7 @@ TEST(RansacUpright, ModelInObservedFreeSpaceIsRejected) {
     sc.Add(ScanOf(chair, where, 4, true, chair_in_laser_scan), -2, nullptr);  // laser scan, origin known
     const int s = sc.Add(ScanOf(chair, where, 5, false), 0, &parts);            // chair points, no origin
     auto fitter = MakeFitter();
-    const auto out = fitter->Fit({Hypothesis("chair", s, parts)}, sc.Ctx(cat));
+    const auto out = fitter->Fit({Hypothesis(sc, "chair", s, parts)}, sc.Ctx(cat));
     ASSERT_EQ(out.size(), 1u);
     const Detection& d = out[0];
     EXPECT_EQ(d.model, "chair_a");
@@ -246,7 +288,7 @@ TEST(RansacUpright, ScanWithoutOriginSkipsTheFreeSpaceTest) {
   std::vector<int> parts;
   const int s = sc.Add(ScanOf(cat.Get("chair_b"), Upright(-1.2f, -1.9f, -0.8f), 6, false), 0, &parts);
   auto fitter = MakeFitter();
-  const auto out = fitter->Fit({Hypothesis("chair", s, parts)}, sc.Ctx(cat));
+  const auto out = fitter->Fit({Hypothesis(sc, "chair", s, parts)}, sc.Ctx(cat));
   ASSERT_EQ(out.size(), 1u);
   EXPECT_EQ(out[0].model, "chair_b");
   EXPECT_TRUE(out[0].verified.value_or(false)) << out[0].rejection;
@@ -261,12 +303,12 @@ TEST(RansacUpright, ClassWithoutModelsAndBadSupport) {
   std::vector<int> parts;
   const int s = sc.Add(ScanOf(cat.Get("chair_a"), Upright(1.8f, 0.9f, 2.2f), 7), 0, &parts);
   auto fitter = MakeFitter();
-  const auto out = fitter->Fit({Hypothesis("sofa", s, parts)}, sc.Ctx(cat));
+  const auto out = fitter->Fit({Hypothesis(sc, "sofa", s, parts)}, sc.Ctx(cat));
   ASSERT_EQ(out.size(), 1u);
   EXPECT_FALSE(out[0].verified.value_or(true));
   EXPECT_EQ(out[0].rejection, "no catalog model of class 'sofa'");
-  EXPECT_THROW(fitter->Fit({Hypothesis("chair", s, {999})}, sc.Ctx(cat)), StageError);
-  EXPECT_THROW(fitter->Fit({Hypothesis("chair", 3, parts)}, sc.Ctx(cat)), StageError);
+  EXPECT_THROW(fitter->Fit({Hypothesis(sc, "chair", s, {999})}, sc.Ctx(cat)), StageError);
+  EXPECT_THROW(fitter->Fit({Hypothesis(sc, "chair", 3, parts)}, sc.Ctx(cat)), StageError);
 }
 
 TEST(RansacUpright, DeterministicForASeedWhateverTheThreads) {
@@ -281,8 +323,8 @@ TEST(RansacUpright, DeterministicForASeedWhateverTheThreads) {
   const SimScan room = Simulate(w, kSensor, -1.6f, 1.0f, 200, -0.9f, 0.1f, 60, 0.003f, 0.05f, 9, kScanPose);
   const int s0 = sc.Add(room, 0, &chair_parts);
   const int s1 = sc.Add(room, 1, &table_parts);
-  const std::vector<Detection> in = {Hypothesis("chair", s0, chair_parts), Hypothesis("table", s1, table_parts),
-                                     Hypothesis("chair", s1, table_parts)};
+  const std::vector<Detection> in = {Hypothesis(sc, "chair", s0, chair_parts), Hypothesis(sc, "table", s1, table_parts),
+                                     Hypothesis(sc, "chair", s1, table_parts)};
   auto run = [&](int threads, uint64_t seed) { return MakeFitter()->Fit(in, sc.Ctx(cat, threads, seed)); };
   const auto a = run(1, 11), b = run(2, 11);
   ASSERT_EQ(a.size(), b.size());
@@ -330,7 +372,7 @@ TEST(RansacUpright, AccuracyOverRandomPlacements) {
       Scenes sc;
       std::vector<int> parts;
       const int s = sc.Add(ScanOf(cat.Get(id), truth, 100 + r), 0, &parts);
-      const auto out = fitter->Fit({Hypothesis("chair", s, parts)}, sc.Ctx(cat, 0, 500 + r));
+      const auto out = fitter->Fit({Hypothesis(sc, "chair", s, parts)}, sc.Ctx(cat, 0, 500 + r));
       ASSERT_EQ(out.size(), 1u);
       right_model += out[0].model == id;
       const PoseError e = ErrorOf(out[0], cat.Get(id), truth);

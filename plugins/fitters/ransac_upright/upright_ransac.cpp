@@ -33,15 +33,17 @@ struct Hyp {
   int partial = 0;   // covered count when abandoned
 };
 
-// Scores `h` on the subset; abandons it as soon as it cannot reach `bound` (shared, only grows).
-// Every candidate whose final score is the maximum is never abandoned, so the reduction
-// (highest score, then lowest index) does not depend on thread timing. `ev` holds the subset
+// Scores `h` on the subset; abandons it as soon as it cannot reach max(floor, best - slack),
+// `best` being the highest score of the batch so far (shared, only grows). Every candidate whose
+// final score is within `slack` of the batch maximum is never abandoned, so the candidates kept
+// (score >= max(floor, maximum - slack)) do not depend on thread timing. `ev` holds the subset
 // points within the model's height range; `E` counts the whole subset, the others are misses.
-void Score(const ModelCloud& model, const std::vector<Eigen::Vector3f>& ev, int E, Hyp* h,
-           std::atomic<int>* bound) {
+void Score(const ModelCloud& model, const std::vector<Eigen::Vector3f>& ev, int E, int floor, int slack, Hyp* h,
+           std::atomic<int>* best) {
   const int n = static_cast<int>(ev.size());
   const float c = std::cos(h->pose.yaw), s = std::sin(h->pose.yaw);
-  int allowed = E - bound->load(std::memory_order_relaxed);  // misses we can afford
+  auto allowed_misses = [&] { return E - std::max(floor, best->load(std::memory_order_relaxed) - slack); };
+  int allowed = allowed_misses();
   int hits = 0, misses = E - n;
   if (misses > allowed) {
     h->score = -1;
@@ -57,11 +59,11 @@ void Score(const ModelCloud& model, const std::vector<Eigen::Vector3f>& ev, int 
       h->partial = hits;
       return;
     }
-    if ((k & 63) == 63) allowed = std::min(allowed, E - bound->load(std::memory_order_relaxed));
+    if ((k & 63) == 63) allowed = std::min(allowed, allowed_misses());
   }
   h->score = hits;
-  int b = bound->load(std::memory_order_relaxed);
-  while (hits > b && !bound->compare_exchange_weak(b, hits, std::memory_order_relaxed)) {
+  int b = best->load(std::memory_order_relaxed);
+  while (hits > b && !best->compare_exchange_weak(b, hits, std::memory_order_relaxed)) {
   }
 }
 
@@ -119,6 +121,11 @@ FitResult FitUpright(const ScenePoints& scene, const std::vector<const ModelClou
   int global_best = -1;
   std::vector<int> model_best(models.size(), -1);
   std::vector<Pose2> model_pose(models.size());
+  // Per model, the poses whose coverage is within the tie tolerance of its best: a partial
+  // view (a table top, a seat) is often covered as well by shifted or turned poses, which the
+  // explained model surface tells apart (below).
+  constexpr size_t kMaxTied = 8;
+  std::vector<std::vector<Hyp>> model_tied(models.size());
   int partial_best = -1, partial_model = -1;
   Pose2 partial_pose;
 
@@ -194,20 +201,37 @@ FitResult FitUpright(const ScenePoints& scene, const std::vector<const ModelClou
         }
       }
 
-      const int bound0 = std::max(base(), own + 1);
-      std::atomic<int> bound(bound0);
+      const int floor = base();
+      std::atomic<int> best(own);
       tbb::parallel_for(tbb::blocked_range<size_t>(0, hyps.size(), 8), [&](const tbb::blocked_range<size_t>& r) {
-        for (size_t h = r.begin(); h < r.end(); ++h) Score(model, ev_in, E, &hyps[h], &bound);
+        for (size_t h = r.begin(); h < r.end(); ++h) Score(model, ev_in, E, floor, slack, &hyps[h], &best);
       });
       int best_h = -1;
       for (size_t h = 0; h < hyps.size(); ++h)
-        if (hyps[h].score >= bound0 && (best_h < 0 || hyps[h].score > hyps[best_h].score)) best_h = int(h);
+        if (hyps[h].score >= floor && (best_h < 0 || hyps[h].score > hyps[best_h].score)) best_h = int(h);
       if (best_h >= 0) {
-        own = hyps[best_h].score;
-        model_best[mi] = own;
-        model_pose[mi] = hyps[best_h].pose;
-        global_best = std::max(global_best, own);
-        T = RequiredIterations(o.p_success, double(std::max(own, base())) / E);
+        if (hyps[best_h].score > own) {
+          own = hyps[best_h].score;
+          model_best[mi] = own;
+          model_pose[mi] = hyps[best_h].pose;
+          global_best = std::max(global_best, own);
+          T = RequiredIterations(o.p_success, double(std::max(own, base())) / E);
+        }
+        // Near ties, in candidate order (deterministic); near-duplicate poses are skipped.
+        const int keep_from = std::max(floor, own - slack);
+        std::vector<Hyp>& tied = model_tied[mi];
+        tied.erase(std::remove_if(tied.begin(), tied.end(), [&](const Hyp& t) { return t.score < keep_from; }),
+                   tied.end());
+        for (const Hyp& h : hyps) {
+          if (h.score < keep_from) continue;
+          const bool dup = std::any_of(tied.begin(), tied.end(), [&](const Hyp& t) {
+            return std::hypot(t.pose.tx - h.pose.tx, t.pose.ty - h.pose.ty) < 0.01f &&
+                   std::fabs(WrapAngle(t.pose.yaw - h.pose.yaw)) < 0.02f;
+          });
+          if (!dup) tied.push_back(h);
+        }
+        std::stable_sort(tied.begin(), tied.end(), [](const Hyp& a, const Hyp& b) { return a.score > b.score; });
+        if (tied.size() > kMaxTied) tied.resize(kMaxTied);
       } else if (global_best < 0) {
         // Nothing reached min_coverage yet: remember the most promising abandoned candidate so
         // that a rejected detection still reports a pose and its (low) coverage.
@@ -224,16 +248,35 @@ FitResult FitUpright(const ScenePoints& scene, const std::vector<const ModelClou
     out.iterations += it;
   }
 
-  // Share of a model's points within the inlier distance of a scene point (ranks tied models).
+  // Share of a model's points within the inlier distance of a scene point (ranks tied poses
+  // and tied models). At most ~4000 model points are tested: a share, not a count.
   std::unique_ptr<PointIndex> scene_index;
   auto explained_share = [&](int mi, const Pose2& ps) {
     if (!scene_index) scene_index = std::make_unique<PointIndex>(&scene.points);
     const ModelCloud& m = *models[mi];
     const Eigen::Isometry3f T = UprightIsometry(ps.tx, ps.ty, o.floor_z, ps.yaw);
-    int cnt = 0;
-    for (const auto& q : m.Cloud()) cnt += scene_index->AnyWithin(T * q, m.InlierDistance());
-    return double(cnt) / double(m.Cloud().size());
+    const size_t stride = std::max<size_t>(1, m.Cloud().size() / 4000);
+    int cnt = 0, tested = 0;
+    for (size_t q = 0; q < m.Cloud().size(); q += stride, ++tested)
+      cnt += scene_index->AnyWithin(T * m.Cloud()[q], m.InlierDistance());
+    return tested ? double(cnt) / double(tested) : 0.0;
   };
+  // Each model's pose: the best-covering one, unless a near-tied pose explains a clearly larger
+  // share of the model (kShareMargin: between good poses the share differs by sampling noise,
+  // between a right and a shifted pose of a partial view by much more).
+  constexpr double kShareMargin = 0.01;
+  std::vector<double> model_share(models.size(), -1.0);
+  for (size_t mi = 0; mi < models.size(); ++mi) {
+    if (model_best[mi] < 0 || model_best[mi] < global_best - slack || model_tied[mi].size() < 2) continue;
+    model_share[mi] = explained_share(static_cast<int>(mi), model_pose[mi]);
+    for (const Hyp& h : model_tied[mi]) {
+      const double share = explained_share(static_cast<int>(mi), h.pose);
+      if (share > model_share[mi] + kShareMargin) {
+        model_share[mi] = share;
+        model_pose[mi] = h.pose;
+      }
+    }
+  }
 
   int win = -1;
   Pose2 pose;
@@ -251,7 +294,7 @@ FitResult FitUpright(const ScenePoints& scene, const std::vector<const ModelClou
         win = mi;
         break;
       }
-      const double share = explained_share(mi, model_pose[mi]);
+      const double share = model_share[mi] >= 0 ? model_share[mi] : explained_share(mi, model_pose[mi]);
       if (win < 0 || share > best_share || (share == best_share && model_best[mi] > model_best[win])) {
         win = mi;
         best_share = share;
