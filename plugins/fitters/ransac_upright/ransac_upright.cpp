@@ -22,7 +22,6 @@
 #include "furnihost/plugin.hpp"
 #include "model_cloud.hpp"
 #include "occupancy.hpp"
-#include "surface_support.hpp"
 #include "upright_ransac.hpp"
 
 namespace furnihost {
@@ -37,12 +36,11 @@ struct RansacUprightOptions {
   FreeSpaceOptions free_space;
   float min_coverage = 0.5f;
   float max_free_space_ratio = 0.2f;
-  float min_surface_support = 0.f;
-  float support_cell = 0.05f;
   int grid_cache_size = 4;
   float min_point_height = 0.02f;
   float reach_margin = 0.3f;
   float part_inside_fraction = 0.8f;
+  bool crop_parts = true;
 
   static RansacUprightOptions FromJson(const nlohmann::json& p) {
     RansacUprightOptions o;
@@ -67,14 +65,13 @@ struct RansacUprightOptions {
     r.refine_iterations = p.at("refine_iterations").get<int>();
     o.min_coverage = r.min_coverage = p.at("min_coverage").get<float>();
     o.max_free_space_ratio = p.at("max_free_space_ratio").get<float>();
-    o.min_surface_support = p.at("min_surface_support").get<float>();
-    o.support_cell = p.at("surface_support_cell_m").get<float>();
     o.grid.resolution = p.at("grid_resolution_m").get<double>();
     o.grid.max_range = p.at("grid_max_range_m").get<double>();
     o.grid_cache_size = p.at("grid_cache_size").get<int>();
     o.min_point_height = p.at("min_point_height_m").get<float>();
     o.reach_margin = p.at("reach_margin_m").get<float>();
     o.part_inside_fraction = p.at("part_inside_fraction").get<float>();
+    o.crop_parts = p.at("crop_parts").get<bool>();
     o.free_space.free_margin = p.at("free_space_margin_m").get<float>();
     o.free_space.visibility_margin = p.at("visibility_margin_m").get<float>();
     o.free_space.erosion = p.at("free_space_erosion").get<int>();
@@ -157,13 +154,10 @@ class RansacUprightFitter : public Fitter {
         .Number("part_inside_fraction", 0.8, 0, 1,
                 "a supporting part is fitted only if this share of its points is within reach (drops floor, wall and "
                 "neighbours' parts); 0 = every part")
+        .Bool("crop_parts", true,
+              "a part mostly out of reach contributes its points within reach (true) or nothing (false)")
         .Number("min_coverage", 0.5, 0, 1, "reject when the model covers less than this share of the part points (paper: 0.5)")
         .Number("max_free_space_ratio", 0.2, 0, 1, "reject when more than this share of the visible model surface is in free space")
-        .Number("min_surface_support", 0.0, 0, 1,
-                "reject when less than this share of the placed model's surface has a scan point within about "
-                "surface_support_cell_m: the stand-in for the free-space test on scans without a sensor origin "
-                "(reconstructions see most surfaces); applied to every scan when > 0 (0 = off, paper)")
-        .Number("surface_support_cell_m", 0.05, 0.005, 1, "grid cell of the surface support test [m]")
         .Number("grid_resolution_m", 0.05, 0.005, 1, "OctoMap voxel edge [m] of the per-scan occupancy grids")
         .Number("grid_max_range_m", 0.0, 0, 1000, "rays longer than this only clear space [m]; 0 = unlimited")
         .Int("grid_cache_size", 4, 1, 1000, "occupancy grids kept between calls (least recently used dropped)")
@@ -237,7 +231,8 @@ class RansacUprightFitter : public Fitter {
       }
       if (dropped_parts[d] > 0)
         det.notes.push_back("support: " + std::to_string(dropped_parts[d]) + " of " + std::to_string(det.support.size()) +
-                            " parts out of the class' reach (floor, walls, other objects)");
+                            " parts out of the class' reach (floor, walls, other objects)" +
+                            (o_.crop_parts ? ", cropped to it" : ", left out"));
       if (scenes[d].points.empty()) {
         Reject(&det, "no part points to fit");
         continue;
@@ -264,28 +259,6 @@ class RansacUprightFitter : public Fitter {
       passed[d] = 1;
     }
 
-    // Surface support (optional) against all scans, then free space against every scan with
-    // a sensor origin.
-    if (o_.min_surface_support > 0.f && std::find(passed.begin(), passed.end(), 1) != passed.end()) {
-      std::vector<const Scan*> all;
-      for (const SceneParts& sp : ctx.scenes)
-        if (sp.scan && std::find(all.begin(), all.end(), sp.scan) == all.end()) all.push_back(sp.scan);
-      const SurfaceSupport support(all, o_.support_cell);
-      tbb::parallel_for(size_t(0), dets->size(), [&](size_t d) {
-        if (!passed[d]) return;
-        Detection& det = (*dets)[d];
-        const ModelCloud& m = *by_class.at(det.cls)[fits[d].model];
-        Points pts(m.Cloud().size());
-        for (size_t i = 0; i < pts.size(); ++i) pts[i] = det.model_pose * m.Cloud()[i];
-        const float floor_z = det.model_pose.translation().z();
-        const float ratio = support.Ratio(pts, floor_z + 2.f * o_.support_cell);
-        det.notes.push_back("surface support " + Fixed2(ratio));
-        if (ratio < o_.min_surface_support) {
-          Reject(&det, "surface support " + Fixed2(ratio) + " < " + Fixed2(o_.min_surface_support));
-          passed[d] = 0;
-        }
-      });
-    }
     // Free-space test against every scan that has a sensor origin.
     std::vector<const Scan*> scans;
     for (const SceneParts& sp : ctx.scenes)
@@ -342,11 +315,13 @@ class RansacUprightFitter : public Fitter {
 
   // Points of the detection's supporting parts (world frame). With `models` (the class's
   // models): points less than min_point_height_m above the floor are left out, and a part is
-  // used only when at least part_inside_fraction of its other points lie within reach of the
-  // hypothesis, i.e. inside the upright cylinder around its centre of radius (largest model
-  // footprint half-diagonal + reach_margin_m) and below the tallest model. The voter's support
-  // is every part with a vote near the maximum: floor and wall parts and neighbouring
-  // objects included, which no placement of one model can explain.
+  // used whole only when at least part_inside_fraction of its other points lie within reach of
+  // the hypothesis, i.e. inside the upright cylinder around its centre of radius (largest model
+  // footprint half-diagonal + reach_margin_m) and below the tallest model; of the other parts
+  // only the points within reach are used (crop_parts) or none. The voter's support is every
+  // part with a vote near the maximum: floor and wall parts, neighbouring objects and parts
+  // that merged all of these (region growing over a connected room) included, which no
+  // placement of one model can explain.
   ScenePoints Gather(const Detection& det, const FitContext& ctx, const std::vector<const ModelCloud*>* models,
                      int* dropped) const {
     ScenePoints sp;
@@ -383,6 +358,7 @@ class RansacUprightFitter : public Fitter {
       part.points.clear();
       part.normals.clear();
       int inside = 0;
+      std::vector<char> in_reach;
       for (int i : seg.parts[s.part].indices) {
         if (i < 0 || i >= int(scan.points.size()))
           throw StageError("part " + std::to_string(s.part) + " of scene " + std::to_string(s.scene) +
@@ -390,13 +366,25 @@ class RansacUprightFitter : public Fitter {
         if (!scan.points[i].allFinite()) continue;
         const Eigen::Vector3f p = scan.pose * scan.points[i];
         if (filter && p.z() < low) continue;
-        inside += (p - det.center).head<2>().norm() <= radius && p.z() <= top;
+        const bool in = (p - det.center).head<2>().norm() <= radius && p.z() <= top;
+        inside += in;
+        in_reach.push_back(in);
         part.points.push_back(p);
         part.normals.push_back(normals ? Eigen::Vector3f(R * seg.normals[i]) : Eigen::Vector3f::Constant(NAN));
       }
       if (filter && (part.points.empty() || inside < o_.part_inside_fraction * float(part.points.size()))) {
         ++*dropped;
-        continue;
+        if (!o_.crop_parts) continue;
+        // A part that reaches far beyond the object (a segmentation that merged floor, walls
+        // and furniture) still holds the object's points: its points within reach are kept.
+        size_t k = 0;
+        for (size_t i = 0; i < part.points.size(); ++i)
+          if (in_reach[i]) {
+            part.points[k] = part.points[i];
+            part.normals[k++] = part.normals[i];
+          }
+        part.points.resize(k);
+        part.normals.resize(k);
       }
       sp.points.insert(sp.points.end(), part.points.begin(), part.points.end());
       sp.normals.insert(sp.normals.end(), part.normals.begin(), part.normals.end());

@@ -182,9 +182,13 @@ TEST(RansacUpright, BackgroundPartsInTheSupportAreLeftOut) {
   const std::string note = "support: 1 of " + std::to_string(h.support.size()) + " parts out of the class' reach";
   EXPECT_TRUE(std::any_of(out[0].notes.begin(), out[0].notes.end(),
                           [&](const std::string& n) { return n.rfind(note, 0) == 0; }));
+  // Left out rather than cropped: the same pose.
+  const auto left_out = MakeFitter({{"crop_parts", false}})->Fit({h}, sc.Ctx(cat));
+  EXPECT_EQ(left_out[0].model, "chair_a");
+  EXPECT_LT(ErrorOf(left_out[0], cat.Get("chair_a"), truth).centre, kCentreTol);
   // Without the filter the background's points count against the chair.
   const auto all = MakeFitter({{"part_inside_fraction", 0.0}})->Fit({h}, sc.Ctx(cat));
-  std::printf("[ support ] coverage %.3f with the background part left out, %.3f with it\n", out[0].coverage,
+  std::printf("[ support ] coverage %.3f with the background part cropped to the reach, %.3f with all of it\n", out[0].coverage,
               all[0].coverage);
   EXPECT_LT(all[0].coverage, out[0].coverage - 0.1f);
 }
