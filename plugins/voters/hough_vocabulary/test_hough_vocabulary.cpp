@@ -267,6 +267,66 @@ TEST(HoughVocabulary, FusedViewsAccumulateEvidence) {
   EXPECT_TRUE(from1 && from2);
 }
 
+TEST(HoughVocabulary, HeightGateDropsPartsAtTheWrongHeight) {
+  // Training objects stand on z = 0. The same chair floating 1 m up (its parts at heights no
+  // training part had) is found without the gate and not with it; the chair on the floor is
+  // found either way, at the same place.
+  RunContext ctx;
+  json p = BaseParams();
+  auto plain = MakeVoter(p);
+  p["height_tolerance_m"] = 0.1;
+  p["floor"] = "fixed";
+  auto gated = MakeVoter(p);
+  plain->Train(TwoClassViews(), ctx);
+  gated->Train(TwoClassViews(), ctx);
+  const Eigen::Vector3f on_floor(1.f, 1.f, 0.45f), floating(3.f, 1.f, 1.45f);
+  const auto scene = MakeScene({{Chair(), on_floor, {}}, {Chair(), floating, {}}}, Pose(0.f, 0.f, 0.2f), 0.02f, 5);
+  const auto all = OfClass(plain->Vote({scene.Parts()}, ctx), "chair");
+  const auto kept = OfClass(gated->Vote({scene.Parts()}, ctx), "chair");
+  ASSERT_EQ(all.size(), 2u);
+  ASSERT_EQ(kept.size(), 1u);
+  EXPECT_LT(Dist2D(kept[0]->center, on_floor), 0.05f);
+}
+
+TEST(HoughVocabulary, HeightGateEstimatesTheFloor) {
+  // The room's floor is at z = -0.3 (a dense plane of points that belongs to no part): the
+  // estimated floor keeps the chair standing on it, a floor fixed at z = 0 gates it out.
+  RunContext ctx;
+  json p = BaseParams();
+  p["height_tolerance_m"] = 0.1;
+  auto automatic = MakeVoter(p);
+  p["floor"] = "fixed";
+  auto fixed = MakeVoter(p);
+  automatic->Train(TwoClassViews(), ctx);
+  fixed->Train(TwoClassViews(), ctx);
+  const Eigen::Vector3f truth(1.f, 1.f, 0.15f);
+  auto scene = MakeScene({{Chair(), truth, {}}}, Eigen::Isometry3f::Identity(), 0.02f, 6);
+  for (int i = 0; i < 60; ++i)
+    for (int j = 0; j < 60; ++j) scene.scan.points.emplace_back(-1.f + 0.05f * i, -1.f + 0.05f * j, -0.3f);
+  const auto found = OfClass(automatic->Vote({scene.Parts()}, ctx), "chair");
+  ASSERT_EQ(found.size(), 1u);
+  EXPECT_LT(Dist2D(found[0]->center, truth), 0.05f);
+  EXPECT_TRUE(OfClass(fixed->Vote({scene.Parts()}, ctx), "chair").empty());
+}
+
+TEST(HoughVocabulary, PartsFarOutsideTheTrainingRangeDoNotVote) {
+  // FeatureMatrix::excess (filled by the host's normaliser) says how far a part's raw
+  // features lay outside the training range; beyond max_out_of_range the part is ignored.
+  RunContext ctx;
+  json p = BaseParams();
+  p["max_out_of_range"] = 0.2;
+  auto strict = MakeVoter(p);
+  p["max_out_of_range"] = 0.6;
+  auto loose = MakeVoter(p);
+  auto off = MakeVoter(BaseParams());
+  for (auto* v : {&strict, &loose, &off}) (*v)->Train(TwoClassViews(), ctx);
+  auto scene = MakeScene({{Chair(), {1.f, 1.f, 0.45f}, {}}}, Eigen::Isometry3f::Identity(), 0.02f, 8);
+  scene.features.excess = Eigen::VectorXf::Constant(scene.features.values.rows(), 0.5f);
+  EXPECT_TRUE(strict->Vote({scene.Parts()}, ctx).votes.empty());
+  EXPECT_EQ(OfClass(loose->Vote({scene.Parts()}, ctx), "chair").size(), 1u);
+  EXPECT_EQ(OfClass(off->Vote({scene.Parts()}, ctx), "chair").size(), 1u);
+}
+
 TEST(HoughVocabulary, ClassesParameterRestrictsDetection) {
   RunContext ctx;
   json p = BaseParams();

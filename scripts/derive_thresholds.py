@@ -1,0 +1,133 @@
+#!/usr/bin/env python3
+"""Re-derives a graph's per-class voter thresholds from a dataset (the procedure documented in
+plugins/voters/hough_vocabulary/hough_common.hpp).
+
+1. Runs `furnihost` on every scene of the manifest with the graph's voter thresholds set to 0
+   and without fitters (selection at threshold t equals selection at 0 filtered to score >= t).
+2. Matches the hypotheses to the ground truth with the paper's rule (Sect. VII-A: same class
+   after the manifest's class_map, floor-plane centre within half the object's max(x, y) size,
+   strongest detection first, one detection per object).
+3. Per voter class, picks the threshold that maximises F1 of the evaluated class it maps to
+   (several voter classes can map to one, e.g. armchair and stool -> chair; coordinate ascent,
+   3 rounds). Candidates are the 0th, 5th, ..., 90th percentiles of the class's scores, so no
+   class is switched off and a handful of dev objects cannot pick an extreme value.
+
+usage: scripts/derive_thresholds.py --graph configs/scannet.json --dataset benchmarks/scannet_dev.json
+Prints the thresholds as JSON and the precision / recall / F1 before and after.
+"""
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+from collections import defaultdict
+
+
+def load(path):
+    with open(path) as f:
+        return json.load(f)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--graph", required=True)
+    ap.add_argument("--dataset", required=True)
+    ap.add_argument("--furnihost", default="build/bin/furnihost")
+    ap.add_argument("--vote-stage", default="vote", help="tag of the voter stage in the graph")
+    ap.add_argument("--fit-stages", default="fit,refine", help="fitter tags removed for the sweep")
+    args = ap.parse_args()
+
+    manifest = load(args.dataset)
+    base = os.path.dirname(os.path.abspath(args.dataset))
+    cmap = manifest.get("class_map", {})
+    classes = manifest["classes"]
+    mapped = lambda c: cmap.get(c, c)
+
+    graph = os.path.abspath(args.graph)
+    tmp = tempfile.mkdtemp(prefix="furnihost-thresholds-")
+    # The sweep config sits beside the graph so its relative paths resolve the same way.
+    sweep = os.path.join(os.path.dirname(graph), ".derive_thresholds.%d.json" % os.getpid())
+    stages = {args.vote_stage: {"params": {"thresholds": {}, "default_threshold": 0}}}
+    for tag in args.fit_stages.split(","):
+        if tag:
+            stages[tag] = None
+    # Explicit zeros: a merge patch of {} would keep the graph's thresholds.
+    g = load(graph)
+    old = g.get("stages", {}).get(args.vote_stage, {}).get("params", {}).get("thresholds", {})
+    cfg = graph
+    while not old and "extends" in load(cfg):
+        cfg = os.path.join(os.path.dirname(cfg), load(cfg)["extends"])
+        old = load(cfg).get("stages", {}).get(args.vote_stage, {}).get("params", {}).get("thresholds", {})
+    stages[args.vote_stage]["params"]["thresholds"] = {k: 0 for k in old}
+    with open(sweep, "w") as f:
+        json.dump({"extends": os.path.basename(graph), "stages": stages}, f)
+    scenes = []
+    try:
+        for i, sc in enumerate(manifest["scenes"]):
+            out = os.path.join(tmp, str(i))
+            cmd = [args.furnihost, "-q", "--graph", sweep, os.path.join(base, sc["scan"]), "--out", out]
+            if "origin" in sc:
+                cmd += ["--origin", ",".join(str(v) for v in sc["origin"])]
+            print("scene %d/%d: %s" % (i + 1, len(manifest["scenes"]), sc["scan"]), file=sys.stderr)
+            subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+            truth = load(os.path.join(base, sc["gt"]))["objects"]
+            gt = [(mapped(o["class"]), o["center"], max(o["size"][0], o["size"][1]) / 2) for o in truth]
+            gt = [t for t in gt if t[0] in classes]
+            dets = [d for d in load(os.path.join(out, "detections.json"))["detections"] if mapped(d["class"]) in classes]
+            scenes.append((gt, dets))
+    finally:
+        os.remove(sweep)
+
+    def evaluate(th):
+        tp, fp, ng = defaultdict(int), defaultdict(int), defaultdict(int)
+        for gt, dets in scenes:
+            for t in gt:
+                ng[t[0]] += 1
+            used = set()
+            for d in sorted((d for d in dets if d["score"] >= th.get(d["class"], 0)), key=lambda d: -d["score"]):
+                c = mapped(d["class"])
+                best = None
+                for i, (gc, ctr, r) in enumerate(gt):
+                    if gc != c or i in used:
+                        continue
+                    dist = math.hypot(d["center"][0] - ctr[0], d["center"][1] - ctr[1])
+                    if dist < r and (best is None or dist < best[0]):
+                        best = (dist, i)
+                if best:
+                    used.add(best[1])
+                    tp[c] += 1
+                else:
+                    fp[c] += 1
+        res = {}
+        for c in classes:
+            p = tp[c] / (tp[c] + fp[c]) if tp[c] + fp[c] else 0.0
+            r = tp[c] / ng[c] if ng[c] else 0.0
+            res[c] = (p, r, 2 * p * r / (p + r) if p + r else 0.0, tp[c], fp[c])
+        return res
+
+    voter_classes = sorted({d["class"] for _, ds in scenes for d in ds})
+    th = {c: 0.0 for c in voter_classes}
+    before = evaluate(th)
+    for _ in range(3):
+        for vc in voter_classes:
+            mc = mapped(vc)
+            s = sorted(d["score"] for _, ds in scenes for d in ds if d["class"] == vc)
+            best = (evaluate(th)[mc][2], th[vc])
+            for q in range(0, 91, 5):
+                t = s[int(q / 100 * (len(s) - 1))]
+                trial = dict(th, **{vc: t})
+                f1 = evaluate(trial)[mc][2]
+                if f1 > best[0] + 1e-9:
+                    best = (f1, t)
+            th[vc] = best[1]
+    after = evaluate(th)
+    for c in classes:
+        print("%-8s threshold 0: P %.3f R %.3f F1 %.3f (TP %d FP %d)  ->  derived: P %.3f R %.3f F1 %.3f (TP %d FP %d)"
+              % ((c,) + before[c] + after[c]), file=sys.stderr)
+    print(json.dumps({k: round(v, 2) for k, v in th.items()}))
+
+
+if __name__ == "__main__":
+    main()
