@@ -30,7 +30,9 @@
 // t). So run the dev set once with {"thresholds": {}, "default_threshold": 0}, match the
 // hypotheses to the ground truth (true positive: centre within half the class width, Sect.
 // VII-A), sweep t over the sorted scores per class to get recall / precision, and put the
-// chosen working point in the config.
+// chosen working point in the config. scripts/derive_thresholds.py does exactly this (max F1
+// per class over percentile candidates). Note: a merge patch `"thresholds": {}` changes
+// nothing (RFC 7386 merges objects); zero each class explicitly.
 #pragma once
 #include <Eigen/Core>
 #include <map>
