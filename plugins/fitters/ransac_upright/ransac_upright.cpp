@@ -203,9 +203,27 @@ class RansacUprightFitter : public Fitter {
     // Scene points of every detection (world frame), from the supporting parts within reach.
     std::vector<ScenePoints> scenes(dets->size());
     std::vector<int> dropped_parts(dets->size(), 0);
+    std::vector<Points> world(ctx.scenes.size());  // every scan in the world frame, for the context
+    for (size_t s = 0; s < ctx.scenes.size(); ++s)
+      if (ctx.scenes[s].scan) {
+        const Scan& scan = *ctx.scenes[s].scan;
+        world[s].reserve(scan.points.size());
+        for (const auto& p : scan.points)
+          if (p.allFinite()) world[s].push_back(scan.pose * p);
+      }
+    tbb::parallel_for(size_t(0), dets->size(), [&](size_t d) {
+      auto it = by_class.find((*dets)[d].cls);
+      if (it == by_class.end()) return;
+      const Reach r = ReachOf((*dets)[d], it->second);
+      for (const Points& w : world)
+        for (const auto& p : w)
+          if (r.Contains(p)) scenes[d].context.push_back(p);
+    });
     for (size_t d = 0; d < dets->size(); ++d) {
       auto it = by_class.find((*dets)[d].cls);
+      Points context = std::move(scenes[d].context);
       scenes[d] = Gather((*dets)[d], ctx, it == by_class.end() ? nullptr : &it->second, &dropped_parts[d]);
+      scenes[d].context = std::move(context);
     }
 
     // RANSAC per detection, in parallel; each has its own seed so the order does not matter.
@@ -322,23 +340,37 @@ class RansacUprightFitter : public Fitter {
   // part with a vote near the maximum: floor and wall parts, neighbouring objects and parts
   // that merged all of these (region growing over a connected room) included, which no
   // placement of one model can explain.
+  // Where the points of an object of the hypothesis' class can be: the upright cylinder around
+  // its centre of radius (largest model footprint half-diagonal + reach_margin_m), from
+  // min_point_height_m above the floor to the top of the tallest model.
+  struct Reach {
+    Eigen::Vector2f centre;
+    float radius = 0.f, low = 0.f, top = 0.f;
+    bool Contains(const Eigen::Vector3f& p) const {
+      return p.z() >= low && p.z() <= top && (p.head<2>() - centre).norm() <= radius;
+    }
+  };
+  Reach ReachOf(const Detection& det, const std::vector<const ModelCloud*>& models) const {
+    Reach r;
+    r.centre = det.center.head<2>();
+    r.low = o_.ransac.floor_z + o_.min_point_height;
+    r.top = -std::numeric_limits<float>::infinity();
+    for (const ModelCloud* m : models) {
+      const Eigen::AlignedBox3f& b = m->Bounds();
+      r.radius = std::max(r.radius, std::hypot(std::max(std::fabs(b.min().x()), std::fabs(b.max().x())),
+                                               std::max(std::fabs(b.min().y()), std::fabs(b.max().y()))));
+      r.top = std::max(r.top, o_.ransac.floor_z + b.max().z() + m->InlierDistance());
+    }
+    r.radius += o_.reach_margin;
+    return r;
+  }
+
   ScenePoints Gather(const Detection& det, const FitContext& ctx, const std::vector<const ModelCloud*>* models,
                      int* dropped) const {
     ScenePoints sp;
-    float radius = std::numeric_limits<float>::infinity(), top = radius;
-    if (models && !models->empty()) {
-      radius = 0.f;
-      top = -radius;
-      for (const ModelCloud* m : *models) {
-        const Eigen::AlignedBox3f& b = m->Bounds();
-        radius = std::max(radius, std::hypot(std::max(std::fabs(b.min().x()), std::fabs(b.max().x())),
-                                             std::max(std::fabs(b.min().y()), std::fabs(b.max().y()))));
-        top = std::max(top, o_.ransac.floor_z + b.max().z() + m->InlierDistance());
-      }
-      radius += o_.reach_margin;
-    }
-    const float low = o_.ransac.floor_z + o_.min_point_height;
-    const bool filter = models && o_.part_inside_fraction > 0.f;
+    const bool filter = models && !models->empty() && o_.part_inside_fraction > 0.f;
+    const Reach reach = filter ? ReachOf(det, *models) : Reach{};
+    const float low = reach.low;
     ScenePoints part;
     std::set<std::pair<int, int>> seen;
     for (const Support& s : det.support) {
@@ -366,7 +398,7 @@ class RansacUprightFitter : public Fitter {
         if (!scan.points[i].allFinite()) continue;
         const Eigen::Vector3f p = scan.pose * scan.points[i];
         if (filter && p.z() < low) continue;
-        const bool in = (p - det.center).head<2>().norm() <= radius && p.z() <= top;
+        const bool in = reach.Contains(p);
         inside += in;
         in_reach.push_back(in);
         part.points.push_back(p);

@@ -249,10 +249,12 @@ FitResult FitUpright(const ScenePoints& scene, const std::vector<const ModelClou
   }
 
   // Share of a model's points within the inlier distance of a scene point (ranks tied poses
-  // and tied models). At most ~4000 model points are tested: a share, not a count.
+  // and tied models); scene = the context points when given (the scan around the hypothesis:
+  // a partial support, e.g. a seat without its backrest, cannot tell a chair from its turn by
+  // 180°, the scan can). At most ~4000 model points are tested: a share, not a count.
   std::unique_ptr<PointIndex> scene_index;
   auto explained_share = [&](int mi, const Pose2& ps) {
-    if (!scene_index) scene_index = std::make_unique<PointIndex>(&scene.points);
+    if (!scene_index) scene_index = std::make_unique<PointIndex>(scene.context.empty() ? &scene.points : &scene.context);
     const ModelCloud& m = *models[mi];
     const Eigen::Isometry3f T = UprightIsometry(ps.tx, ps.ty, o.floor_z, ps.yaw);
     const size_t stride = std::max<size_t>(1, m.Cloud().size() / 4000);

@@ -36,6 +36,9 @@ struct RansacOptions {
 struct ScenePoints {
   Points points;
   Points normals;
+  // All scan points around the hypothesis (world frame), supporting or not: what a model's
+  // points are explained by when near-tied poses and models are ranked. Empty = `points`.
+  Points context;
 };
 
 struct ModelTrial {
