@@ -2,7 +2,8 @@
 // fitters.ransac_upright).
 //
 // For every detection with a model: the catalog model's surface is sampled (area-weighted,
-// `sample_density_per_m2`) and placed at Detection::model_pose; the scene points are the
+// `sample_density_per_m2`; once per stage object and seed, reused for later scans) and placed
+// at Detection::model_pose; the scene points are the
 // points of the detection's supporting parts (Detection::support -> scene, part), taken to
 // the world frame by Scan::pose, plus optionally the scan points near the placed model.
 // ICP aligns the scene points (source: partial views, every point has a model counterpart)

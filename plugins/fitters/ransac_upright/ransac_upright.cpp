@@ -4,6 +4,15 @@
 // by explained model surface) is kept, then the fit is verified by its coverage and by an
 // OctoMap free-space test per scan that has a sensor origin.
 //
+// Not in the paper: the part points fitted are those of the supporting parts within reach of
+// the hypothesis (see Gather: the voter's support also holds floor, wall and merged parts), and
+// near-tied poses / models are ranked by the share of the model explained by the scan around
+// the hypothesis (a partial support cannot tell a chair from its turn by 180°).
+//
+// Model clouds are sampled once per stage object (Pipeline keeps its stages for every scan of
+// a run), not cached in the model file: Pipeline does not call Fitter::Prepare, and sampling
+// (0.05-0.3 s per model) costs about what parsing stored clouds would.
+//
 // Frames: detections and fitted poses in the world frame (Scan::pose maps scan -> world);
 // occupancy grids in each scan's own frame. Assumption: objects stand on the floor z = floor_z.
 #include <octomap/OcTree.h>
@@ -174,6 +183,7 @@ class RansacUprightFitter : public Fitter {
 
   // Samples every catalog model once (in parallel). Nothing is returned for the model file:
   // resampling (0.05-0.3 s per model) is about as fast as parsing stored clouds would be.
+  // (Fit samples the models it needs on first use when no host calls Prepare.)
   nlohmann::json Prepare(const std::vector<const CatalogModel*>& catalog, const nlohmann::json&) override {
     tbb::this_task_arena::isolate([&] { Clouds(catalog); });
     return nullptr;
