@@ -30,11 +30,12 @@
 #include <random>
 #include <string>
 
+#include "../common/tbb_for.hpp"
 #include "furnihost/io.hpp"
 #include "furnihost/log.hpp"
+#include "furnihost/voxel_index.hpp"
 #include "part_features.hpp"
 #include "region_growing_core.hpp"
-#include "voxel_grid.hpp"
 
 namespace {
 
@@ -294,8 +295,8 @@ void BM_Pcl(benchmark::State& state, std::string key, const Scan* (*get)(), Para
 void BM_NeighboursGrid(benchmark::State& state, const Scan* (*get)(), float r) {
   const Points& pts = get()->points;
   for (auto _ : state) {
-    furnihost::rg::VoxelGrid grid;
-    grid.Build(pts, r);
+    furnihost::VoxelIndex grid;
+    grid.Build(pts, r, furnihost::VoxelIndex::Anchor::kBoundingBox, furnihost::TbbFor());
     std::atomic<size_t> total{0};
     tbb::parallel_for(tbb::blocked_range<int>(0, grid.NumCells(), 16), [&](const tbb::blocked_range<int>& range) {
       size_t m = 0;

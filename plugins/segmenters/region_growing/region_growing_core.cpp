@@ -9,8 +9,9 @@
 #include <cstring>
 #include <limits>
 
+#include "../common/tbb_for.hpp"
 #include "furnihost/log.hpp"
-#include "voxel_grid.hpp"
+#include "furnihost/voxel_index.hpp"
 
 namespace furnihost::rg {
 
@@ -180,8 +181,8 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
   if (n == 0) return;
   const float r = float(o.normal_radius_m);
   const float inv_r = 1.f / r;
-  VoxelGrid grid;
-  grid.Build(lc.pts, r);
+  VoxelIndex grid;
+  grid.Build(lc.pts, r, VoxelIndex::Anchor::kBoundingBox, TbbFor());
   tbb::parallel_for(tbb::blocked_range<int>(0, grid.NumCells(), 16), [&](const tbb::blocked_range<int>& range) {
     Neighbours nb;
     std::vector<float> cx, cy, cz;
@@ -263,9 +264,9 @@ Segmentation Segment(const Scan& scan, const RegionGrowingOptions& o, SegmentTim
   // its 27 neighbour cells. Built beside the normals: it needs only the points.
   const float delta = float(o.distance_m);
   const float delta2 = delta * delta;
-  VoxelGrid grid;
+  VoxelIndex grid;
   tbb::parallel_invoke([&] { NormalsLocal(lc, LocalViewpoint(lc, scan.origin), o, normals_local, curv_local); },
-                       [&] { grid.Build(lc.pts, delta); });
+                       [&] { grid.Build(lc.pts, delta, VoxelIndex::Anchor::kBoundingBox, TbbFor()); });
   const double normals_ms = watch.Ms();
 
   Segmentation seg;
