@@ -5,35 +5,33 @@
 // the paper's 5 cm) and groups of at least `min_points` become parts too, so legs and other
 // small pieces are not lost. Smaller groups are counted in Segmentation::discarded_points.
 //
-// Normals as in segmenters.cgal_region_growing (jet order 2 or PCA in a radius; NaN output
-// where the radius holds fewer than 3 points); curvature is the surface variation
-// lambda0 / (lambda0 + lambda1 + lambda2) in the same radius.
+// Normals as in segmenters.cgal_region_growing, same code (../common/cgal_normals.hpp: jet
+// order 2 or PCA in a radius; NaN output where the radius holds fewer than 3 points);
+// curvature is the surface variation lambda0 / (lambda0 + lambda1 + lambda2) in the same radius.
 // Deterministic: CGAL draws from its thread-local default generator, which is reseeded from
 // RunContext::seed before each detection.
 // Frames: scan frame throughout; the points are shifted by their bounding-box centre.
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Random.h>
 #include <CGAL/Shape_detection/Efficient_RANSAC.h>
-#include <CGAL/jet_estimate_normals.h>
-#include <CGAL/pca_estimate_normals.h>
 #include <CGAL/property_map.h>
-#include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
-#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <numeric>
 #include <tuple>
-#include <unordered_map>
 
+#include "../common/cgal_normals.hpp"
 #include "furnihost/log.hpp"
 #include "furnihost/plugin.hpp"
 
 namespace {
 
 using furnihost::ParamSchema;
+using furnihost::TbbFor;
+using furnihost::VoxelIndex;
+namespace cgal_common = furnihost::cgal_common;
 using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
 using Point3 = Kernel::Point_3;
 using Vector3 = Kernel::Vector_3;
@@ -62,53 +60,6 @@ struct CgalEfficientRansacOptions {
     if (!(normal_radius_m > 0) || !(epsilon_m > 0) || !(cluster_epsilon_m > 0) || !(distance_m > 0))
       throw furnihost::StageError("normal_radius_m, epsilon_m, cluster_epsilon_m and distance_m must be > 0");
   }
-};
-
-// Radius neighbourhoods on a hashed voxel grid (cell >= radius).
-class VoxelGrid {
- public:
-  VoxelGrid(const std::vector<Eigen::Vector3f>& pts, float cell) : pts_(pts), inv_(1.f / cell) {
-    order_.resize(pts.size());
-    std::iota(order_.begin(), order_.end(), 0);
-    std::vector<uint64_t> keys(pts.size());
-    for (size_t i = 0; i < pts.size(); ++i) keys[i] = Key(Cell(pts[i]));
-    std::sort(order_.begin(), order_.end(), [&](int a, int b) {
-      return keys[a] != keys[b] ? keys[a] < keys[b] : a < b;
-    });
-    cells_.reserve(pts.size() / 4 + 1);
-    for (size_t b = 0; b < order_.size();) {
-      size_t e = b;
-      while (e < order_.size() && keys[order_[e]] == keys[order_[b]]) ++e;
-      cells_.emplace(keys[order_[b]], std::make_pair(uint32_t(b), uint32_t(e)));
-      b = e;
-    }
-  }
-  template <class F>
-  void Radius(const Eigen::Vector3f& q, float r, F&& f) const {
-    const Eigen::Vector3i c = Cell(q);
-    const float r2 = r * r;
-    for (int dx = -1; dx <= 1; ++dx)
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dz = -1; dz <= 1; ++dz) {
-          auto it = cells_.find(Key(c + Eigen::Vector3i(dx, dy, dz)));
-          if (it == cells_.end()) continue;
-          for (uint32_t k = it->second.first; k < it->second.second; ++k)
-            if ((pts_[order_[k]] - q).squaredNorm() <= r2) f(order_[k]);
-        }
-  }
-
- private:
-  Eigen::Vector3i Cell(const Eigen::Vector3f& p) const {
-    return (p * inv_).array().floor().cast<int>();
-  }
-  static uint64_t Key(const Eigen::Vector3i& c) {
-    auto u = [](int v) { return uint64_t(uint32_t(v + (1 << 20)) & 0x1fffff); };
-    return u(c.x()) | (u(c.y()) << 21) | (u(c.z()) << 42);
-  }
-  const std::vector<Eigen::Vector3f>& pts_;
-  float inv_;
-  std::vector<int> order_;
-  std::unordered_map<uint64_t, std::pair<uint32_t, uint32_t>> cells_;
 };
 
 class CgalEfficientRansac : public furnihost::Segmenter {
@@ -154,25 +105,17 @@ class CgalEfficientRansac : public furnihost::Segmenter {
     seg.normals.assign(n, Eigen::Vector3f::Constant(nan));
     seg.curvature.assign(n, nan);
 
-    std::vector<int> ids;  // local -> scan index
-    ids.reserve(n);
-    Eigen::AlignedBox3d box;
-    for (size_t i = 0; i < n; ++i)
-      if (scan.points[i].allFinite()) {
-        ids.push_back(int(i));
-        box.extend(scan.points[i].cast<double>());
-      }
+    const cgal_common::LocalFrame frame = cgal_common::MakeLocalFrame(scan);
+    const std::vector<int>& ids = frame.ids;  // local -> scan index
+    const std::vector<Eigen::Vector3f>& local = frame.local;
     if (ids.size() < 6) {  // jet fitting needs 6 points
       seg.discarded_points = int(n);
       return seg;
     }
-    const Eigen::Vector3d shift = box.center();
     const size_t m = ids.size();
-    std::vector<Eigen::Vector3f> local(m);
     PniVector pts(m);
     for (size_t k = 0; k < m; ++k) {
-      const Eigen::Vector3d q = scan.points[ids[k]].cast<double>() - shift;
-      local[k] = q.cast<float>();
+      const Eigen::Vector3d& q = frame.points[k];
       pts[k] = Pni(Point3(q.x(), q.y(), q.z()), Vector3(0, 0, 1), k);
     }
 
@@ -180,53 +123,20 @@ class CgalEfficientRansac : public furnihost::Segmenter {
     std::vector<float> curvature(m, nan);
     std::vector<char> enough(m, 0);
     arena.execute([&] {
-      const auto np = CGAL::parameters::point_map(PointMap()).normal_map(NormalMap())
-                          .neighbor_radius(o_.normal_radius_m);
-      if (o_.normals == "jet")
-        CGAL::jet_estimate_normals<CGAL::Parallel_if_available_tag>(pts, 0, np.degree_fitting(2));
-      else
-        CGAL::pca_estimate_normals<CGAL::Parallel_if_available_tag>(pts, 0, np);
-
-      const VoxelGrid grid(local, float(o_.normal_radius_m));
-      tbb::parallel_for(tbb::blocked_range<size_t>(0, m, 256), [&](const tbb::blocked_range<size_t>& r) {
-        for (size_t k = r.begin(); k != r.end(); ++k) {
-          Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-          int cnt = 0;
-          grid.Radius(local[k], float(o_.normal_radius_m), [&](int j) {
-            mean += local[j].cast<double>();
-            ++cnt;
-          });
-          if (cnt < 3) continue;
-          mean /= cnt;
-          Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-          grid.Radius(local[k], float(o_.normal_radius_m), [&](int j) {
-            const Eigen::Vector3d d = local[j].cast<double>() - mean;
-            cov.noalias() += d * d.transpose();
-          });
-          const Eigen::Vector3d ev = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov, Eigen::EigenvaluesOnly).eigenvalues();
-          const double tr = ev.sum();
-          curvature[k] = tr > 0 ? float(std::max(0.0, ev[0]) / tr) : 0.f;
-          enough[k] = 1;
-        }
-      });
+      cgal_common::EstimateNormals<PniVector, PointMap, NormalMap>(pts, o_.normals, o_.normal_radius_m, 0);
+      cgal_common::SurfaceVariation(local, float(o_.normal_radius_m), curvature, enough);
     });
 
-    // Towards the sensor when known, else towards the scan frame's origin (as PCL does).
-    const Eigen::Vector3d eye =
-        (scan.origin ? Eigen::Vector3d(scan.origin->cast<double>()) : Eigen::Vector3d(Eigen::Vector3d::Zero())) -
-        shift;
     for (auto& t : pts) {
       const std::size_t k = std::get<2>(t);
-      const Vector3& nv = std::get<1>(t);
-      Eigen::Vector3d v(nv.x(), nv.y(), nv.z());
-      const double len = v.norm();
-      if (!(len > 0) || !v.allFinite()) {
+      const Vector3& raw = std::get<1>(t);
+      Eigen::Vector3d v;
+      // The sign test takes the float position (the plugin always did; only the side matters).
+      if (!cgal_common::OrientedUnitNormal(raw.x(), raw.y(), raw.z(), local[k].cast<double>(), frame.eye, v)) {
         std::get<1>(t) = Vector3(0, 0, 1);  // keep CGAL's input valid; reported as NaN
         enough[k] = 0;
         continue;
       }
-      v /= len;
-      if (v.dot(eye - local[k].cast<double>()) < 0) v = -v;
       std::get<1>(t) = Vector3(v.x(), v.y(), v.z());
       if (enough[k]) {
         seg.normals[ids[k]] = v.cast<float>();
@@ -265,16 +175,19 @@ class CgalEfficientRansac : public furnihost::Segmenter {
     // nearest such shape. Rings: each pass sees only the previous passes' result, so the
     // outcome does not depend on the point order.
     if (o_.attach_leftovers && !shape_list.empty()) {
-      const VoxelGrid grid(local, float(o_.cluster_epsilon_m));
+      VoxelIndex grid;
+      grid.Build(local, float(o_.cluster_epsilon_m), VoxelIndex::Anchor::kWorld, TbbFor());
       const double eps2 = o_.epsilon_m * o_.epsilon_m;
       for (bool changed = true; changed;) {
         changed = false;
         std::vector<int> next = owner;
-        for (size_t k = 0; k < m; ++k) {
+        for (int s = 0; s < int(m); ++s) {
+          const size_t k = grid.order[s];
           if (owner[k] >= 0) continue;
           const Point3 pk(local[k].x(), local[k].y(), local[k].z());
           double best = eps2;
-          grid.Radius(local[k], float(o_.cluster_epsilon_m), [&](int j) {
+          cgal_common::ForEachInClosedBall(grid, local, s, float(o_.cluster_epsilon_m), [&](int t) {
+            const int j = int(grid.order[t]);
             if (owner[j] < 0) return;
             const double d2 = CGAL::to_double(shape_list[owner[j]]->squared_distance(pk));
             if (d2 < best || (d2 == best && next[k] >= 0 && owner[j] < next[k])) {
@@ -304,7 +217,9 @@ class CgalEfficientRansac : public furnihost::Segmenter {
         rest.push_back(local[k]);
         rest_ids.push_back(int(k));
       }
-    const VoxelGrid rest_grid(rest, float(o_.distance_m));
+    VoxelIndex rest_grid;
+    rest_grid.Build(rest, float(o_.distance_m), VoxelIndex::Anchor::kWorld, TbbFor());
+    const std::vector<uint32_t> rest_slot = rest_grid.SlotOfInput();
     std::vector<char> seen(rest.size(), 0);
     size_t small = 0;
     for (size_t s = 0; s < rest.size(); ++s) {
@@ -312,7 +227,8 @@ class CgalEfficientRansac : public furnihost::Segmenter {
       std::vector<int> comp{int(s)};
       seen[s] = 1;
       for (size_t h = 0; h < comp.size(); ++h)
-        rest_grid.Radius(rest[comp[h]], float(o_.distance_m), [&](int j) {
+        cgal_common::ForEachInClosedBall(rest_grid, rest, int(rest_slot[comp[h]]), float(o_.distance_m), [&](int t) {
+          const int j = int(rest_grid.order[t]);
           if (!seen[j]) {
             seen[j] = 1;
             comp.push_back(j);

@@ -1,52 +1,27 @@
 // segmenters.cgal_efficient_ransac through the registry. The box scene shared with the other
 // alternatives is in plugins/segmenters/pcl_region_growing/test_segmenter_comparison.cpp.
-#include <cmath>
 #include <random>
 
-#include "furnihost/stage.hpp"
-#include "test_support.hpp"
+#include "../common/cgal_test_scene.hpp"
 
 namespace furnihost::testing {
 namespace {
 
 const char* kType = "segmenters.cgal_efficient_ransac";
 
-std::shared_ptr<Segmenter> Make(const Registry& reg, nlohmann::json params = nlohmann::json::object()) {
-  const PluginEntry* e = reg.Find(kType);
-  if (!e) throw std::runtime_error(std::string(kType) + " not found in " + PluginDir());
-  return reg.CreateAs<Segmenter>(kType, e->params.Resolve(params, "test"));
+std::shared_ptr<Segmenter> Make(const Registry& reg, const nlohmann::json& params = nlohmann::json::object()) {
+  return MakeSegmenter(reg, kType, params);
 }
 
-// Labels: 0 floor (1.2 x 1.2 m, z = 0), 1 wall (x = 0.8), 2 vertical cylinder (r = 0.15 m,
-// z 0.2..0.8), 3 a 30-point blob (too small for a shape, big enough for a part), 4 a 5-point
-// blob (discarded). 1 cm spacing, 1 mm noise.
-struct Scene {
-  Scan scan;
-  std::vector<int> label;
-};
+// Labels: 0 floor, 1 wall, 2 vertical cylinder (MakeFloorWallCylinder), 3 a 30-point blob
+// (too small for a shape, big enough for a part), 4 a 5-point blob (discarded).
+using Scene = LabelledScene;
 
 Scene MakeScene() {
-  Scene s;
-  std::mt19937_64 rng(3);
-  std::normal_distribution<float> g(0.f, 0.001f);
-  auto add = [&](Eigen::Vector3f p, int l) {
-    s.scan.points.push_back(p + Eigen::Vector3f(g(rng), g(rng), g(rng)));
-    s.label.push_back(l);
-  };
-  for (int i = 0; i <= 120; ++i)
-    for (int j = 0; j <= 120; ++j) add({-0.6f + 0.01f * i, -0.6f + 0.01f * j, 0.f}, 0);
-  for (int j = 0; j <= 120; ++j)
-    for (int k = 10; k <= 100; ++k) add({0.8f, -0.6f + 0.01f * j, 0.01f * k}, 1);
-  const int around = int(std::lround(2 * M_PI * 0.15 / 0.01));
-  for (int a = 0; a < around; ++a)
-    for (int k = 20; k <= 80; ++k) {
-      const float t = float(2 * M_PI * a / around);
-      add({-0.3f + 0.15f * std::cos(t), 0.15f * std::sin(t), 0.01f * k}, 2);
-    }
+  Scene s = MakeFloorWallCylinder(3);
   std::uniform_real_distribution<float> u(-0.02f, 0.02f);
-  for (int i = 0; i < 30; ++i) add({0.2f + u(rng), 0.3f + u(rng), 1.5f + u(rng)}, 3);
-  for (int i = 0; i < 5; ++i) add({-0.5f + 0.005f * i, 0.5f, 2.5f}, 4);
-  s.scan.origin = Eigen::Vector3f(0.f, -1.5f, 1.2f);
+  for (int i = 0; i < 30; ++i) s.Add({0.2f + u(s.rng), 0.3f + u(s.rng), 1.5f + u(s.rng)}, 3);
+  for (int i = 0; i < 5; ++i) s.Add({-0.5f + 0.005f * i, 0.5f, 2.5f}, 4);
   return s;
 }
 

@@ -4,7 +4,8 @@
 // Coded against the CGAL 5.5 API (Region_growing<InputRange, NeighborQuery, RegionType,
 // SeedMap> with index-based queries); CGAL 5.6 replaced it with item-based queries.
 //
-// Normals: CGAL::jet_estimate_normals (2nd-order jet = the paper's bivariate polynomial
+// Normals (shared with segmenters.cgal_efficient_ransac, ../common/cgal_normals.hpp):
+// CGAL::jet_estimate_normals (2nd-order jet = the paper's bivariate polynomial
 // fitted over the tangent plane, unweighted) or pca_estimate_normals, in a radius. Where the
 // radius holds fewer than 3 points the output normal/curvature is NaN like PCL's (CGAL
 // itself falls back to the nearest neighbours and still uses the point for growing).
@@ -20,25 +21,22 @@
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Shape_detection/Region_growing/Region_growing.h>
 #include <CGAL/Shape_detection/Region_growing/Region_growing_on_point_set.h>
-#include <CGAL/jet_estimate_normals.h>
-#include <CGAL/pca_estimate_normals.h>
 #include <CGAL/property_map.h>
-#include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
-#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <numeric>
-#include <unordered_map>
 
+#include "../common/cgal_normals.hpp"
 #include "furnihost/log.hpp"
 #include "furnihost/plugin.hpp"
 
 namespace {
 
 using furnihost::ParamSchema;
+namespace cgal_common = furnihost::cgal_common;
 using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
 using Point3 = Kernel::Point_3;
 using Vector3 = Kernel::Vector_3;
@@ -65,55 +63,6 @@ struct CgalRegionGrowingOptions {
     if (angle_deg < 0 || angle_deg > 90)
       throw furnihost::StageError("angle_deg must be in [0, 90] (CGAL compares |cos|)");
   }
-};
-
-// Radius neighbourhoods on a hashed voxel grid (cell = radius): curvature needs the same
-// radius as the normals and a grid is much cheaper to build than another kd-tree.
-class VoxelGrid {
- public:
-  VoxelGrid(const std::vector<Eigen::Vector3f>& pts, float cell) : pts_(pts), inv_(1.f / cell) {
-    order_.resize(pts.size());
-    std::iota(order_.begin(), order_.end(), 0);
-    std::vector<uint64_t> keys(pts.size());
-    for (size_t i = 0; i < pts.size(); ++i) keys[i] = Key(Cell(pts[i]));
-    std::sort(order_.begin(), order_.end(), [&](int a, int b) {
-      return keys[a] != keys[b] ? keys[a] < keys[b] : a < b;
-    });
-    cells_.reserve(pts.size() / 4 + 1);
-    for (size_t b = 0; b < order_.size();) {
-      size_t e = b;
-      while (e < order_.size() && keys[order_[e]] == keys[order_[b]]) ++e;
-      cells_.emplace(keys[order_[b]], std::make_pair(uint32_t(b), uint32_t(e)));
-      b = e;
-    }
-  }
-  // Calls f(j) for every point j within `r` (<= cell) of q.
-  template <class F>
-  void Radius(const Eigen::Vector3f& q, float r, F&& f) const {
-    const Eigen::Vector3i c = Cell(q);
-    const float r2 = r * r;
-    for (int dx = -1; dx <= 1; ++dx)
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dz = -1; dz <= 1; ++dz) {
-          auto it = cells_.find(Key(c + Eigen::Vector3i(dx, dy, dz)));
-          if (it == cells_.end()) continue;
-          for (uint32_t k = it->second.first; k < it->second.second; ++k)
-            if ((pts_[order_[k]] - q).squaredNorm() <= r2) f(order_[k]);
-        }
-  }
-
- private:
-  Eigen::Vector3i Cell(const Eigen::Vector3f& p) const {
-    return (p * inv_).array().floor().cast<int>();
-  }
-  static uint64_t Key(const Eigen::Vector3i& c) {
-    auto u = [](int v) { return uint64_t(uint32_t(v + (1 << 20)) & 0x1fffff); };
-    return u(c.x()) | (u(c.y()) << 21) | (u(c.z()) << 42);
-  }
-  const std::vector<Eigen::Vector3f>& pts_;
-  float inv_;
-  std::vector<int> order_;
-  std::unordered_map<uint64_t, std::pair<uint32_t, uint32_t>> cells_;
 };
 
 template <class Query>
@@ -191,82 +140,35 @@ class CgalRegionGrowing : public furnihost::Segmenter {
     seg.curvature.assign(n, nan);
 
     // Finite points only, shifted to their bounding-box centre.
-    std::vector<int> ids;  // local -> scan index
-    ids.reserve(n);
-    Eigen::AlignedBox3d box;
-    for (size_t i = 0; i < n; ++i)
-      if (scan.points[i].allFinite()) {
-        ids.push_back(int(i));
-        box.extend(scan.points[i].cast<double>());
-      }
+    const cgal_common::LocalFrame frame = cgal_common::MakeLocalFrame(scan);
+    const std::vector<int>& ids = frame.ids;  // local -> scan index
     // Jet fitting needs 6 points; fewer cannot make a part of a plane anyway.
     if (ids.size() < 6) {
       seg.discarded_points = int(n);
       return seg;
     }
-    const Eigen::Vector3d shift = box.center();
     const size_t m = ids.size();
-    std::vector<Eigen::Vector3f> local(m);
     PwnVector pwn(m);
-    for (size_t k = 0; k < m; ++k) {
-      const Eigen::Vector3d q = scan.points[ids[k]].cast<double>() - shift;
-      local[k] = q.cast<float>();
-      pwn[k].first = Point3(q.x(), q.y(), q.z());
-    }
+    for (size_t k = 0; k < m; ++k) pwn[k].first = Point3(frame.points[k].x(), frame.points[k].y(), frame.points[k].z());
 
     tbb::task_arena arena(ctx.threads > 0 ? ctx.threads : tbb::task_arena::automatic);
     std::vector<float> curvature(m, nan);
     std::vector<char> enough(m, 0);
     arena.execute([&] {
-      const auto np = CGAL::parameters::point_map(PointMap()).normal_map(NormalMap())
-                          .neighbor_radius(o_.normal_radius_m);
-      const unsigned cap = unsigned(o_.normal_max_neighbours);
-      if (o_.normals == "jet")
-        CGAL::jet_estimate_normals<CGAL::Parallel_if_available_tag>(pwn, cap, np.degree_fitting(2));
-      else
-        CGAL::pca_estimate_normals<CGAL::Parallel_if_available_tag>(pwn, cap, np);
-
-      const VoxelGrid grid(local, float(o_.normal_radius_m));
-      tbb::parallel_for(tbb::blocked_range<size_t>(0, m, 256), [&](const tbb::blocked_range<size_t>& r) {
-        for (size_t k = r.begin(); k != r.end(); ++k) {
-          // Centred two-pass covariance (the neighbourhood is small, the scan may not be).
-          Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-          int cnt = 0;
-          grid.Radius(local[k], float(o_.normal_radius_m), [&](int j) {
-            mean += local[j].cast<double>();
-            ++cnt;
-          });
-          if (cnt < 3) continue;
-          mean /= cnt;
-          Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-          grid.Radius(local[k], float(o_.normal_radius_m), [&](int j) {
-            const Eigen::Vector3d d = local[j].cast<double>() - mean;
-            cov.noalias() += d * d.transpose();
-          });
-          const Eigen::Vector3d ev = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov, Eigen::EigenvaluesOnly).eigenvalues();
-          const double tr = ev.sum();
-          curvature[k] = tr > 0 ? float(std::max(0.0, ev[0]) / tr) : 0.f;
-          enough[k] = 1;
-        }
-      });
+      cgal_common::EstimateNormals<PwnVector, PointMap, NormalMap>(pwn, o_.normals, o_.normal_radius_m,
+                                                                   unsigned(o_.normal_max_neighbours));
+      cgal_common::SurfaceVariation(frame.local, float(o_.normal_radius_m), curvature, enough);
     });
 
-    // Towards the sensor when known, else towards the scan frame's origin (as PCL does).
-    const Eigen::Vector3d eye =
-        (scan.origin ? Eigen::Vector3d(scan.origin->cast<double>()) : Eigen::Vector3d(Eigen::Vector3d::Zero())) -
-        shift;
     for (size_t k = 0; k < m; ++k) {
-      Eigen::Vector3d v(pwn[k].second.x(), pwn[k].second.y(), pwn[k].second.z());
-      const double len = v.norm();
-      if (!(len > 0) || !v.allFinite()) {
+      Eigen::Vector3d v;
+      const Vector3& raw = pwn[k].second;
+      if (!cgal_common::OrientedUnitNormal(raw.x(), raw.y(), raw.z(), frame.points[k], frame.eye, v)) {
         // A degenerate neighbourhood: give CGAL a valid unit vector, report NaN.
         pwn[k].second = Vector3(0, 0, 1);
         enough[k] = 0;
         continue;
       }
-      v /= len;
-      const Eigen::Vector3d p(pwn[k].first.x(), pwn[k].first.y(), pwn[k].first.z());
-      if (v.dot(eye - p) < 0) v = -v;
       pwn[k].second = Vector3(v.x(), v.y(), v.z());
       if (enough[k]) {
         seg.normals[ids[k]] = v.cast<float>();

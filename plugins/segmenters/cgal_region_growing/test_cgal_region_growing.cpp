@@ -4,51 +4,22 @@
 #include <cmath>
 #include <cstdio>
 #include <numeric>
-#include <random>
 
-#include "furnihost/stage.hpp"
-#include "test_support.hpp"
+#include "../common/cgal_test_scene.hpp"
 
 namespace furnihost::testing {
 namespace {
 
 const char* kType = "segmenters.cgal_region_growing";
 
-std::shared_ptr<Segmenter> Make(const Registry& reg, nlohmann::json params = nlohmann::json::object()) {
-  const PluginEntry* e = reg.Find(kType);
-  if (!e) throw std::runtime_error(std::string(kType) + " not found in " + PluginDir());
-  return reg.CreateAs<Segmenter>(kType, e->params.Resolve(params, "test"));
+std::shared_ptr<Segmenter> Make(const Registry& reg, const nlohmann::json& params = nlohmann::json::object()) {
+  return MakeSegmenter(reg, kType, params);
 }
 
-// Floor (label 0, 1.2 x 1.2 m at z = 0) + wall (label 1, x = 0.8, 1.2 m wide, z 0.1..1.0)
-// + vertical cylinder (label 2, r = 0.15 m, axis at (-0.3, 0), z 0.2..0.8): 1 cm spacing,
-// 1 mm noise.
-struct Scene {
-  Scan scan;
-  std::vector<int> label;
-};
+// Labels: 0 floor, 1 wall, 2 vertical cylinder (MakeFloorWallCylinder).
+using Scene = LabelledScene;
 
-Scene MakeScene(const Eigen::Vector3f& offset = Eigen::Vector3f::Zero()) {
-  Scene s;
-  std::mt19937_64 rng(11);
-  std::normal_distribution<float> g(0.f, 0.001f);
-  auto add = [&](Eigen::Vector3f p, int l) {
-    s.scan.points.push_back(p + Eigen::Vector3f(g(rng), g(rng), g(rng)) + offset);
-    s.label.push_back(l);
-  };
-  for (int i = 0; i <= 120; ++i)
-    for (int j = 0; j <= 120; ++j) add({-0.6f + 0.01f * i, -0.6f + 0.01f * j, 0.f}, 0);
-  for (int j = 0; j <= 120; ++j)
-    for (int k = 10; k <= 100; ++k) add({0.8f, -0.6f + 0.01f * j, 0.01f * k}, 1);
-  const int around = int(std::lround(2 * M_PI * 0.15 / 0.01));
-  for (int a = 0; a < around; ++a)
-    for (int k = 20; k <= 80; ++k) {
-      const float t = float(2 * M_PI * a / around);
-      add({-0.3f + 0.15f * std::cos(t), 0.15f * std::sin(t), 0.01f * k}, 2);
-    }
-  s.scan.origin = Eigen::Vector3f(0.f, -1.5f, 1.2f) + offset;
-  return s;
-}
+Scene MakeScene(const Eigen::Vector3f& offset = Eigen::Vector3f::Zero()) { return MakeFloorWallCylinder(11, offset); }
 
 double AngleDeg(const Eigen::Vector3f& a, const Eigen::Vector3f& b) {
   return std::acos(std::clamp(double(a.dot(b)), -1.0, 1.0)) * 180.0 / M_PI;
