@@ -13,37 +13,31 @@ Points VoxelDownsample(const Points& points, float voxel, std::vector<int>* kept
     }
     return points;
   }
-  struct Acc {
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    int n = 0;
-    int first = 0;
-    int slot = 0;
-  };
-  std::unordered_map<uint64_t, Acc> cells;
-  cells.reserve(points.size() / 4 + 16);
-  std::vector<uint64_t> order;
-  const float inv = 1.f / voxel;
+  // Voxel key -> slot in first-met order, the sums in plain arrays: ~1.5x faster than a map
+  // holding the accumulators (400k points).
+  std::unordered_map<uint64_t, int> slot;
+  slot.reserve(points.size() / 2 + 16);
+  std::vector<Eigen::Vector3d> sum;
+  std::vector<int> count, first;
   for (size_t i = 0; i < points.size(); ++i) {
     const auto& p = points[i];
     // 21 bits per axis: +-1e6 voxels around the origin; wraps beyond (still deterministic).
-    auto q = [&](float v) { return static_cast<uint64_t>(static_cast<int64_t>(std::floor(v * inv)) & 0x1FFFFF); };
+    // v / voxel, not v * (1 / voxel): the correctly rounded quotient puts a point that lies on
+    // a voxel boundary (k * voxel) in voxel k, as floor(v / voxel) computed anywhere else does.
+    auto q = [&](float v) { return static_cast<uint64_t>(static_cast<int64_t>(std::floor(v / voxel)) & 0x1FFFFF); };
     const uint64_t key = q(p.x()) | (q(p.y()) << 21) | (q(p.z()) << 42);
-    auto [it, fresh] = cells.try_emplace(key);
+    auto [it, fresh] = slot.try_emplace(key, static_cast<int>(sum.size()));
     if (fresh) {
-      it->second.first = static_cast<int>(i);
-      it->second.slot = static_cast<int>(order.size());
-      order.push_back(key);
+      sum.emplace_back(Eigen::Vector3d::Zero());
+      count.push_back(0);
+      first.push_back(static_cast<int>(i));
     }
-    it->second.sum += p.cast<double>();
-    it->second.n++;
+    sum[it->second] += p.cast<double>();
+    ++count[it->second];
   }
-  Points out(order.size());
-  if (kept) kept->resize(order.size());
-  for (size_t s = 0; s < order.size(); ++s) {
-    const Acc& a = cells[order[s]];
-    out[s] = (a.sum / a.n).cast<float>();
-    if (kept) (*kept)[s] = a.first;
-  }
+  Points out(sum.size());
+  for (size_t s = 0; s < sum.size(); ++s) out[s] = (sum[s] / count[s]).cast<float>();
+  if (kept) *kept = std::move(first);
   return out;
 }
 

@@ -4,9 +4,13 @@
 
 namespace furnihost {
 
-// Voxel-grid downsampling: one point (the centroid) per occupied cubic voxel of edge `voxel`
-// metres. Order follows the first point of each voxel, so results are deterministic.
+// Voxel-grid downsampling: one point (the centroid, summed in double) per occupied cubic voxel
+// of edge `voxel` metres. The grid is anchored at the frame's origin (voxel (i, j, k) covers
+// [i, i+1) * voxel, ...), never at the cloud's own minimum, so two clouds in one frame (a
+// training view of sensors.simulated_laser and a scan of sensors.scan_file) share voxels.
+// Order follows the first point of each voxel, so results depend only on the input order.
 // Also returns, if `kept` is given, for each output point the index of the first input point.
+// voxel <= 0: the points unchanged.
 FURNIHOST_API Points VoxelDownsample(const Points& points, float voxel, std::vector<int>* kept = nullptr);
 
 // Isometry for an upright pose: translation (x, y, z), rotation yaw [rad] about +z.

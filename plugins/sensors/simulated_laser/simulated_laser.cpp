@@ -17,8 +17,8 @@
 #include <memory>
 #include <sstream>
 
+#include "furnihost/geometry.hpp"
 #include "furnihost/plugin.hpp"
-#include "voxel_grid.hpp"
 
 namespace furnihost::sensors {
 namespace {
@@ -474,11 +474,14 @@ class SimulatedLaser : public Sensor {
         labels.push_back(inst[i]);
       }
     if (opt_.voxel_m > 0.0) {
-      auto ds = voxel::Downsample(compact, static_cast<float>(opt_.voxel_m));
+      // The host's own downsampling (sensors.scan_file uses it too): a training view and a
+      // scene scan with the same voxel_m see the same world-anchored voxels. Each voxel's
+      // label is that of its first point.
+      std::vector<int> first;
+      compact = VoxelDownsample(compact, static_cast<float>(opt_.voxel_m), &first);
       std::vector<int32_t> l2;
-      l2.reserve(ds.representative.size());
-      for (size_t r : ds.representative) l2.push_back(labels[r]);
-      compact = std::move(ds.points);
+      l2.reserve(first.size());
+      for (int r : first) l2.push_back(labels[r]);
       labels = std::move(l2);
     }
     s.points = std::move(compact);
