@@ -1,8 +1,11 @@
 // `furnihost --graph G SCAN...` (detection) and `furnihost train --graph G`.
+#include <algorithm>
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
+#include <map>
 #include <random>
+#include <regex>
 
 #include "cli_common.hpp"
 #include "commands.hpp"
@@ -51,6 +54,80 @@ void WriteFitted(const std::string& path, const std::vector<Detection>& dets, co
     }
   }
   WritePly(path, pts, &cols);
+}
+
+// What a rejection is grouped by: the reason without the measured value, so "coverage 0.12 <
+// 0.30" and "coverage 0.25 < 0.30" are one reason, "coverage < 0.30".
+std::string RejectionReason(const std::string& why) {
+  if (why.empty()) return "no reason given";
+  static const std::regex measured(R"(-?\d+(\.\d+)?\s*(?=[<>]))");
+  return std::regex_replace(why, measured, "", std::regex_constants::format_first_only);
+}
+
+// One line per detection: class, model, x, y [m], yaw [deg], score, coverage.
+void PrintTable(std::ostream& os, const std::vector<const Detection*>& dets) {
+  size_t wc = 5, wm = 5;
+  for (const Detection* d : dets) {
+    wc = std::max(wc, d->cls.size());
+    wm = std::max(wm, d->model.size());
+  }
+  os << "    " << std::left << std::setw(int(wc)) << "class" << "  " << std::setw(int(wm)) << "model" << std::right
+     << "   x [m]   y [m]  yaw [deg]   score  coverage\n";
+  for (const Detection* d : dets) {
+    os << "    " << std::left << std::setw(int(wc)) << d->cls << "  " << std::setw(int(wm))
+       << (d->model.empty() ? "-" : d->model) << std::right << std::fixed << std::setprecision(2) << std::setw(8)
+       << d->center.x() << std::setw(8) << d->center.y() << std::setprecision(0) << std::setw(11)
+       << d->yaw * 180 / M_PI << std::setprecision(3) << std::setw(8) << d->score;
+    if (d->coverage >= 0) os << std::setprecision(2) << std::setw(10) << d->coverage;
+    else os << std::setw(10) << "-";
+    os << "\n";
+  }
+}
+
+// Verified detections first, one line each; the rejected hypotheses as one summary line per
+// class and reason (the full list is in detections.json); hypotheses no fitter looked at
+// (graphs without a fitter) one line each, they are the result then.
+void PrintDetections(std::ostream& os, const std::vector<Detection>& dets) {
+  std::vector<const Detection*> verified, unverified;
+  std::map<std::string, std::map<std::string, int>> rejected;  // class -> reason -> count
+  size_t n_rejected = 0;
+  for (const auto& d : dets) {
+    if (!d.verified) unverified.push_back(&d);
+    else if (*d.verified) verified.push_back(&d);
+    else {
+      ++rejected[d.cls][RejectionReason(d.rejection)];
+      ++n_rejected;
+    }
+  }
+  const size_t fitted = verified.size() + n_rejected;
+  if (fitted > 0) {
+    os << "  verified " << verified.size() << " of " << fitted << " hypotheses" << (verified.empty() ? "\n" : ":\n");
+    if (!verified.empty()) PrintTable(os, verified);
+  }
+  if (n_rejected > 0) {
+    os << "  rejected " << n_rejected << ":";
+    const char* sep = " ";
+    for (const auto& [cls, reasons] : rejected) {
+      int total = 0;
+      std::vector<std::pair<int, std::string>> by_count;
+      for (const auto& [why, count] : reasons) {
+        total += count;
+        by_count.emplace_back(-count, why);
+      }
+      std::sort(by_count.begin(), by_count.end());  // most frequent first, then by name
+      os << sep << cls << " " << total << " (";
+      for (size_t i = 0; i < by_count.size(); ++i)
+        os << (i ? ", " : "") << -by_count[i].first << " " << by_count[i].second;
+      os << ")";
+      sep = "; ";
+    }
+    os << " -- all in detections.json\n";
+  }
+  if (!unverified.empty()) {
+    os << "  " << unverified.size() << (unverified.size() == 1 ? " hypothesis" : " hypotheses")
+       << (fitted > 0 ? " not verified:\n" : " (no fitter ran):\n");
+    PrintTable(os, unverified);
+  }
 }
 
 }  // namespace
@@ -185,14 +262,8 @@ int RunDetect(const std::vector<std::string>& args) {
     std::cout << stem << ": " << j["points"] << " points, " << j["parts"] << " parts";
     if (!r.voted) std::cout << "; no voter ran, so no detections";
     std::cout << " -> " << dir << "/detections.json\n";
-    for (const auto& d : r.detections) {
-      std::cout << "  " << std::left << std::setw(9) << d.cls << std::right << std::fixed << std::setprecision(2)
-                << " at (" << d.center.x() << ", " << d.center.y() << ")  score " << std::setprecision(3) << d.score;
-      if (!d.model.empty())
-        std::cout << "  model " << d.model << " yaw " << std::setprecision(0) << d.yaw * 180 / M_PI << " deg";
-      if (d.verified) std::cout << (*d.verified ? "  verified" : "  rejected: " + d.rejection);
-      std::cout << "\n";
-    }
+    if (r.voted && r.detections.empty()) std::cout << "  no hypotheses\n";
+    PrintDetections(std::cout, r.detections);
   }
   return 0;
 }
