@@ -24,6 +24,7 @@ GROUPS_SPEC=(
   "views|Training views per model (paper: 16)|paper paper_views4 paper_views8 paper_views32"
   "segmenters|Segmenter: paper region growing vs CGAL vs PCL|paper paper_cgal paper_pcl"
   "icp|ICP refinement after RANSAC fitting|paper paper_icp"
+  "height|Voter height gate (not in the paper)|paper paper_height"
   "normals|Normal radius: 8 cm (paper.json) vs the paper's 3 cm|paper paper_r3cm"
 )
 # The PCL ISM voter joins the voter comparison when its config exists.
