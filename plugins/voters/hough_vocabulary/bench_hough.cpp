@@ -111,8 +111,8 @@ Registry& Reg() {
   return reg;
 }
 
-std::shared_ptr<Voter> MakeVoter(const std::string& type) {
-  return Reg().CreateAs<Voter>(type, Reg().Find(type)->params.Resolve(nlohmann::json::object(), "bench"));
+std::shared_ptr<Voter> MakeVoter(const std::string& type, const nlohmann::json& params = nlohmann::json::object()) {
+  return Reg().CreateAs<Voter>(type, Reg().Find(type)->params.Resolve(params, "bench"));
 }
 
 const std::vector<TrainingView>& Training() {
@@ -127,8 +127,9 @@ void BM_Train(benchmark::State& state, const char* type) {
   state.counters["parts"] = static_cast<double>(Training().size() * kPartTypes);
 }
 
-void BM_Vote(benchmark::State& state, const char* type) {
-  auto voter = MakeVoter(type);
+// `gated`: with scannet.json's height gate (and its floor estimate over the scan's points).
+void BM_Vote(benchmark::State& state, const char* type, bool gated) {
+  auto voter = MakeVoter(type, gated ? nlohmann::json{{"height_tolerance_m", 0.15}} : nlohmann::json::object());
   RunContext ctx;
   voter->Train(Training(), ctx);
   const Room room = MakeRoom(static_cast<int>(state.range(0)));
@@ -148,9 +149,11 @@ void BM_Vote(benchmark::State& state, const char* type) {
 
 BENCHMARK_CAPTURE(BM_Train, hough_k40, "voters.hough_vocabulary")->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Train, nearest_neighbor, "voters.nearest_neighbor")->Unit(benchmark::kMillisecond);
-BENCHMARK_CAPTURE(BM_Vote, hough, "voters.hough_vocabulary")
+BENCHMARK_CAPTURE(BM_Vote, hough, "voters.hough_vocabulary", false)
     ->Arg(300)->Arg(1000)->Arg(1500)->Unit(benchmark::kMillisecond);
-BENCHMARK_CAPTURE(BM_Vote, nearest_neighbor, "voters.nearest_neighbor")
+BENCHMARK_CAPTURE(BM_Vote, hough_height_gate, "voters.hough_vocabulary", true)
+    ->Arg(300)->Arg(1000)->Arg(1500)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Vote, nearest_neighbor, "voters.nearest_neighbor", false)
     ->Arg(300)->Arg(1000)->Arg(1500)->Unit(benchmark::kMillisecond);
 
 }  // namespace
