@@ -121,6 +121,7 @@ const std::vector<TrainingView>& Training() {
 }
 
 void BM_Train(benchmark::State& state, const char* type) {
+  if (!Reg().Find(type)) return state.SkipWithError((std::string(type) + " not built").c_str());
   auto voter = MakeVoter(type);
   RunContext ctx;
   for (auto _ : state) benchmark::DoNotOptimize(voter->Train(Training(), ctx));
@@ -129,6 +130,7 @@ void BM_Train(benchmark::State& state, const char* type) {
 
 // `gated`: with scannet.json's height gate (and its floor estimate over the scan's points).
 void BM_Vote(benchmark::State& state, const char* type, bool gated) {
+  if (!Reg().Find(type)) return state.SkipWithError((std::string(type) + " not built").c_str());
   auto voter = MakeVoter(type, gated ? nlohmann::json{{"height_tolerance_m", 0.15}} : nlohmann::json::object());
   RunContext ctx;
   voter->Train(Training(), ctx);
