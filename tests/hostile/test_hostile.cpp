@@ -95,15 +95,7 @@ RunResult Furnihost(const std::string& args, const std::string& dir) {
   return r;
 }
 
-// Lines that are not log lines (spdlog's start with '[').
-std::vector<std::string> ErrorLines(const std::string& err) {
-  std::vector<std::string> lines;
-  std::istringstream in(err);
-  std::string l;
-  while (std::getline(in, l))
-    if (!l.empty() && l[0] != '[') lines.push_back(l);
-  return lines;
-}
+using furnihost::testing::ErrorLines;
 
 void WriteFile(const std::string& path, const std::string& bytes) {
   std::ofstream out(path, std::ios::binary);

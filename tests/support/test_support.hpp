@@ -5,7 +5,9 @@
 #include <cstdlib>
 #include <filesystem>
 #include <memory>
+#include <sstream>
 #include <string>
+#include <vector>
 
 #include "furnihost/registry.hpp"
 
@@ -42,6 +44,17 @@ inline std::string TempDir(const std::string& name) {
 // A registry over the build tree's plugins only.
 inline std::unique_ptr<Registry> MakeRegistry() {
   return std::make_unique<Registry>(std::vector<std::string>{PluginDir()});
+}
+
+// The lines of a command's stderr that are not log lines (spdlog's start with '['): the
+// one-line errors the CLI promises.
+inline std::vector<std::string> ErrorLines(const std::string& err) {
+  std::vector<std::string> lines;
+  std::istringstream in(err);
+  std::string l;
+  while (std::getline(in, l))
+    if (!l.empty() && l[0] != '[') lines.push_back(l);
+  return lines;
 }
 
 }  // namespace furnihost::testing

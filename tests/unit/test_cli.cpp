@@ -36,15 +36,7 @@ Run Furnihost(const std::string& args) {
   return r;
 }
 
-// Error lines only (log lines start with '[').
-std::vector<std::string> ErrorLines(const std::string& err) {
-  std::vector<std::string> lines;
-  std::istringstream in(err);
-  std::string l;
-  while (std::getline(in, l))
-    if (!l.empty() && l[0] != '[') lines.push_back(l);
-  return lines;
-}
+using furnihost::testing::ErrorLines;
 
 const char* kGraph = R"({"stages": {"input": {"type": "sensors.scan_file"},
   "feat_unused": {"type": "features.centroid", "inputs": ["seg"]},

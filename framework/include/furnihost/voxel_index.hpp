@@ -173,6 +173,20 @@ class VoxelIndex {
     return slot_of;
   }
 
+  // Replaces x/y/z with the coordinates of every point in the cells around cell `c` (c
+  // included), slot order: a contiguous copy for branch-free distance loops over one cell's
+  // points.
+  void GatherNeighbourhood(int c, std::vector<float>& gx, std::vector<float>& gy, std::vector<float>& gz) const {
+    gx.clear(), gy.clear(), gz.clear();
+    for (int k = nb_start[c]; k < nb_start[c + 1]; ++k) {
+      const int nc = nb[k];
+      const int b = cell_start[nc], e = cell_start[nc + 1];
+      gx.insert(gx.end(), x.begin() + b, x.begin() + e);
+      gy.insert(gy.end(), y.begin() + b, y.begin() + e);
+      gz.insert(gz.end(), z.begin() + b, z.begin() + e);
+    }
+  }
+
   // Calls f(slot, dx, dy, dz, d2) for every point with d2 = |p - q|^2 < radius^2, radius <=
   // cell, q = (px, py, pz) in cell `c` (e.g. one of its points). Includes the query itself.
   template <class F>

@@ -112,14 +112,7 @@ float BoundaryRatio(const Points& q, const Points& normals, const Eigen::Vector3
     std::vector<float> cx, cy, cz, pa, pb, keys;
     int count = 0;
     for (int c = range.begin(); c != range.end(); ++c) {
-      cx.clear(), cy.clear(), cz.clear();
-      for (int k = grid.nb_start[c]; k < grid.nb_start[c + 1]; ++k) {
-        const int nc = grid.nb[k];
-        const int b = grid.cell_start[nc], e = grid.cell_start[nc + 1];
-        cx.insert(cx.end(), grid.x.begin() + b, grid.x.begin() + e);
-        cy.insert(cy.end(), grid.y.begin() + b, grid.y.begin() + e);
-        cz.insert(cz.end(), grid.z.begin() + b, grid.z.begin() + e);
-      }
+      grid.GatherNeighbourhood(c, cx, cy, cz);
       const int m = int(cx.size());
       for (int s = grid.cell_start[c]; s < grid.cell_start[c + 1]; ++s) {
         const Eigen::Vector3f& n = slot_normal[s];

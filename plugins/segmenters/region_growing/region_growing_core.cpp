@@ -187,14 +187,7 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
     Neighbours nb;
     std::vector<float> cx, cy, cz;
     for (int c = range.begin(); c != range.end(); ++c) {
-      cx.clear(), cy.clear(), cz.clear();
-      for (int k = grid.nb_start[c]; k < grid.nb_start[c + 1]; ++k) {
-        const int nc = grid.nb[k];
-        const int b = grid.cell_start[nc], e = grid.cell_start[nc + 1];
-        cx.insert(cx.end(), grid.x.begin() + b, grid.x.begin() + e);
-        cy.insert(cy.end(), grid.y.begin() + b, grid.y.begin() + e);
-        cz.insert(cz.end(), grid.z.begin() + b, grid.z.begin() + e);
-      }
+      grid.GatherNeighbourhood(c, cx, cy, cz);
       const int m = int(cx.size());
       for (int s = grid.cell_start[c]; s < grid.cell_start[c + 1]; ++s) {
         const float px = grid.x[s], py = grid.y[s], pz = grid.z[s];
