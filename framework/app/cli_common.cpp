@@ -14,7 +14,7 @@ void CommonOptions::Add(CLI::App& app, bool with_run_options) {
   app.add_option("--plugin-path", plugin_paths,
                  "extra folder(s) searched for plugins first (then $FURNIHOST_PLUGIN_PATH, the build tree, the install prefix)")
       ->allow_extra_args(false);
-  app.add_flag("-v,--verbose", verbose, "more log output (-vv for debug)");
+  app.add_flag("-v,--verbose", verbose, "more log output (-vv for debug, -vvv for trace)");
   app.add_flag("-q,--quiet", quiet, "only warnings and errors");
   if (with_run_options) {
     app.add_option("--threads", threads, "worker threads (0 = all cores)")->check(CLI::Range(0, 1024));

@@ -18,7 +18,8 @@ void SetupLogging(int verbosity) {
   });
   spdlog::set_level(verbosity <= 0 ? spdlog::level::warn
                     : verbosity == 1 ? spdlog::level::info
-                                     : spdlog::level::debug);
+                    : verbosity == 2 ? spdlog::level::debug
+                                     : spdlog::level::trace);
 }
 
 struct Progress::Impl {

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <nanoflann.hpp>
 #include <numeric>
@@ -54,6 +55,19 @@ std::string Trim(const std::string& s) {
   return s.substr(b, e - b + 1);
 }
 
+// "a, b,c" -> {"a", "b", "c"} (empty items dropped).
+std::vector<std::string> SplitList(const std::string& list) {
+  std::vector<std::string> out;
+  size_t start = 0;
+  while (start <= list.size()) {
+    const size_t comma = std::min(list.find(',', start), list.size());
+    const std::string name = Trim(list.substr(start, comma - start));
+    if (!name.empty()) out.push_back(name);
+    start = comma + 1;
+  }
+  return out;
+}
+
 }  // namespace
 
 // ---- training data ----------------------------------------------------------------------
@@ -70,7 +84,7 @@ TrainingParts CollectTrainingParts(const std::vector<TrainingView>& views) {
   std::map<std::string, int> cls_index, model_index;
   for (const auto& c : class_names) {
     cls_index[c] = static_cast<int>(out.classes.size());
-    out.classes.push_back({c, 0.f, 0, 0});
+    out.classes.push_back({c, 0.f, 0, 0, 0.f});
   }
   for (const auto& m : model_names) {
     model_index[m] = static_cast<int>(out.models.size());
@@ -78,7 +92,7 @@ TrainingParts CollectTrainingParts(const std::vector<TrainingView>& views) {
   }
 
   // Model width: catalog extents when given, else the widest view's point extents.
-  std::vector<float> model_width(out.models.size(), 0.f);
+  std::vector<float> model_width(out.models.size(), 0.f), model_height(out.models.size(), 0.f);
   std::vector<int> model_class(out.models.size(), -1);
   int dim = -1;
   std::vector<float> rows;
@@ -91,12 +105,15 @@ TrainingParts CollectTrainingParts(const std::vector<TrainingView>& views) {
                        out.classes[model_class[m]].name + " and " + v.cls);
     model_class[m] = c;
     float w = std::max(v.object_size.x(), v.object_size.y());
-    if (!(w > 0.f) && !v.scan.points.empty()) {
+    float h = v.object_size.z();
+    if ((!(w > 0.f) || !(h > 0.f)) && !v.scan.points.empty()) {
       Eigen::AlignedBox3f box;
       for (const auto& p : v.scan.points) box.extend(p);
-      w = std::max(box.sizes().x(), box.sizes().y());
+      if (!(w > 0.f)) w = std::max(box.sizes().x(), box.sizes().y());
+      if (!(h > 0.f)) h = box.max().z();  // catalog models stand on z = 0
     }
     if (std::isfinite(w)) model_width[m] = std::max(model_width[m], w);
+    if (std::isfinite(h)) model_height[m] = std::max(model_height[m], h);
 
     // Viewing frame: x = horizontal direction from the sensor to the object. A simulator that
     // circles a fixed model returns every view in the model frame, where d would be the same
@@ -152,6 +169,8 @@ TrainingParts CollectTrainingParts(const std::vector<TrainingView>& views) {
     out.classes[c].models = static_cast<int>(
         std::count(model_class.begin(), model_class.end(), static_cast<int>(c)));
     out.classes[c].width = Median(widths);
+    for (size_t m = 0; m < out.models.size(); ++m)
+      if (model_class[m] == static_cast<int>(c)) out.classes[c].height = std::max(out.classes[c].height, model_height[m]);
     if (!(out.classes[c].width > 0.f))
       throw StageError("class '" + out.classes[c].name +
                        "': no model has a known size (TrainingView::object_size is zero and the "
@@ -345,7 +364,8 @@ nlohmann::json Codebook::ToJson(const std::string& format) const {
   j["words"] = FlatArray(std::vector<float>(words.data(), words.data() + words.size()));
   nlohmann::json cls = nlohmann::json::array();
   for (const auto& c : classes)
-    cls.push_back({{"name", c.name}, {"width", c.width}, {"models", c.models}, {"parts", c.parts}});
+    cls.push_back({{"name", c.name}, {"width", c.width}, {"models", c.models}, {"parts", c.parts},
+                   {"height", c.height}});
   j["classes"] = cls;
   j["models"] = models;
   j["element_begin"] = element_begin;
@@ -375,7 +395,7 @@ Codebook Codebook::FromJson(const nlohmann::json& j, const std::string& format) 
     b.words = Eigen::Map<const RowMatrixXf>(w.data(), static_cast<Eigen::Index>(w.size() / dim), dim);
     for (const auto& c : j.at("classes"))
       b.classes.push_back({c.at("name").get<std::string>(), c.at("width").get<float>(),
-                           c.at("models").get<int>(), c.at("parts").get<int>()});
+                           c.at("models").get<int>(), c.at("parts").get<int>(), c.at("height").get<float>()});
     b.models = j.at("models").get<std::vector<std::string>>();
     b.element_begin = j.at("element_begin").get<std::vector<int>>();
     const auto flat = j.at("d").get<std::vector<float>>();
@@ -439,6 +459,21 @@ void SelectionOptions::Declare(ParamSchema& s) {
       .String("classes", "", "comma-separated classes to detect (empty = every trained class)").DetectionOnly()
       .Int("max_grid_cells", 4000000, 1000, 1e9,
            "cap on grid cells per class; the cell grows beyond it (far outliers)")
+      .DetectionOnly()
+      .Number("column_radius_m", 0.0, 0.0, 10.0,
+              "column check (not in the paper): radius of the vertical column of scan points tested around "
+              "each hypothesis [m] (0 = off, paper)").DetectionOnly()
+      .Number("column_margin_m", 0.1, 0.0, 10.0,
+              "column check: points up to the class height (tallest training model) + this count as the "
+              "object, higher ones as 'above' [m]").DetectionOnly()
+      .Int("column_min_points", 10, 0, 1000000,
+           "column check: a hypothesis needs at least this many column points between 5 cm above the "
+           "floor and the class height + margin").DetectionOnly()
+      .Number("column_max_above", 0.1, 0.0, 1.0,
+              "column check: largest share of the column's points above the class height + margin (for "
+              "column_clear_classes; 1 = no limit)").DetectionOnly()
+      .String("column_clear_classes", "",
+              "comma-separated classes with nothing standing on them for column_max_above (empty = all)")
       .DetectionOnly();
 }
 
@@ -464,14 +499,12 @@ SelectionOptions SelectionOptions::FromParams(const nlohmann::json& p) {
                        it.value().dump());
     o.thresholds[it.key()] = it.value().get<float>();
   }
-  const std::string list = p.at("classes").get<std::string>();
-  size_t start = 0;
-  while (start <= list.size()) {
-    const size_t comma = std::min(list.find(',', start), list.size());
-    const std::string name = Trim(list.substr(start, comma - start));
-    if (!name.empty()) o.classes.push_back(name);
-    start = comma + 1;
-  }
+  o.classes = SplitList(p.at("classes").get<std::string>());
+  o.column_radius = p.at("column_radius_m").get<float>();
+  o.column_margin = p.at("column_margin_m").get<float>();
+  o.column_min_points = p.at("column_min_points").get<int>();
+  o.column_max_above = p.at("column_max_above").get<float>();
+  o.column_clear_classes = SplitList(p.at("column_clear_classes").get<std::string>());
   o.Check();
   return o;
 }
@@ -487,6 +520,10 @@ void SelectionOptions::Check() const {
   if (!(footprint_scale >= 0.f)) throw InputError("footprint_scale: expected >= 0");
   if (!(default_threshold >= 0.f)) throw InputError("default_threshold: expected >= 0");
   if (max_grid_cells < 1000) throw InputError("max_grid_cells: expected >= 1000");
+  if (!(column_radius >= 0.f)) throw InputError("column_radius_m: expected >= 0");
+  if (!(column_margin >= 0.f)) throw InputError("column_margin_m: expected >= 0");
+  if (column_min_points < 0) throw InputError("column_min_points: expected >= 0");
+  if (!(column_max_above >= 0.f && column_max_above <= 1.f)) throw InputError("column_max_above: expected 0..1");
 }
 
 float SelectionOptions::ThresholdFor(const std::string& cls) const {
@@ -659,9 +696,89 @@ struct Activation {
 
 // Maxima search, scoring, thresholding and the footprint check for the votes [vb, ve) of
 // one class; fills grid.values (grid geometry set by the caller).
+// Scan points (world frame) bucketed on the floor plane for the column check; heights are
+// taken above the floor.
+class ColumnIndex {
+ public:
+  ColumnIndex(const std::vector<SceneParts>& scenes, float floor_z, float cell) : cell_(cell) {
+    for (const auto& sc : scenes) {
+      if (!sc.scan) continue;
+      for (const auto& p : sc.scan->points) {
+        const Eigen::Vector3f w = sc.scan->pose * p;
+        if (!w.allFinite()) continue;
+        pts_.emplace_back(w.x(), w.y(), w.z() - floor_z);
+      }
+    }
+    if (pts_.empty()) return;
+    lo_ = Eigen::Vector2f(std::numeric_limits<float>::max(), std::numeric_limits<float>::max());
+    Eigen::Vector2f hi = -lo_;
+    for (const auto& p : pts_) {
+      lo_ = lo_.cwiseMin(p.head<2>());
+      hi = hi.cwiseMax(p.head<2>());
+    }
+    // Cap the grid at ~4M cells: far outliers make the cells coarser, not the memory larger.
+    const double span = std::max(hi.x() - lo_.x(), hi.y() - lo_.y());
+    cell_ = std::max(cell_, static_cast<float>(span / 2000.0));
+    W_ = static_cast<int>((hi.x() - lo_.x()) / cell_) + 1;
+    H_ = static_cast<int>((hi.y() - lo_.y()) / cell_) + 1;
+    start_.assign(static_cast<size_t>(W_) * H_ + 1, 0);
+    std::vector<int> key(pts_.size());
+    for (size_t i = 0; i < pts_.size(); ++i) {
+      key[i] = Key(pts_[i].x(), pts_[i].y());
+      ++start_[key[i] + 1];
+    }
+    std::partial_sum(start_.begin(), start_.end(), start_.begin());
+    order_.resize(pts_.size());
+    std::vector<int> next(start_.begin(), start_.end() - 1);
+    for (size_t i = 0; i < pts_.size(); ++i) order_[next[key[i]]++] = static_cast<int>(i);
+  }
+
+  // Points within `radius` of (x, y): counts of heights in (0.05, top] and above top.
+  void Count(float x, float y, float radius, float top, int& object, int& above) const {
+    object = above = 0;
+    ForEach(x, y, radius, [&](float h) {
+      if (h > top) ++above;
+      else if (h > 0.05f) ++object;
+    });
+  }
+
+  // Calls fn(height above the floor) for every point within `radius` of (x, y).
+  template <typename Fn>
+  void ForEach(float x, float y, float radius, Fn&& fn) const {
+    if (pts_.empty()) return;
+    const int x0 = std::max(0, static_cast<int>(std::floor((x - radius - lo_.x()) / cell_)));
+    const int x1 = std::min(W_ - 1, static_cast<int>(std::floor((x + radius - lo_.x()) / cell_)));
+    const int y0 = std::max(0, static_cast<int>(std::floor((y - radius - lo_.y()) / cell_)));
+    const int y1 = std::min(H_ - 1, static_cast<int>(std::floor((y + radius - lo_.y()) / cell_)));
+    const float r2 = radius * radius;
+    for (int cy = y0; cy <= y1; ++cy)
+      for (int cx = x0; cx <= x1; ++cx) {
+        const size_t c = static_cast<size_t>(cy) * W_ + cx;
+        for (int k = start_[c]; k < start_[c + 1]; ++k) {
+          const Eigen::Vector3f& p = pts_[order_[k]];
+          const float dx = p.x() - x, dy = p.y() - y;
+          if (dx * dx + dy * dy <= r2) fn(p.z());
+        }
+      }
+  }
+
+ private:
+  int Key(float x, float y) const {
+    const int cx = std::clamp(static_cast<int>((x - lo_.x()) / cell_), 0, W_ - 1);
+    const int cy = std::clamp(static_cast<int>((y - lo_.y()) / cell_), 0, H_ - 1);
+    return cy * W_ + cx;
+  }
+  float cell_;
+  std::vector<Eigen::Vector3f> pts_;
+  Eigen::Vector2f lo_ = Eigen::Vector2f::Zero();
+  int W_ = 0, H_ = 0;
+  std::vector<int> start_, order_;
+};
+
 std::vector<Hypothesis> SelectClass(const VoteSet& votes, size_t vb, size_t ve,
                                     const std::vector<PartRef>& parts, const ClassModel& cm,
-                                    const SelectionOptions& opt, VoteGrid& grid) {
+                                    const SelectionOptions& opt, VoteGrid& grid,
+                                    const std::function<bool(const Hypothesis&)>& keep) {
   const int W = grid.width, H = grid.height;
   const Eigen::Vector2f origin = grid.origin;
   const float cell = grid.cell;
@@ -755,6 +872,7 @@ std::vector<Hypothesis> SelectClass(const VoteSet& votes, size_t vb, size_t ve,
   const float fsize = opt.footprint_scale * cm.width;
   std::vector<Hypothesis> kept;
   for (auto& h : hyps) {
+    if (keep && !keep(h)) continue;  // before the footprint check: a dropped one suppresses nothing
     bool drop = false;
     for (const auto& k : kept)
       drop = drop || FootprintsOverlap(h.center, k.center, half, false) ||
@@ -811,6 +929,9 @@ VoteResult VoteAndSelect(const Codebook& book, const WordIndex& index,
     }
     active[it - res.classes.begin()] = 1;
   }
+  for (const auto& name : opt.column_clear_classes)
+    if (std::find(res.classes.begin(), res.classes.end(), name) == res.classes.end())
+      spdlog::warn("voter: column_clear_classes names '{}', a class the model does not have (ignored)", name);
 
   // ---- activation (eq. 4) ----
   std::vector<PartRef> parts;
@@ -876,8 +997,9 @@ VoteResult VoteAndSelect(const Codebook& book, const WordIndex& index,
   // Height consistency: an element votes only when its training part sat at about the scene
   // part's height above the floor (objects stand on the floor).
   const bool gate = opt.height_tolerance > 0.f && !book.element_height.empty();
-  const float floor_z = gate ? (opt.floor_auto ? EstimateFloor(scenes) : opt.floor_z) : 0.f;
-  if (gate) spdlog::debug("voter: floor at z = {:.3f} m ({})", floor_z, opt.floor_auto ? "estimated" : "fixed");
+  const bool column = opt.column_radius > 0.f;
+  const float floor_z = gate || column ? (opt.floor_auto ? EstimateFloor(scenes) : opt.floor_z) : 0.f;
+  if (gate || column) spdlog::debug("voter: floor at z = {:.3f} m ({})", floor_z, opt.floor_auto ? "estimated" : "fixed");
   auto height_ok = [&](const PartRef& pr, int e) {
     return !gate || std::abs(pr.world.z() - floor_z - book.element_height[e]) <= opt.height_tolerance;
   };
@@ -964,8 +1086,30 @@ VoteResult VoteAndSelect(const Codebook& book, const WordIndex& index,
     }
   }
 
+  std::unique_ptr<ColumnIndex> columns;
+  if (column) columns = std::make_unique<ColumnIndex>(scenes, floor_z, opt.column_radius);
+  size_t column_dropped = 0;
   for (int c = 0; c < C; ++c) {
     if (!active[c]) continue;
+    const ClassModel& cm = book.classes[c];
+    const bool clear = opt.column_clear_classes.empty() ||
+                       std::find(opt.column_clear_classes.begin(), opt.column_clear_classes.end(), cm.name) !=
+                           opt.column_clear_classes.end();
+    std::function<bool(const Hypothesis&)> keep;
+    if (columns)
+      keep = [&, clear](const Hypothesis& h) {
+        if (column) {
+          int object = 0, above = 0;
+          columns->Count(h.center.x(), h.center.y(), opt.column_radius, cm.height + opt.column_margin, object, above);
+          const bool ok = object >= opt.column_min_points &&
+                          (!clear || above <= opt.column_max_above * static_cast<float>(object + above));
+          if (!ok) {
+            ++column_dropped;
+            return false;
+          }
+        }
+        return true;
+      };
     VoteGrid grid;
     grid.cls = book.classes[c].name;
     grid.origin = origin;
@@ -981,11 +1125,12 @@ VoteResult VoteAndSelect(const Codebook& book, const WordIndex& index,
     if (vb == ve || W == 0) {
       grid.width = grid.height = 0;
     } else {
-      for (auto& h : SelectClass(votes, vb, ve, parts, book.classes[c], opt, grid))
+      for (auto& h : SelectClass(votes, vb, ve, parts, cm, opt, grid, keep))
         res.hypotheses.push_back(std::move(h));
     }
     res.grids.push_back(std::move(grid));
   }
+  if (columns) spdlog::debug("voter: column check dropped {} hypotheses", column_dropped);
   std::stable_sort(res.hypotheses.begin(), res.hypotheses.end(),
                    [](const Hypothesis& a, const Hypothesis& b) { return a.score > b.score; });
   return res;

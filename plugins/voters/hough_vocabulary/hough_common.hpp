@@ -54,6 +54,7 @@ struct ClassModel {
   float width = 0.f;  // median over the class's models of max(size.x, size.y) [m]
   int models = 0;     // training models of the class
   int parts = 0;      // training parts of the class
+  float height = 0.f; // max over the class's models of the model height [m] (column check)
 };
 
 // Words plus the shape-model elements of each word. Elements of word k are the index range
@@ -138,6 +139,16 @@ struct SelectionOptions {
   float default_threshold = 1.f;
   std::vector<std::string> classes;  // empty = all
   long long max_grid_cells = 4000000;
+  // Column check (not in the paper): the scan points within column_radius (xy) of a hypothesis,
+  // heights above the floor. At least column_min_points of them lie between 5 cm and the class
+  // height + column_margin, and, for the classes in column_clear_classes (empty = all), at most
+  // a share column_max_above of them lie higher (nothing stands on a chair's or a table's centre;
+  // walls, shelves and stacked cabinets go on upwards). column_radius = 0: off.
+  float column_radius = 0.f;
+  float column_margin = 0.1f;
+  int column_min_points = 0;
+  float column_max_above = 1.f;
+  std::vector<std::string> column_clear_classes;
 
   // Declares the shared parameters (paper defaults) on `schema`.
   static void Declare(ParamSchema& schema);

@@ -176,7 +176,7 @@ TEST(HoughVocabulary, TrainingIsDeterministicForASeed) {
   const json a = MakeVoter(BaseParams())->Train(views, ctx);
   const json b = MakeVoter(BaseParams())->Train(views, ctx);
   EXPECT_EQ(a, b);
-  EXPECT_EQ(a.at("format"), "voters.hough_vocabulary/2");
+  EXPECT_EQ(a.at("format"), "voters.hough_vocabulary/3");
   EXPECT_EQ(a.at("words").size(), 8u * synth::kDim);
   EXPECT_EQ(a.at("class").size(), 2u * 4u * (6u + 5u));  // every training part is an element
 }
@@ -325,6 +325,37 @@ TEST(HoughVocabulary, PartsFarOutsideTheTrainingRangeDoNotVote) {
   EXPECT_TRUE(strict->Vote({scene.Parts()}, ctx).votes.empty());
   EXPECT_EQ(OfClass(loose->Vote({scene.Parts()}, ctx), "chair").size(), 1u);
   EXPECT_EQ(OfClass(off->Vote({scene.Parts()}, ctx), "chair").size(), 1u);
+}
+
+TEST(HoughVocabulary, ColumnCheckDropsHypothesesUnderStructureOrOverEmptyFloor) {
+  // Two chairs on the floor; a dense shelf (100 points) hangs 1.8 m up over the second one,
+  // above the class height (tallest training chair 0.94 m) + margin. The clearance test drops
+  // the chair under it, and only for the classes it is asked for; the existence test drops
+  // hypotheses whose column holds fewer object points than asked (each seat has 20).
+  RunContext ctx;
+  json p = BaseParams();
+  p["floor"] = "fixed";
+  auto plain = MakeVoter(p);
+  p["column_radius_m"] = 0.15;
+  p["column_min_points"] = 10;
+  auto checked = MakeVoter(p);
+  p["column_clear_classes"] = "table";
+  auto tables_only = MakeVoter(p);
+  p["column_clear_classes"] = "";
+  p["column_min_points"] = 30;
+  auto needs_more = MakeVoter(p);
+  for (auto* v : {&plain, &checked, &tables_only, &needs_more}) (*v)->Train(TwoClassViews(), ctx);
+  const Eigen::Vector3f free_chair(1.f, 1.f, 0.45f), covered(3.f, 1.f, 0.45f);
+  auto scene = MakeScene({{Chair(), free_chair, {}}, {Chair(), covered, {}}}, Eigen::Isometry3f::Identity(), 0.02f, 9);
+  for (int i = 0; i < 10; ++i)
+    for (int j = 0; j < 10; ++j)
+      scene.scan.points.emplace_back(covered.x() - 0.09f + 0.02f * i, covered.y() - 0.09f + 0.02f * j, 1.8f);
+  EXPECT_EQ(OfClass(plain->Vote({scene.Parts()}, ctx), "chair").size(), 2u);
+  const auto kept = OfClass(checked->Vote({scene.Parts()}, ctx), "chair");
+  ASSERT_EQ(kept.size(), 1u);
+  EXPECT_LT(Dist2D(kept[0]->center, free_chair), 0.05f);
+  EXPECT_EQ(OfClass(tables_only->Vote({scene.Parts()}, ctx), "chair").size(), 2u);
+  EXPECT_TRUE(OfClass(needs_more->Vote({scene.Parts()}, ctx), "chair").empty());
 }
 
 TEST(HoughVocabulary, ClassesParameterRestrictsDetection) {

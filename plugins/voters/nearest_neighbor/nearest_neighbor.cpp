@@ -15,7 +15,7 @@
 namespace furnihost::voters {
 
 namespace {
-constexpr const char* kFormat = "voters.nearest_neighbor/2";
+constexpr const char* kFormat = "voters.nearest_neighbor/3";
 }
 
 class NearestNeighborVoter : public Voter {
@@ -66,5 +66,5 @@ class NearestNeighborVoter : public Voter {
 
 }  // namespace furnihost::voters
 
-FURNIHOST_PLUGIN(furnihost::voters::NearestNeighborVoter, "voters.nearest_neighbor", "1.1.0",
+FURNIHOST_PLUGIN(furnihost::voters::NearestNeighborVoter, "voters.nearest_neighbor", "1.2.0",
                  "paper's NN baseline: each scene part votes with its nearest training part only")

@@ -38,7 +38,7 @@ TEST(NearestNeighbor, EachPartCastsOneUnitVoteAndObjectsAreFound) {
   RunContext ctx;
   auto voter = MakeVoter("voters.nearest_neighbor", {{"thresholds", kThresholds}});
   const json model = voter->Train(Views(), ctx);
-  EXPECT_EQ(model.at("format"), "voters.nearest_neighbor/2");
+  EXPECT_EQ(model.at("format"), "voters.nearest_neighbor/3");
   // One word per training part.
   EXPECT_EQ(model.at("words").size(), model.at("class").size() * synth::kDim);
 
