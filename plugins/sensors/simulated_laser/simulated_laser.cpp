@@ -48,6 +48,7 @@ struct SimulatedLaserOptions {
   double sensor_height_m = 1.5;  // sensor z above the floor
   double distance_m = 2.0;       // horizontal distance to the objects' bbox centre
   int views = 16;                // evenly spaced around the up axis
+  int fuse = 1;                  // each default view fuses this many casts evenly around the up axis
   // Range noise: sigma(r) = noise_a + noise_b * r^2 [m], along the ray.
   double noise_a = 0.008;
   double noise_b = 0.0005;
@@ -72,6 +73,7 @@ struct SimulatedLaserOptions {
     o.sensor_height_m = p.at("sensor_height_m").get<double>();
     o.distance_m = p.at("distance_m").get<double>();
     o.views = p.at("views").get<int>();
+    o.fuse = p.at("fuse").get<int>();
     o.noise_a = p.at("noise_a").get<double>();
     o.noise_b = p.at("noise_b").get<double>();
     o.dropout = p.at("dropout").get<double>();
@@ -295,6 +297,10 @@ class SimulatedLaser : public Sensor {
     s.Number("distance_m", 2.0, 0.1, 100.0,
              "default training views: horizontal distance from the objects' bbox centre [m]");
     s.Int("views", 16, 1, 720, "default training views: number of views evenly around the up axis (paper: 16)");
+    s.Int("fuse", 1, 1, 64,
+          "default training views: each view is the union of this many casts evenly around the up axis, "
+          "starting at the view's own position (its origin and viewing frame), voxelised once: what a "
+          "reconstruction from a walk around the object holds (not in the paper; 1 = single views, paper)");
     s.Number("noise_a", 0.008, 0.0, 1.0,
              "range noise sigma = noise_a + noise_b * r^2: constant part [m] (Hokuyo ~1 cm at 2 m)");
     s.Number("noise_b", 0.0005, 0.0, 1.0,
@@ -356,6 +362,7 @@ class SimulatedLaser : public Sensor {
     ThrowIfEmbreeError(dev, "building the scene");
 
     std::vector<Eigen::Isometry3f> poses = req.poses;
+    std::vector<std::vector<Eigen::Isometry3f>> fused;  // extra casts per default view
     const bool camera = opt_.pattern == "depth_camera";
     if (poses.empty()) {
       if (all.isEmpty()) {
@@ -370,6 +377,14 @@ class SimulatedLaser : public Sensor {
                                   c.y() + static_cast<float>(opt_.distance_m * std::sin(th)),
                                   static_cast<float>(opt_.sensor_height_m));
         poses.push_back(LookAt(pos, c, camera));
+        fused.emplace_back();
+        for (int j = 1; j < opt_.fuse; ++j) {
+          const double tj = th + 2.0 * kPi * j / opt_.fuse;
+          const Eigen::Vector3f pj(c.x() + static_cast<float>(opt_.distance_m * std::cos(tj)),
+                                   c.y() + static_cast<float>(opt_.distance_m * std::sin(tj)),
+                                   static_cast<float>(opt_.sensor_height_m));
+          fused.back().push_back(LookAt(pj, c, camera));
+        }
       }
     }
 
@@ -380,7 +395,9 @@ class SimulatedLaser : public Sensor {
     buf.points.resize(pat.dirs.size());
     buf.instance.resize(pat.dirs.size());
     for (size_t v = 0; v < poses.size(); ++v) {
-      Scan s = CastView(scene.get(), pat, poses[v], n_obj, ctx.seed, v, buf);
+      std::vector<Eigen::Isometry3f> casts{poses[v]};
+      if (v < fused.size()) casts.insert(casts.end(), fused[v].begin(), fused[v].end());
+      Scan s = CastView(scene.get(), pat, casts, n_obj, ctx.seed, v, buf);
       std::ostringstream src;
       src << "sensors.simulated_laser " << opt_.pattern << " view " << v + 1 << "/" << poses.size();
       s.source = src.str();
@@ -396,8 +413,36 @@ class SimulatedLaser : public Sensor {
     std::vector<int32_t> instance;  // -1 = no return
   };
 
-  Scan CastView(RTCScene scene, const Pattern& pat, const Eigen::Isometry3f& pose, unsigned n_obj,
-                uint64_t seed, size_t view, Buffers& buf) const {
+  // One scan from the casts' union (origin: the first cast's), voxelised once.
+  Scan CastView(RTCScene scene, const Pattern& pat, const std::vector<Eigen::Isometry3f>& casts,
+                unsigned n_obj, uint64_t seed, size_t view, Buffers& buf) const {
+    Scan s;
+    s.origin = casts.front().translation();
+    Points compact;
+    std::vector<int32_t> labels;
+    for (size_t j = 0; j < casts.size(); ++j)
+      // The first cast keeps the single-view noise stream (view), the others get their own.
+      CastRays(scene, pat, casts[j], n_obj, seed, j == 0 ? view : view + 1000003 * j, buf, compact, labels);
+    if (opt_.voxel_m > 0.0) {
+      // The host's own downsampling (sensors.scan_file uses it too): a training view and a
+      // scene scan with the same voxel_m see the same world-anchored voxels. Each voxel's
+      // label is that of its first point.
+      std::vector<int> first;
+      compact = VoxelDownsample(compact, static_cast<float>(opt_.voxel_m), &first);
+      std::vector<int32_t> l2;
+      l2.reserve(first.size());
+      for (int r : first) l2.push_back(labels[r]);
+      labels = std::move(l2);
+    }
+    s.points = std::move(compact);
+    // 1-based index of the placed object each point hit, 0 = extra geometry (floor, walls).
+    s.attributes["instance"] = std::move(labels);
+    return s;
+  }
+
+  // Casts the pattern from `pose` and appends the returns (ray order) to compact / labels.
+  void CastRays(RTCScene scene, const Pattern& pat, const Eigen::Isometry3f& pose, unsigned n_obj,
+                uint64_t seed, size_t view, Buffers& buf, Points& compact, std::vector<int32_t>& labels) const {
     const size_t n = pat.dirs.size();
     const Eigen::Matrix3f rot = pose.linear();
     const Eigen::Vector3f org = pose.translation();
@@ -460,34 +505,15 @@ class SimulatedLaser : public Sensor {
       }
     });
 
-    Scan s;
-    s.origin = org;
     size_t hits = 0;
     for (size_t i = 0; i < n; ++i) hits += inst[i] >= 0;
-    Points compact;
-    std::vector<int32_t> labels;
-    compact.reserve(hits);
-    labels.reserve(hits);
+    compact.reserve(compact.size() + hits);
+    labels.reserve(labels.size() + hits);
     for (size_t i = 0; i < n; ++i)
       if (inst[i] >= 0) {
         compact.push_back(pts[i]);
         labels.push_back(inst[i]);
       }
-    if (opt_.voxel_m > 0.0) {
-      // The host's own downsampling (sensors.scan_file uses it too): a training view and a
-      // scene scan with the same voxel_m see the same world-anchored voxels. Each voxel's
-      // label is that of its first point.
-      std::vector<int> first;
-      compact = VoxelDownsample(compact, static_cast<float>(opt_.voxel_m), &first);
-      std::vector<int32_t> l2;
-      l2.reserve(first.size());
-      for (int r : first) l2.push_back(labels[r]);
-      labels = std::move(l2);
-    }
-    s.points = std::move(compact);
-    // 1-based index of the placed object each point hit, 0 = extra geometry (floor, walls).
-    s.attributes["instance"] = std::move(labels);
-    return s;
   }
 
   SimulatedLaserOptions opt_;

@@ -215,6 +215,42 @@ TEST(SimulatedLaser, DefaultViewsCircleTheObject) {
   EXPECT_EQ(octants.size(), 8u);
 }
 
+TEST(SimulatedLaser, FusedViewsSeeEverySideFromTheFirstCastsOrigin) {
+  // fuse = 4: each default view is the union of 4 casts 90 degrees apart, so it holds points on
+  // all four side faces of the cube (a single view from 2 m sees at most two), and keeps the
+  // origin of its own first cast (the viewing frame the voter learns in).
+  static const CatalogModel cube = UnitCube();
+  SensorRequest req;
+  req.objects.push_back({&cube, Pose(3.f, -1.f, 0.f, 0.f)});
+  RunContext ctx;
+  json p = {{"angular_resolution_deg", 1.0}, {"tilt_resolution_deg", 1.0}, {"views", 4},
+            {"noise_a", 0.0}, {"noise_b", 0.0}};
+  const auto single = MakeSensor(p)->Acquire(req, ctx);
+  p["fuse"] = 4;
+  const auto fused = MakeSensor(p)->Acquire(req, ctx);
+  ASSERT_EQ(single.size(), 4u);
+  ASSERT_EQ(fused.size(), 4u);
+  auto faces = [](const Scan& s) {
+    std::set<int> seen;  // 0: x = 2.5, 1: x = 3.5, 2: y = -1.5, 3: y = -0.5
+    for (const auto& q : s.points) {
+      if (q.z() < 0.05f || q.z() > 0.95f) continue;  // side faces only
+      if (std::fabs(q.x() - 2.5f) < 1e-3f) seen.insert(0);
+      if (std::fabs(q.x() - 3.5f) < 1e-3f) seen.insert(1);
+      if (std::fabs(q.y() + 1.5f) < 1e-3f) seen.insert(2);
+      if (std::fabs(q.y() + 0.5f) < 1e-3f) seen.insert(3);
+    }
+    return seen.size();
+  };
+  for (size_t v = 0; v < 4; ++v) {
+    ASSERT_TRUE(single[v].origin && fused[v].origin);
+    EXPECT_LT((*single[v].origin - *fused[v].origin).norm(), 1e-6f);
+    EXPECT_LE(faces(single[v]), 2u);
+    EXPECT_EQ(faces(fused[v]), 4u);
+    EXPECT_GT(fused[v].points.size(), single[v].points.size());
+    EXPECT_EQ(fused[v].attributes.at("instance").size(), fused[v].points.size());
+  }
+}
+
 TEST(SimulatedLaser, DepthCameraImageGeometryAndRanges) {
   // A 10 m x 10 m wall (extra geometry, no truth) 3 m in front of a level camera.
   SensorRequest req;
