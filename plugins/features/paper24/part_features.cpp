@@ -7,7 +7,8 @@
 #include <atomic>
 #include <cmath>
 
-#include "voxel_grid.hpp"
+#include "furnihost/voxel_index.hpp"
+#include "tbb_for.hpp"
 
 namespace furnihost::features {
 
@@ -96,8 +97,8 @@ float BoundaryRatio(const Points& q, const Points& normals, const Eigen::Vector3
   const float r2 = r * r;
   const float cos_t = float(std::cos(o.boundary_angle_deg * M_PI / 180.0));
   const bool wide = o.boundary_angle_deg >= 90.0;
-  rg::VoxelGrid grid;
-  grid.Build(q, r);
+  VoxelIndex grid;
+  grid.Build(q, r, VoxelIndex::Anchor::kBoundingBox, TbbFor());
   // Normals in slot order, gathered in one pass: read inside the loop below they would be a
   // cache miss per point (parts come in input order, slots in spatial order).
   Points slot_normal(q.size());

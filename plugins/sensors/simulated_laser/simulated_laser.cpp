@@ -522,6 +522,6 @@ class SimulatedLaser : public Sensor {
 
 }  // namespace furnihost::sensors
 
-FURNIHOST_PLUGIN(furnihost::sensors::SimulatedLaser, "sensors.simulated_laser", "1.0.0",
+FURNIHOST_PLUGIN(furnihost::sensors::SimulatedLaser, "sensors.simulated_laser", "1.1.0",
                  "simulated pan-tilt laser / depth camera: Embree ray casting of catalog models "
                  "with range noise (paper Sect. IV)")
