@@ -1,5 +1,6 @@
 #include "furnihost/geometry.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <unordered_map>
 
@@ -46,6 +47,35 @@ Eigen::Isometry3f UprightPose(float x, float y, float z, float yaw) {
   t.linear() = Eigen::AngleAxisf(yaw, Eigen::Vector3f::UnitZ()).toRotationMatrix();
   t.translation() = Eigen::Vector3f(x, y, z);
   return t;
+}
+
+float EstimateFloorZ(const std::vector<const Scan*>& scans) {
+  std::vector<float> z;
+  for (const Scan* sc : scans) {
+    if (!sc) continue;
+    const size_t n = sc->points.size();
+    const size_t step = std::max<size_t>(1, n / 200000);  // a sample is plenty for a histogram
+    for (size_t i = 0; i < n; i += step) {
+      const float w = (sc->pose * sc->points[i]).z();
+      if (std::isfinite(w)) z.push_back(w);
+    }
+  }
+  if (z.empty()) return 0.f;
+  const size_t cut = std::min(z.size() - 1, z.size() * 3 / 10);
+  std::nth_element(z.begin(), z.begin() + cut, z.end());
+  const float hi = z[cut];
+  const float lo = *std::min_element(z.begin(), z.begin() + cut + 1);
+  const float bin = 0.02f;
+  const int bins = std::min(100000, static_cast<int>((hi - lo) / bin) + 1);
+  std::vector<int> count(bins, 0);
+  std::vector<double> sum(bins, 0.0);
+  for (size_t i = 0; i <= cut; ++i) {
+    const int b = std::clamp(static_cast<int>((z[i] - lo) / bin), 0, bins - 1);
+    ++count[b];
+    sum[b] += z[i];
+  }
+  const int best = static_cast<int>(std::max_element(count.begin(), count.end()) - count.begin());
+  return static_cast<float>(sum[best] / std::max(1, count[best]));
 }
 
 }  // namespace furnihost

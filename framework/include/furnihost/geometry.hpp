@@ -16,6 +16,12 @@ FURNIHOST_API Points VoxelDownsample(const Points& points, float voxel, std::vec
 // Isometry for an upright pose: translation (x, y, z), rotation yaw [rad] about +z.
 FURNIHOST_API Eigen::Isometry3f UprightPose(float x, float y, float z, float yaw);
 
+// World z of the floor under the scans (each mapped by its pose): the mean height of the
+// densest 2 cm slice among the lowest 30 % of the points (a floor is the largest horizontal
+// surface at the bottom of a room). 0 when there are no finite points. At most ~200k points
+// per scan are looked at.
+FURNIHOST_API float EstimateFloorZ(const std::vector<const Scan*>& scans);
+
 }  // namespace furnihost
 
 namespace furnihost {

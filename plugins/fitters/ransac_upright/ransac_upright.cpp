@@ -27,6 +27,7 @@
 #include <mutex>
 #include <set>
 
+#include "furnihost/geometry.hpp"
 #include "furnihost/log.hpp"
 #include "furnihost/plugin.hpp"
 #include "model_cloud.hpp"
@@ -48,6 +49,7 @@ struct RansacUprightOptions {
   int grid_cache_size = 4;
   float min_point_height = 0.02f;
   float reach_margin = 0.3f;
+  bool floor_auto = false;  // floor height estimated from the scans instead of ransac.floor_z
   float part_inside_fraction = 0.8f;
   bool crop_parts = true;
 
@@ -60,6 +62,7 @@ struct RansacUprightOptions {
     o.sampling.min_horizontal_normal = p.at("min_horizontal_normal").get<float>();
     RansacOptions& r = o.ransac;
     r.floor_z = p.at("floor_z").get<float>();
+    o.floor_auto = p.at("floor").get<std::string>() == "auto";
     r.height_tolerance = p.at("height_tolerance_m").get<float>();
     r.correspondence_fraction = p.at("correspondence_fraction").get<float>();
     r.max_correspondences = p.at("max_correspondences").get<int>();
@@ -139,6 +142,9 @@ class RansacUprightFitter : public Fitter {
         .Int("max_model_points", 40000, 100, 1e6,
              "large models are sampled sparser down to this count (40k keeps big cabinets near 2 cm spacing)")
         .Number("floor_z", 0.0, -10, 10, "world height [m] of the floor every model stands on (upright assumption)")
+        .Enum("floor", "fixed", {"fixed", "auto"},
+              "'fixed': the floor is at floor_z; 'auto': estimated from the scans as the voter's height gate does "
+              "(densest 2 cm z-slice among the lowest 30 % of the points), for scans whose floor is not at z = 0")
         .Number("height_tolerance_m", 0.01, 0.001, 0.2,
                 "candidate correspondences: model points within this height [m] of the sampled scan point")
         .Number("correspondence_fraction", 0.5, 0.01, 1, "share of the candidate correspondences tried per sample (paper: ~50 %)")
@@ -200,6 +206,13 @@ class RansacUprightFitter : public Fitter {
 
  private:
   void FitAll(std::vector<Detection>* dets, const FitContext& ctx) {
+    RansacOptions ro = o_.ransac;
+    if (o_.floor_auto) {
+      std::vector<const Scan*> all;
+      for (const SceneParts& sp : ctx.scenes) all.push_back(sp.scan);
+      ro.floor_z = EstimateFloorZ(all);
+      spdlog::debug("ransac_upright: floor at z = {:.3f} m (estimated)", ro.floor_z);
+    }
     // Models per class, in catalog order; sampled once per stage object.
     std::set<std::string> classes;
     for (const auto& d : *dets) classes.insert(d.cls);
@@ -224,7 +237,7 @@ class RansacUprightFitter : public Fitter {
     tbb::parallel_for(size_t(0), dets->size(), [&](size_t d) {
       auto it = by_class.find((*dets)[d].cls);
       if (it == by_class.end()) return;
-      const Reach r = ReachOf((*dets)[d], it->second);
+      const Reach r = ReachOf((*dets)[d], it->second, ro.floor_z);
       for (const Points& w : world)
         for (const auto& p : w)
           if (r.Contains(p)) scenes[d].context.push_back(p);
@@ -232,7 +245,7 @@ class RansacUprightFitter : public Fitter {
     for (size_t d = 0; d < dets->size(); ++d) {
       auto it = by_class.find((*dets)[d].cls);
       Points context = std::move(scenes[d].context);
-      scenes[d] = Gather((*dets)[d], ctx, it == by_class.end() ? nullptr : &it->second, &dropped_parts[d]);
+      scenes[d] = Gather((*dets)[d], ctx, it == by_class.end() ? nullptr : &it->second, ro.floor_z, &dropped_parts[d]);
       scenes[d].context = std::move(context);
     }
 
@@ -241,7 +254,7 @@ class RansacUprightFitter : public Fitter {
     tbb::parallel_for(size_t(0), dets->size(), [&](size_t d) {
       auto it = by_class.find((*dets)[d].cls);
       if (it == by_class.end() || scenes[d].points.empty()) return;
-      fits[d] = FitUpright(scenes[d], it->second, o_.ransac, SplitMix(ctx.run.seed ^ SplitMix(d + 1)));
+      fits[d] = FitUpright(scenes[d], it->second, ro, SplitMix(ctx.run.seed ^ SplitMix(d + 1)));
     });
 
     std::vector<char> passed(dets->size(), 0);
@@ -360,26 +373,26 @@ class RansacUprightFitter : public Fitter {
       return p.z() >= low && p.z() <= top && (p.head<2>() - centre).norm() <= radius;
     }
   };
-  Reach ReachOf(const Detection& det, const std::vector<const ModelCloud*>& models) const {
+  Reach ReachOf(const Detection& det, const std::vector<const ModelCloud*>& models, float floor_z) const {
     Reach r;
     r.centre = det.center.head<2>();
-    r.low = o_.ransac.floor_z + o_.min_point_height;
+    r.low = floor_z + o_.min_point_height;
     r.top = -std::numeric_limits<float>::infinity();
     for (const ModelCloud* m : models) {
       const Eigen::AlignedBox3f& b = m->Bounds();
       r.radius = std::max(r.radius, std::hypot(std::max(std::fabs(b.min().x()), std::fabs(b.max().x())),
                                                std::max(std::fabs(b.min().y()), std::fabs(b.max().y()))));
-      r.top = std::max(r.top, o_.ransac.floor_z + b.max().z() + m->InlierDistance());
+      r.top = std::max(r.top, floor_z + b.max().z() + m->InlierDistance());
     }
     r.radius += o_.reach_margin;
     return r;
   }
 
   ScenePoints Gather(const Detection& det, const FitContext& ctx, const std::vector<const ModelCloud*>* models,
-                     int* dropped) const {
+                     float floor_z, int* dropped) const {
     ScenePoints sp;
     const bool filter = models && !models->empty() && o_.part_inside_fraction > 0.f;
-    const Reach reach = filter ? ReachOf(det, *models) : Reach{};
+    const Reach reach = filter ? ReachOf(det, *models, floor_z) : Reach{};
     const float low = reach.low;
     ScenePoints part;
     std::set<std::pair<int, int>> seen;
@@ -501,5 +514,5 @@ class RansacUprightFitter : public Fitter {
 }  // namespace
 }  // namespace furnihost
 
-FURNIHOST_PLUGIN(furnihost::RansacUprightFitter, "fitters.ransac_upright", "1.1.0",
+FURNIHOST_PLUGIN(furnihost::RansacUprightFitter, "fitters.ransac_upright", "1.2.0",
                  "upright RANSAC fit of catalog models (x, y, yaw) with coverage and OctoMap free-space verification")

@@ -2,6 +2,8 @@
 // Tolerances: pose recovery within 3 cm (bounding-box centre, world frame) and 5° (yaw).
 #include <gtest/gtest.h>
 
+#include "furnihost/geometry.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -158,6 +160,38 @@ TEST(RansacUpright, RecoversChairPoseAndModel) {
   EXPECT_GT(d.iterations, 0);
   // model_pose maps the model's bbox centre onto the reported centre.
   EXPECT_LT((d.model_pose * BoundsOf(cat.Get("chair_a").mesh).center() - d.center).norm(), 1e-4f);
+}
+
+// A scan whose floor is 0.6 m below z = 0 (a robot's sensor frame, say): with the floor fixed
+// at 0 every model stands 0.6 m too high and nothing fits; floor = auto estimates it from the
+// scan (the room's floor is in view) and fits as if told floor_z = -0.6.
+TEST(RansacUpright, FloorAutoFindsAFloorBelowZero) {
+  const Catalog cat = FurnitureCatalog();
+  Scenes sc;
+  std::vector<int> parts;
+  const Eigen::Isometry3f truth = Upright(1.8f, 0.9f, 2.2f);
+  SimScan sim = ScanOf(cat.Get("chair_a"), truth, 1);
+  const Eigen::Isometry3f down(Eigen::Translation3f(0.f, 0.f, -0.6f));
+  sim.scan.pose = down * sim.scan.pose;
+  const int s = sc.Add(std::move(sim), 0, &parts);
+  const Detection h = Hypothesis(sc, "chair", s, parts);
+  EXPECT_NEAR(EstimateFloorZ({&sc.scans[0]->scan}), -0.6f, 0.005f);
+  const auto at_zero = MakeFitter()->Fit({h}, sc.Ctx(cat));
+  ASSERT_EQ(at_zero.size(), 1u);
+  EXPECT_FALSE(at_zero[0].verified.value_or(true));
+  // One RANSAC draw each (the sampling path changes with any change of the floor height, so
+  // the two fits differ by sampling; the statistical accuracy bound is AccuracyOverRandomPlacements').
+  for (const auto& p : {nlohmann::json{{"floor_z", -0.6}}, nlohmann::json{{"floor", "auto"}}}) {
+    const auto out = MakeFitter(p)->Fit({h}, sc.Ctx(cat));
+    ASSERT_EQ(out.size(), 1u);
+    const Detection& d = out[0];
+    EXPECT_TRUE(d.verified.value_or(false)) << p.dump() << ": " << d.rejection;
+    EXPECT_EQ(d.model, "chair_a") << p.dump();
+    const Eigen::Vector3f c = down * truth * BoundsOf(cat.Get("chair_a").mesh).center();
+    EXPECT_NEAR(d.center.z(), c.z(), 0.005f) << p.dump();  // stands on the floor
+    EXPECT_LT((d.center - c).head<2>().norm(), 2 * kCentreTol) << p.dump();
+    EXPECT_LT(ErrorOf(d, cat.Get("chair_a"), down * truth).yaw, kYawTol) << p.dump();
+  }
 }
 
 // The voter's support holds every part with a vote near the maximum, background parts (floor,

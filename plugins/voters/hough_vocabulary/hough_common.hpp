@@ -175,8 +175,7 @@ class WordIndex {
 };
 
 // Votes with every scene part and selects hypotheses (Sect. VI-A, VI-B).
-// World z of the floor under the scenes: the densest 2 cm slice of point heights among the
-// lowest 30 % of the points (a floor is the largest horizontal surface at the bottom of a room).
+// World z of the floor under the scenes (furnihost::EstimateFloorZ over their scans).
 float EstimateFloor(const std::vector<SceneParts>& scenes);
 
 VoteResult VoteAndSelect(const Codebook& book, const WordIndex& index,
