@@ -625,27 +625,11 @@ std::vector<float> MaxFilter(const std::vector<float>& g, int W, int H, int r) {
   return out;
 }
 
-// The votes of one class bucketed by grid cell (for disc queries) and summed per cell.
-class VoteBuckets {
+// Items bucketed by the cell of a W x H grid on the floor plane (counting sort, items of a
+// cell in index order): a disc query visits the items of the cells its bounding square touches.
+class FloorBuckets {
  public:
-  VoteBuckets(const VoteSet& votes, size_t begin, size_t end, Eigen::Vector2f origin, float cell,
-              int W, int H)
-      : v_(votes), origin_(origin), cell_(cell), W_(W), H_(H) {
-    const size_t cells = static_cast<size_t>(W) * H;
-    start_.assign(cells + 1, 0);
-    raw.assign(cells, 0.f);
-    std::vector<int> cell_of(end - begin);
-    for (size_t i = begin; i < end; ++i) {
-      const int c = CellIndex(votes.x[i], votes.y[i]);
-      cell_of[i - begin] = c;
-      ++start_[c + 1];
-      raw[c] += votes.w[i];
-    }
-    std::partial_sum(start_.begin(), start_.end(), start_.begin());
-    order_.resize(end - begin);
-    std::vector<int> next(start_.begin(), start_.end() - 1);
-    for (size_t i = begin; i < end; ++i) order_[next[cell_of[i - begin]]++] = static_cast<int>(i);
-  }
+  FloorBuckets(Eigen::Vector2f origin, float cell, int W, int H) : origin_(origin), cell_(cell), W_(W), H_(H) {}
 
   int CellIndex(float x, float y) const {
     const int ix = std::clamp(static_cast<int>(std::floor((x - origin_.x()) / cell_)), 0, W_ - 1);
@@ -653,33 +637,70 @@ class VoteBuckets {
     return iy * W_ + ix;
   }
 
+  // Sorts items [0, n) by cell_of(i) (a CellIndex); item i is reported as i + offset.
+  template <class CellOf>
+  void Build(size_t n, size_t offset, CellOf&& cell_of) {
+    start_.assign(static_cast<size_t>(W_) * H_ + 1, 0);
+    std::vector<int> cell(n);
+    for (size_t i = 0; i < n; ++i) ++start_[(cell[i] = cell_of(i)) + 1];
+    std::partial_sum(start_.begin(), start_.end(), start_.begin());
+    order_.resize(n);
+    std::vector<int> next(start_.begin(), start_.end() - 1);
+    for (size_t i = 0; i < n; ++i) order_[next[cell[i]]++] = static_cast<int>(i + offset);
+  }
+
+  // Calls f(i) for every item in the cells of the square of half side `radius` around (x, y);
+  // the caller tests the distance.
+  template <class F>
+  void ForSquare(double x, double y, double radius, F&& f) const {
+    const int x0 = std::max(0, static_cast<int>(std::floor((x - radius - origin_.x()) / cell_)));
+    const int x1 = std::min(W_ - 1, static_cast<int>(std::floor((x + radius - origin_.x()) / cell_)));
+    const int y0 = std::max(0, static_cast<int>(std::floor((y - radius - origin_.y()) / cell_)));
+    const int y1 = std::min(H_ - 1, static_cast<int>(std::floor((y + radius - origin_.y()) / cell_)));
+    for (int cy = y0; cy <= y1; ++cy)
+      for (int cx = x0; cx <= x1; ++cx) {
+        const int c = cy * W_ + cx;
+        for (int k = start_[c]; k < start_[c + 1]; ++k) f(order_[k]);
+      }
+  }
+
+ private:
+  Eigen::Vector2f origin_;
+  float cell_;
+  int W_, H_;
+  std::vector<int> start_, order_;
+};
+
+// The votes of one class bucketed by grid cell (for disc queries) and summed per cell.
+class VoteBuckets {
+ public:
+  VoteBuckets(const VoteSet& votes, size_t begin, size_t end, Eigen::Vector2f origin, float cell,
+              int W, int H)
+      : v_(votes), b_(origin, cell, W, H) {
+    raw.assign(static_cast<size_t>(W) * H, 0.f);
+    b_.Build(end - begin, begin, [&](size_t k) {
+      const size_t i = begin + k;
+      const int c = b_.CellIndex(votes.x[i], votes.y[i]);
+      raw[c] += votes.w[i];
+      return c;
+    });
+  }
+
   // Calls f(i) for every vote i within `radius` of c (x, y).
   template <class F>
   void ForDisc(const Eigen::Vector2d& c, double radius, F&& f) const {
-    const int x0 = std::max(0, static_cast<int>(std::floor((c.x() - radius - origin_.x()) / cell_)));
-    const int x1 = std::min(W_ - 1, static_cast<int>(std::floor((c.x() + radius - origin_.x()) / cell_)));
-    const int y0 = std::max(0, static_cast<int>(std::floor((c.y() - radius - origin_.y()) / cell_)));
-    const int y1 = std::min(H_ - 1, static_cast<int>(std::floor((c.y() + radius - origin_.y()) / cell_)));
     const double r2 = radius * radius;
-    for (int y = y0; y <= y1; ++y)
-      for (int x = x0; x <= x1; ++x) {
-        const int cell = y * W_ + x;
-        for (int k = start_[cell]; k < start_[cell + 1]; ++k) {
-          const int i = order_[k];
-          const double dx = v_.x[i] - c.x(), dy = v_.y[i] - c.y();
-          if (dx * dx + dy * dy <= r2) f(i);
-        }
-      }
+    b_.ForSquare(c.x(), c.y(), radius, [&](int i) {
+      const double dx = v_.x[i] - c.x(), dy = v_.y[i] - c.y();
+      if (dx * dx + dy * dy <= r2) f(i);
+    });
   }
 
   std::vector<float> raw;  // summed vote weight per cell, row-major W x H
 
  private:
   const VoteSet& v_;
-  Eigen::Vector2f origin_;
-  float cell_;
-  int W_, H_;
-  std::vector<int> start_, order_;
+  FloorBuckets b_;
 };
 
 bool FootprintsOverlap(const Eigen::Vector3f& a, const Eigen::Vector3f& b, float size,
@@ -695,13 +716,11 @@ struct Activation {
   float weight;  // p(A_i | f), times 1 / (1 + distance) with inverse_distance
 };
 
-// Maxima search, scoring, thresholding and the footprint check for the votes [vb, ve) of
-// one class; fills grid.values (grid geometry set by the caller).
 // Scan points (world frame) bucketed on the floor plane for the column check; heights are
 // taken above the floor.
 class ColumnIndex {
  public:
-  ColumnIndex(const std::vector<SceneParts>& scenes, float floor_z, float cell) : cell_(cell) {
+  ColumnIndex(const std::vector<SceneParts>& scenes, float floor_z, float cell) {
     for (const auto& sc : scenes) {
       if (!sc.scan) continue;
       for (const auto& p : sc.scan->points) {
@@ -711,71 +730,41 @@ class ColumnIndex {
       }
     }
     if (pts_.empty()) return;
-    lo_ = Eigen::Vector2f(std::numeric_limits<float>::max(), std::numeric_limits<float>::max());
-    Eigen::Vector2f hi = -lo_;
+    Eigen::Vector2f lo(std::numeric_limits<float>::max(), std::numeric_limits<float>::max());
+    Eigen::Vector2f hi = -lo;
     for (const auto& p : pts_) {
-      lo_ = lo_.cwiseMin(p.head<2>());
+      lo = lo.cwiseMin(p.head<2>());
       hi = hi.cwiseMax(p.head<2>());
     }
     // Cap the grid at ~4M cells: far outliers make the cells coarser, not the memory larger.
-    const double span = std::max(hi.x() - lo_.x(), hi.y() - lo_.y());
-    cell_ = std::max(cell_, static_cast<float>(span / 2000.0));
-    W_ = static_cast<int>((hi.x() - lo_.x()) / cell_) + 1;
-    H_ = static_cast<int>((hi.y() - lo_.y()) / cell_) + 1;
-    start_.assign(static_cast<size_t>(W_) * H_ + 1, 0);
-    std::vector<int> key(pts_.size());
-    for (size_t i = 0; i < pts_.size(); ++i) {
-      key[i] = Key(pts_[i].x(), pts_[i].y());
-      ++start_[key[i] + 1];
-    }
-    std::partial_sum(start_.begin(), start_.end(), start_.begin());
-    order_.resize(pts_.size());
-    std::vector<int> next(start_.begin(), start_.end() - 1);
-    for (size_t i = 0; i < pts_.size(); ++i) order_[next[key[i]]++] = static_cast<int>(i);
+    cell = std::max(cell, std::max(hi.x() - lo.x(), hi.y() - lo.y()) / 2000.f);
+    b_ = std::make_unique<FloorBuckets>(lo, cell, static_cast<int>((hi.x() - lo.x()) / cell) + 1,
+                                        static_cast<int>((hi.y() - lo.y()) / cell) + 1);
+    b_->Build(pts_.size(), 0, [&](size_t i) { return b_->CellIndex(pts_[i].x(), pts_[i].y()); });
   }
 
   // Points within `radius` of (x, y): counts of heights in (0.05, top] and above top.
   void Count(float x, float y, float radius, float top, int& object, int& above) const {
     object = above = 0;
-    ForEach(x, y, radius, [&](float h) {
-      if (h > top) ++above;
-      else if (h > 0.05f) ++object;
+    if (!b_) return;
+    const float r2 = radius * radius;
+    b_->ForSquare(x, y, radius, [&](int i) {
+      const Eigen::Vector3f& p = pts_[i];
+      const float dx = p.x() - x, dy = p.y() - y;
+      if (dx * dx + dy * dy > r2) return;
+      if (p.z() > top) ++above;
+      else if (p.z() > 0.05f) ++object;
     });
   }
 
-  // Calls fn(height above the floor) for every point within `radius` of (x, y).
-  template <typename Fn>
-  void ForEach(float x, float y, float radius, Fn&& fn) const {
-    if (pts_.empty()) return;
-    const int x0 = std::max(0, static_cast<int>(std::floor((x - radius - lo_.x()) / cell_)));
-    const int x1 = std::min(W_ - 1, static_cast<int>(std::floor((x + radius - lo_.x()) / cell_)));
-    const int y0 = std::max(0, static_cast<int>(std::floor((y - radius - lo_.y()) / cell_)));
-    const int y1 = std::min(H_ - 1, static_cast<int>(std::floor((y + radius - lo_.y()) / cell_)));
-    const float r2 = radius * radius;
-    for (int cy = y0; cy <= y1; ++cy)
-      for (int cx = x0; cx <= x1; ++cx) {
-        const size_t c = static_cast<size_t>(cy) * W_ + cx;
-        for (int k = start_[c]; k < start_[c + 1]; ++k) {
-          const Eigen::Vector3f& p = pts_[order_[k]];
-          const float dx = p.x() - x, dy = p.y() - y;
-          if (dx * dx + dy * dy <= r2) fn(p.z());
-        }
-      }
-  }
-
  private:
-  int Key(float x, float y) const {
-    const int cx = std::clamp(static_cast<int>((x - lo_.x()) / cell_), 0, W_ - 1);
-    const int cy = std::clamp(static_cast<int>((y - lo_.y()) / cell_), 0, H_ - 1);
-    return cy * W_ + cx;
-  }
-  float cell_;
   std::vector<Eigen::Vector3f> pts_;
-  Eigen::Vector2f lo_ = Eigen::Vector2f::Zero();
-  int W_ = 0, H_ = 0;
-  std::vector<int> start_, order_;
+  std::unique_ptr<FloorBuckets> b_;
 };
 
+// Maxima search, scoring, thresholding and the footprint check for the votes [vb, ve) of
+// one class; fills grid.values (grid geometry set by the caller); `keep` (if set) vets each
+// hypothesis before the footprint check.
 std::vector<Hypothesis> SelectClass(const VoteSet& votes, size_t vb, size_t ve,
                                     const std::vector<PartRef>& parts, const ClassModel& cm,
                                     const SelectionOptions& opt, VoteGrid& grid,
@@ -1076,17 +1065,12 @@ VoteResult VoteAndSelect(const Codebook& book, const WordIndex& index,
     std::function<bool(const Hypothesis&)> keep;
     if (columns)
       keep = [&, clear](const Hypothesis& h) {
-        if (column) {
-          int object = 0, above = 0;
-          columns->Count(h.center.x(), h.center.y(), opt.column_radius, cm.height + opt.column_margin, object, above);
-          const bool ok = object >= opt.column_min_points &&
-                          (!clear || above <= opt.column_max_above * static_cast<float>(object + above));
-          if (!ok) {
-            ++column_dropped;
-            return false;
-          }
-        }
-        return true;
+        int object = 0, above = 0;
+        columns->Count(h.center.x(), h.center.y(), opt.column_radius, cm.height + opt.column_margin, object, above);
+        const bool ok = object >= opt.column_min_points &&
+                        (!clear || above <= opt.column_max_above * static_cast<float>(object + above));
+        column_dropped += !ok;
+        return ok;
       };
     VoteGrid grid;
     grid.cls = book.classes[c].name;
