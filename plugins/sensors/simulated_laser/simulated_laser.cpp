@@ -371,20 +371,17 @@ class SimulatedLaser : public Sensor {
         all = WorldBox(req.extra, Eigen::Isometry3f::Identity());
       }
       const Eigen::Vector3f c = all.center();
-      for (int k = 0; k < opt_.views; ++k) {
-        const double th = 2.0 * kPi * k / opt_.views;
+      auto pose_at = [&](double th) {  // on the circle around c, looking at c
         const Eigen::Vector3f pos(c.x() + static_cast<float>(opt_.distance_m * std::cos(th)),
                                   c.y() + static_cast<float>(opt_.distance_m * std::sin(th)),
                                   static_cast<float>(opt_.sensor_height_m));
-        poses.push_back(LookAt(pos, c, camera));
+        return LookAt(pos, c, camera);
+      };
+      for (int k = 0; k < opt_.views; ++k) {
+        const double th = 2.0 * kPi * k / opt_.views;
+        poses.push_back(pose_at(th));
         fused.emplace_back();
-        for (int j = 1; j < opt_.fuse; ++j) {
-          const double tj = th + 2.0 * kPi * j / opt_.fuse;
-          const Eigen::Vector3f pj(c.x() + static_cast<float>(opt_.distance_m * std::cos(tj)),
-                                   c.y() + static_cast<float>(opt_.distance_m * std::sin(tj)),
-                                   static_cast<float>(opt_.sensor_height_m));
-          fused.back().push_back(LookAt(pj, c, camera));
-        }
+        for (int j = 1; j < opt_.fuse; ++j) fused.back().push_back(pose_at(th + 2.0 * kPi * j / opt_.fuse));
       }
     }
 
