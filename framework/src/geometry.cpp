@@ -1,7 +1,9 @@
 #include "furnihost/geometry.hpp"
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <random>
 #include <unordered_map>
 
 namespace furnihost {
@@ -49,33 +51,126 @@ Eigen::Isometry3f UprightPose(float x, float y, float z, float yaw) {
   return t;
 }
 
-float EstimateFloorZ(const std::vector<const Scan*>& scans) {
-  std::vector<float> z;
+namespace {
+
+// World z of the finite points of the scans (each mapped by its pose), with x and y; at most
+// ~200k per scan (a sample is plenty for a histogram or a plane).
+Points FloorSample(const std::vector<const Scan*>& scans) {
+  Points w;
   for (const Scan* sc : scans) {
     if (!sc) continue;
     const size_t n = sc->points.size();
-    const size_t step = std::max<size_t>(1, n / 200000);  // a sample is plenty for a histogram
+    const size_t step = std::max<size_t>(1, n / 200000);
     for (size_t i = 0; i < n; i += step) {
-      const float w = (sc->pose * sc->points[i]).z();
-      if (std::isfinite(w)) z.push_back(w);
+      const Eigen::Vector3f p = sc->pose * sc->points[i];
+      if (p.allFinite()) w.push_back(p);
     }
   }
-  if (z.empty()) return 0.f;
+  return w;
+}
+
+// Height below which 30 % of the sample lies.
+float LowCut(const Points& w) {
+  std::vector<float> z(w.size());
+  for (size_t i = 0; i < w.size(); ++i) z[i] = w[i].z();
   const size_t cut = std::min(z.size() - 1, z.size() * 3 / 10);
   std::nth_element(z.begin(), z.begin() + cut, z.end());
-  const float hi = z[cut];
-  const float lo = *std::min_element(z.begin(), z.begin() + cut + 1);
+  return z[cut];
+}
+
+// Mean height of the densest 2 cm z-slice among the points at or below `hi`.
+float DensestSlice(const Points& w, float hi) {
+  float lo = hi;
+  for (const auto& p : w) lo = std::min(lo, p.z());
   const float bin = 0.02f;
   const int bins = std::min(100000, static_cast<int>((hi - lo) / bin) + 1);
   std::vector<int> count(bins, 0);
   std::vector<double> sum(bins, 0.0);
-  for (size_t i = 0; i <= cut; ++i) {
-    const int b = std::clamp(static_cast<int>((z[i] - lo) / bin), 0, bins - 1);
+  for (const auto& p : w) {
+    if (p.z() > hi) continue;
+    const int b = std::clamp(static_cast<int>((p.z() - lo) / bin), 0, bins - 1);
     ++count[b];
-    sum[b] += z[i];
+    sum[b] += p.z();
   }
   const int best = static_cast<int>(std::max_element(count.begin(), count.end()) - count.begin());
   return static_cast<float>(sum[best] / std::max(1, count[best]));
+}
+
+}  // namespace
+
+float EstimateFloorZ(const std::vector<const Scan*>& scans) {
+  const Points w = FloorSample(scans);
+  if (w.empty()) return 0.f;
+  return DensestSlice(w, LowCut(w));
+}
+
+FloorPlane EstimateFloorPlane(const std::vector<const Scan*>& scans) {
+  FloorPlane level;
+  const Points w = FloorSample(scans);
+  if (w.empty()) return level;
+  const float hi = LowCut(w);
+  level.c = DensestSlice(w, hi);
+  // RANSAC over (a stride sample of) the lowest 30 %: the plane, tilted at most 10 degrees,
+  // with the most points within 2 cm. The level plane through the densest slice competes too,
+  // so a plane is only tilted when that explains more of the floor.
+  Points low;
+  for (const auto& p : w)
+    if (p.z() <= hi) low.push_back(p);
+  const size_t stride = std::max<size_t>(1, low.size() / 4000);
+  Points q;
+  for (size_t i = 0; i < low.size(); i += stride) q.push_back(low[i]);
+  const float band = 0.02f;
+  const float min_nz = std::cos(10.f * 3.14159265f / 180.f);
+  auto inliers = [&](const Eigen::Vector3f& n, float d) {
+    int c = 0;
+    for (const auto& p : q) c += std::abs(n.dot(p) - d) < band;
+    return c;
+  };
+  Eigen::Vector3f best_n = Eigen::Vector3f::UnitZ();
+  float best_d = level.c;
+  int best = inliers(best_n, best_d);
+  if (q.size() >= 3) {
+    std::mt19937 rng(0x9e3779b9u);  // fixed: the floor of a scan does not depend on the run's seed
+    for (int it = 0; it < 200; ++it) {
+      const Eigen::Vector3f& a = q[rng() % q.size()];
+      const Eigen::Vector3f& b = q[rng() % q.size()];
+      const Eigen::Vector3f& c = q[rng() % q.size()];
+      Eigen::Vector3f n = (b - a).cross(c - a);
+      const float len = n.norm();
+      if (!(len > 1e-6f)) continue;
+      n /= len;
+      if (n.z() < 0.f) n = -n;
+      if (n.z() < min_nz) continue;
+      const int k = inliers(n, n.dot(a));
+      if (k > best) {
+        best = k;
+        best_n = n;
+        best_d = n.dot(a);
+      }
+    }
+  }
+  // Least squares z = a x + b y + c over the points within the band, twice (the first pass
+  // only saw the lowest 30 %; the second takes the whole sample, the high side of a tilt).
+  FloorPlane plane{-best_n.x() / best_n.z(), -best_n.y() / best_n.z(), best_d / best_n.z()};
+  for (int pass = 0; pass < 2; ++pass) {
+    const Points& src = pass == 0 ? q : w;
+    Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d atb = Eigen::Vector3d::Zero();
+    int n = 0;
+    const double cos_t = 1.0 / std::sqrt(1.0 + double(plane.a) * plane.a + double(plane.b) * plane.b);
+    for (const auto& p : src) {
+      if (std::abs(plane.Above(p)) * cos_t >= band) continue;
+      const Eigen::Vector3d r(p.x(), p.y(), 1.0);
+      ata += r * r.transpose();
+      atb += r * double(p.z());
+      ++n;
+    }
+    if (n < 3) break;
+    const Eigen::Vector3d x = ata.ldlt().solve(atb);
+    if (!x.allFinite() || std::hypot(x[0], x[1]) > std::tan(10.0 * 3.14159265358979 / 180.0)) break;
+    plane = {static_cast<float>(x[0]), static_cast<float>(x[1]), static_cast<float>(x[2])};
+  }
+  return plane;
 }
 
 }  // namespace furnihost

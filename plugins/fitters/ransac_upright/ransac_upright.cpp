@@ -49,7 +49,7 @@ struct RansacUprightOptions {
   int grid_cache_size = 4;
   float min_point_height = 0.02f;
   float reach_margin = 0.3f;
-  bool floor_auto = false;  // floor height estimated from the scans instead of ransac.floor_z
+  std::string floor = "fixed";  // "fixed" (ransac.floor_z), or from the scans: "auto" (level) or "plane"
   float part_inside_fraction = 0.8f;
   bool crop_parts = true;
 
@@ -62,7 +62,7 @@ struct RansacUprightOptions {
     o.sampling.min_horizontal_normal = p.at("min_horizontal_normal").get<float>();
     RansacOptions& r = o.ransac;
     r.floor_z = p.at("floor_z").get<float>();
-    o.floor_auto = p.at("floor").get<std::string>() == "auto";
+    o.floor = p.at("floor").get<std::string>();
     r.height_tolerance = p.at("height_tolerance_m").get<float>();
     r.correspondence_fraction = p.at("correspondence_fraction").get<float>();
     r.max_correspondences = p.at("max_correspondences").get<int>();
@@ -142,9 +142,10 @@ class RansacUprightFitter : public Fitter {
         .Int("max_model_points", 40000, 100, 1e6,
              "large models are sampled sparser down to this count (40k keeps big cabinets near 2 cm spacing)")
         .Number("floor_z", 0.0, -10, 10, "world height [m] of the floor every model stands on (upright assumption)")
-        .Enum("floor", "fixed", {"fixed", "auto"},
-              "'fixed': the floor is at floor_z; 'auto': estimated from the scans as the voter's height gate does "
-              "(densest 2 cm z-slice among the lowest 30 % of the points), for scans whose floor is not at z = 0")
+        .Enum("floor", "fixed", {"fixed", "auto", "plane"},
+              "'fixed': the floor is at floor_z; for scans whose floor is not at z = 0, estimated from the scans as "
+              "the voter does: 'auto' level, at the densest 2 cm z-slice among the lowest 30 % of the points; "
+              "'plane' a plane (tilt <= 10 deg) fitted to them, each model standing at its height under the hypothesis")
         .Number("height_tolerance_m", 0.01, 0.001, 0.2,
                 "candidate correspondences: model points within this height [m] of the sampled scan point")
         .Number("correspondence_fraction", 0.5, 0.01, 1, "share of the candidate correspondences tried per sample (paper: ~50 %)")
@@ -206,13 +207,18 @@ class RansacUprightFitter : public Fitter {
 
  private:
   void FitAll(std::vector<Detection>* dets, const FitContext& ctx) {
-    RansacOptions ro = o_.ransac;
-    if (o_.floor_auto) {
+    // The floor each detection's models stand on: fixed, or estimated once for all of them.
+    FloorPlane floor{0.f, 0.f, o_.ransac.floor_z};
+    if (o_.floor != "fixed") {
       std::vector<const Scan*> all;
       for (const SceneParts& sp : ctx.scenes) all.push_back(sp.scan);
-      ro.floor_z = EstimateFloorZ(all);
-      spdlog::debug("ransac_upright: floor at z = {:.3f} m (estimated)", ro.floor_z);
+      floor = o_.floor == "plane" ? EstimateFloorPlane(all) : FloorPlane{0.f, 0.f, EstimateFloorZ(all)};
+      spdlog::debug("ransac_upright: floor z = {:.4f} x + {:.4f} y + {:.3f} m ({})", floor.a, floor.b, floor.c,
+                    o_.floor);
     }
+    std::vector<RansacOptions> ro(dets->size(), o_.ransac);
+    for (size_t d = 0; d < dets->size(); ++d)
+      ro[d].floor_z = floor.HeightAt((*dets)[d].center.x(), (*dets)[d].center.y());
     // Models per class, in catalog order; sampled once per stage object.
     std::set<std::string> classes;
     for (const auto& d : *dets) classes.insert(d.cls);
@@ -237,7 +243,7 @@ class RansacUprightFitter : public Fitter {
     tbb::parallel_for(size_t(0), dets->size(), [&](size_t d) {
       auto it = by_class.find((*dets)[d].cls);
       if (it == by_class.end()) return;
-      const Reach r = ReachOf((*dets)[d], it->second, ro.floor_z);
+      const Reach r = ReachOf((*dets)[d], it->second, ro[d].floor_z);
       for (const Points& w : world)
         for (const auto& p : w)
           if (r.Contains(p)) scenes[d].context.push_back(p);
@@ -245,7 +251,8 @@ class RansacUprightFitter : public Fitter {
     for (size_t d = 0; d < dets->size(); ++d) {
       auto it = by_class.find((*dets)[d].cls);
       Points context = std::move(scenes[d].context);
-      scenes[d] = Gather((*dets)[d], ctx, it == by_class.end() ? nullptr : &it->second, ro.floor_z, &dropped_parts[d]);
+      scenes[d] = Gather((*dets)[d], ctx, it == by_class.end() ? nullptr : &it->second, ro[d].floor_z,
+                          &dropped_parts[d]);
       scenes[d].context = std::move(context);
     }
 
@@ -254,7 +261,7 @@ class RansacUprightFitter : public Fitter {
     tbb::parallel_for(size_t(0), dets->size(), [&](size_t d) {
       auto it = by_class.find((*dets)[d].cls);
       if (it == by_class.end() || scenes[d].points.empty()) return;
-      fits[d] = FitUpright(scenes[d], it->second, ro, SplitMix(ctx.run.seed ^ SplitMix(d + 1)));
+      fits[d] = FitUpright(scenes[d], it->second, ro[d], SplitMix(ctx.run.seed ^ SplitMix(d + 1)));
     });
 
     std::vector<char> passed(dets->size(), 0);
@@ -514,5 +521,5 @@ class RansacUprightFitter : public Fitter {
 }  // namespace
 }  // namespace furnihost
 
-FURNIHOST_PLUGIN(furnihost::RansacUprightFitter, "fitters.ransac_upright", "1.2.0",
+FURNIHOST_PLUGIN(furnihost::RansacUprightFitter, "fitters.ransac_upright", "1.3.0",
                  "upright RANSAC fit of catalog models (x, y, yaw) with coverage and OctoMap free-space verification")

@@ -164,7 +164,7 @@ TEST(RansacUpright, RecoversChairPoseAndModel) {
 
 // A scan whose floor is 0.6 m below z = 0 (a robot's sensor frame, say): with the floor fixed
 // at 0 every model stands 0.6 m too high and nothing fits; floor = auto estimates it from the
-// scan (the room's floor is in view) and fits as if told floor_z = -0.6.
+// scan (the room's floor is in view) and fits as if told floor_z = -0.6; so does floor = plane.
 TEST(RansacUpright, FloorAutoFindsAFloorBelowZero) {
   const Catalog cat = FurnitureCatalog();
   Scenes sc;
@@ -181,7 +181,8 @@ TEST(RansacUpright, FloorAutoFindsAFloorBelowZero) {
   EXPECT_FALSE(at_zero[0].verified.value_or(true));
   // One RANSAC draw each (the sampling path changes with any change of the floor height, so
   // the two fits differ by sampling; the statistical accuracy bound is AccuracyOverRandomPlacements').
-  for (const auto& p : {nlohmann::json{{"floor_z", -0.6}}, nlohmann::json{{"floor", "auto"}}}) {
+  for (const auto& p : {nlohmann::json{{"floor_z", -0.6}}, nlohmann::json{{"floor", "auto"}},
+                        nlohmann::json{{"floor", "plane"}}}) {
     const auto out = MakeFitter(p)->Fit({h}, sc.Ctx(cat));
     ASSERT_EQ(out.size(), 1u);
     const Detection& d = out[0];

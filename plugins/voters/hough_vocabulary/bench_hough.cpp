@@ -9,6 +9,7 @@
 #include <cmath>
 #include <random>
 
+#include "furnihost/geometry.hpp"
 #include "furnihost/registry.hpp"
 #include "synthetic_views.hpp"
 
@@ -149,6 +150,24 @@ void BM_Vote(benchmark::State& state, const char* type, bool gated) {
                                                  benchmark::Counter::kIsIterationInvariantRate);
 }
 
+// The voter's floor estimates over a room scan (the room's parts, a floor, a wall): level (floor: auto) against
+// the tilted plane (floor: plane), whose RANSAC adds to each gated vote.
+void BM_Floor(benchmark::State& state, bool plane) {
+  Room room = MakeRoom(1500);
+  std::mt19937_64 rng(23);
+  for (int i = 0; i < 30000; ++i)  // a floor (1 cm noise) and a wall, as a room scan has
+    room.scan.points.emplace_back(10.f * U(rng), 8.f * U(rng), 0.01f * (U(rng) - 0.5f));
+  for (int i = 0; i < 10000; ++i) room.scan.points.emplace_back(0.f, 8.f * U(rng), 2.5f * U(rng));
+  float z = 0.f;
+  for (auto _ : state) {
+    z = plane ? EstimateFloorPlane({&room.scan}).c : EstimateFloorZ({&room.scan});
+    benchmark::DoNotOptimize(z);
+  }
+  state.counters["points"] = static_cast<double>(room.scan.points.size());
+}
+
+BENCHMARK_CAPTURE(BM_Floor, level, false)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Floor, plane, true)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Train, hough_k40, "voters.hough_vocabulary")->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Train, nearest_neighbor, "voters.nearest_neighbor")->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Vote, hough, "voters.hough_vocabulary", false)

@@ -439,9 +439,10 @@ void SelectionOptions::Declare(ParamSchema& s) {
               "a shape-model element votes only when the part's height above the floor is within this "
               "of its training part's height (objects stand on the floor, Sect. VI-B) [m] (0 = off, paper)")
       .DetectionOnly()
-      .Enum("floor", "auto", {"auto", "fixed"},
-            "scene floor height for height_tolerance_m: 'auto' = densest 2 cm z-slice among the lowest 30 % "
-            "of the points, 'fixed' = floor_z_m").DetectionOnly()
+      .Enum("floor", "auto", {"auto", "plane", "fixed"},
+            "scene floor for height_tolerance_m and the column check: 'auto' = level, at the densest 2 cm z-slice "
+            "among the lowest 30 % of the points; 'plane' = a plane (tilt <= 10 deg) fitted to them (RANSAC, "
+            "2 cm), for drifted reconstructions; 'fixed' = z = floor_z_m").DetectionOnly()
       .Number("floor_z_m", 0.0, -1e4, 1e4, "world z of the floor when floor is 'fixed' [m]").DetectionOnly()
       .Number("cell", 0.05, 0.005, 1.0, "vote grid cell size on the floor plane [m]").DetectionOnly()
       .Number("smoothing", 0.08, 0.0, 1.0,
@@ -483,7 +484,7 @@ SelectionOptions SelectionOptions::FromParams(const nlohmann::json& p) {
   o.max_distance = p.at("max_distance").get<float>();
   o.max_out_of_range = p.at("max_out_of_range").get<float>();
   o.height_tolerance = p.at("height_tolerance_m").get<float>();
-  o.floor_auto = p.at("floor").get<std::string>() == "auto";
+  o.floor = p.at("floor").get<std::string>();
   o.floor_z = p.at("floor_z_m").get<float>();
   o.cell = p.at("cell").get<float>();
   o.smoothing = p.at("smoothing").get<float>();
@@ -720,13 +721,13 @@ struct Activation {
 // taken above the floor.
 class ColumnIndex {
  public:
-  ColumnIndex(const std::vector<SceneParts>& scenes, float floor_z, float cell) {
+  ColumnIndex(const std::vector<SceneParts>& scenes, const FloorPlane& floor, float cell) {
     for (const auto& sc : scenes) {
       if (!sc.scan) continue;
       for (const auto& p : sc.scan->points) {
         const Eigen::Vector3f w = sc.scan->pose * p;
         if (!w.allFinite()) continue;
-        pts_.emplace_back(w.x(), w.y(), w.z() - floor_z);
+        pts_.emplace_back(w.x(), w.y(), floor.Above(w));
       }
     }
     if (pts_.empty()) return;
@@ -874,10 +875,12 @@ std::vector<Hypothesis> SelectClass(const VoteSet& votes, size_t vb, size_t ve,
 
 }  // namespace
 
-float EstimateFloor(const std::vector<SceneParts>& scenes) {
+FloorPlane SceneFloor(const std::vector<SceneParts>& scenes, const SelectionOptions& opt) {
+  if (opt.floor == "fixed") return FloorPlane{0.f, 0.f, opt.floor_z};
   std::vector<const Scan*> scans;
   for (const auto& sc : scenes) scans.push_back(sc.scan);
-  return EstimateFloorZ(scans);
+  if (opt.floor == "plane") return EstimateFloorPlane(scans);
+  return FloorPlane{0.f, 0.f, EstimateFloorZ(scans)};
 }
 
 VoteResult VoteAndSelect(const Codebook& book, const WordIndex& index,
@@ -965,10 +968,11 @@ VoteResult VoteAndSelect(const Codebook& book, const WordIndex& index,
   // part's height above the floor (objects stand on the floor).
   const bool gate = opt.height_tolerance > 0.f && !book.element_height.empty();
   const bool column = opt.column_radius > 0.f;
-  const float floor_z = gate || column ? (opt.floor_auto ? EstimateFloor(scenes) : opt.floor_z) : 0.f;
-  if (gate || column) spdlog::debug("voter: floor at z = {:.3f} m ({})", floor_z, opt.floor_auto ? "estimated" : "fixed");
+  const FloorPlane floor = gate || column ? SceneFloor(scenes, opt) : FloorPlane{};
+  if (gate || column)
+    spdlog::debug("voter: floor z = {:.4f} x + {:.4f} y + {:.3f} m ({})", floor.a, floor.b, floor.c, opt.floor);
   auto height_ok = [&](const PartRef& pr, int e) {
-    return !gate || std::abs(pr.world.z() - floor_z - book.element_height[e]) <= opt.height_tolerance;
+    return !gate || std::abs(floor.Above(pr.world) - book.element_height[e]) <= opt.height_tolerance;
   };
 
   // ---- votes x_v = l + d with weight p(A_i|f) / #(A_i, o) (eq. 5), grouped by class ----
@@ -1054,7 +1058,7 @@ VoteResult VoteAndSelect(const Codebook& book, const WordIndex& index,
   }
 
   std::unique_ptr<ColumnIndex> columns;
-  if (column) columns = std::make_unique<ColumnIndex>(scenes, floor_z, opt.column_radius);
+  if (column) columns = std::make_unique<ColumnIndex>(scenes, floor, opt.column_radius);
   size_t column_dropped = 0;
   for (int c = 0; c < C; ++c) {
     if (!active[c]) continue;

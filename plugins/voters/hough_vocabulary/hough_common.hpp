@@ -41,6 +41,7 @@
 #include <string>
 #include <vector>
 
+#include "furnihost/geometry.hpp"
 #include "furnihost/params.hpp"
 #include "furnihost/stage.hpp"
 #include "furnihost/types.hpp"
@@ -125,8 +126,9 @@ struct SelectionOptions {
                                 // than this (in ranges, FeatureMatrix::excess) do not vote (0 = off)
   float height_tolerance = 0.f; // element votes only when |part height - training part height|
                                 // <= this [m] (0 = off); heights above the scene floor
-  bool floor_auto = true;       // scene floor height: estimated from the points, or floor_z
-  float floor_z = 0.f;          // world z of the floor when !floor_auto [m]
+  std::string floor = "auto";   // scene floor: "auto" (level, the points' densest low z-slice),
+                                // "plane" (a plane fitted to the points) or "fixed" (z = floor_z)
+  float floor_z = 0.f;          // world z of the floor when floor is "fixed" [m]
   bool unit_weight = false;     // NN baseline: weight 1 per vote instead of eq. 4/5
   bool inverse_distance = false;// NN baseline: weight 1 / (1 + feature distance)
   float cell = 0.05f;           // grid cell [m]
@@ -174,10 +176,11 @@ class WordIndex {
   std::unique_ptr<Impl> impl_;
 };
 
-// Votes with every scene part and selects hypotheses (Sect. VI-A, VI-B).
-// World z of the floor under the scenes (furnihost::EstimateFloorZ over their scans).
-float EstimateFloor(const std::vector<SceneParts>& scenes);
+// The floor under the scenes as `opt.floor` says (furnihost::EstimateFloorPlane or
+// EstimateFloorZ over their scans, or z = opt.floor_z).
+FloorPlane SceneFloor(const std::vector<SceneParts>& scenes, const SelectionOptions& opt);
 
+// Votes with every scene part and selects hypotheses (Sect. VI-A, VI-B).
 VoteResult VoteAndSelect(const Codebook& book, const WordIndex& index,
                          const std::vector<SceneParts>& scenes, const SelectionOptions& opt);
 

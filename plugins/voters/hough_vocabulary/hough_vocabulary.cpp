@@ -71,5 +71,5 @@ class HoughVocabularyVoter : public Voter {
 
 }  // namespace furnihost::voters
 
-FURNIHOST_PLUGIN(furnihost::voters::HoughVocabularyVoter, "voters.hough_vocabulary", "1.2.0",
+FURNIHOST_PLUGIN(furnihost::voters::HoughVocabularyVoter, "voters.hough_vocabulary", "1.3.0",
                  "k-means vocabulary of parts + probabilistic Hough voting (Mozos et al. Sect. V-VI)")

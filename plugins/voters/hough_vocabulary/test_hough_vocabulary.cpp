@@ -309,6 +309,31 @@ TEST(HoughVocabulary, HeightGateEstimatesTheFloor) {
   EXPECT_TRUE(OfClass(fixed->Vote({scene.Parts()}, ctx), "chair").empty());
 }
 
+TEST(HoughVocabulary, HeightGateOnATiltedFloorPlane) {
+  // A drifted reconstruction: the floor rises 0.1 m per metre along x, and the chair stands on
+  // it at x = 4, 0.4 m above the floor's low end. floor = plane measures its parts' heights
+  // from the plane under them and keeps it; the level floor (the densest low slice) gates it out.
+  RunContext ctx;
+  json p = BaseParams();
+  p["height_tolerance_m"] = 0.1;
+  auto level = MakeVoter(p);
+  p["floor"] = "plane";
+  auto plane = MakeVoter(p);
+  level->Train(TwoClassViews(), ctx);
+  plane->Train(TwoClassViews(), ctx);
+  const Eigen::Vector3f truth(4.f, 1.f, -0.1f + 0.4f + 0.45f);
+  auto scene = MakeScene({{Chair(), truth, {}}}, Eigen::Isometry3f::Identity(), 0.02f, 6);
+  for (int i = 0; i < 120; ++i)
+    for (int j = 0; j < 60; ++j) {
+      const float x = -1.f + 0.05f * i;
+      scene.scan.points.emplace_back(x, -1.f + 0.05f * j, -0.1f + 0.1f * x);
+    }
+  const auto found = OfClass(plane->Vote({scene.Parts()}, ctx), "chair");
+  ASSERT_EQ(found.size(), 1u);
+  EXPECT_LT(Dist2D(found[0]->center, truth), 0.05f);
+  EXPECT_TRUE(OfClass(level->Vote({scene.Parts()}, ctx), "chair").empty());
+}
+
 TEST(HoughVocabulary, PartsFarOutsideTheTrainingRangeDoNotVote) {
   // FeatureMatrix::excess (filled by the host's normaliser) says how far a part's raw
   // features lay outside the training range; beyond max_out_of_range the part is ignored.

@@ -66,5 +66,5 @@ class NearestNeighborVoter : public Voter {
 
 }  // namespace furnihost::voters
 
-FURNIHOST_PLUGIN(furnihost::voters::NearestNeighborVoter, "voters.nearest_neighbor", "1.2.0",
+FURNIHOST_PLUGIN(furnihost::voters::NearestNeighborVoter, "voters.nearest_neighbor", "1.3.0",
                  "paper's NN baseline: each scene part votes with its nearest training part only")
