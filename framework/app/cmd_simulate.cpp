@@ -16,12 +16,14 @@
 #include <cmath>
 #include <filesystem>
 #include <iostream>
+#include <map>
 #include <set>
 #include <sstream>
 
 #include "cli_common.hpp"
 #include "commands.hpp"
 #include "furnihost/catalog.hpp"
+#include "furnihost/geometry.hpp"
 #include "furnihost/io.hpp"
 #include "furnihost/log.hpp"
 #include "furnihost/registry.hpp"
@@ -406,13 +408,24 @@ int RunSimulate(const std::vector<std::string>& args) {
 
   const std::string description = "furnihost simulate --scene " + scene_path + " --catalog " +
                                    catalog_path + " --seed " + std::to_string(ctx.seed);
+  // Each placed model's yaw symmetry, so that evaluation folds yaw errors by it (a table
+  // turned by 180 degrees is the same table; a chair is not).
+  std::map<std::string, int> symmetry;
+  for (const auto& s : scans)
+    for (const auto& g : s.truth)
+      if (!symmetry.count(g.model))
+        if (const CatalogModel* m = catalog.Find(g.model)) symmetry[g.model] = YawSymmetry(m->mesh);
   auto gt_json = [&](const Scan& s) {
-    json g = GroundTruthToJson(s.truth);
+    std::vector<GroundTruthObject> truth = s.truth;
+    for (auto& t : truth)
+      if (symmetry.count(t.model)) t.yaw_symmetry = symmetry.at(t.model);
+    json g = GroundTruthToJson(truth);
     if (g.is_array()) g = json{{"units", "m"}, {"up", "z"}, {"objects", g}};
     g["scene"] = fs::path(scene_path).filename().string();
     g["size_convention"] =
         "[dx, dy, dz] = axis-aligned extents of the placed model in the world frame; center = "
-        "their centre; yaw = model rotation about +z [rad]";
+        "their centre; yaw = model rotation about +z [rad]; yaw_symmetry = turns about +z that map the "
+        "model onto itself (0 = any, n = n-fold, 1 = none; 95 % of its surface within 2 cm)";
     g["generator"] = {{"command", description},
                       {"catalog_hash", catalog.hash},
                       {"sensor", kSensorType},

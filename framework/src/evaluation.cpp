@@ -60,6 +60,18 @@ double GetNum(const json& j, const std::string& key, const std::string& where) {
 
 double SafeDiv(double a, double b) { return b > 0 ? a / b : NAN; }
 
+}  // namespace
+
+double FoldYawErrorDeg(double raw_deg, std::optional<int> yaw_symmetry) {
+  if (!std::isfinite(raw_deg) || !yaw_symmetry || *yaw_symmetry == 1) return raw_deg;
+  if (*yaw_symmetry <= 0) return 0.0;
+  const double period = 360.0 / *yaw_symmetry;
+  const double d = std::fmod(raw_deg, period);
+  return std::min(d, period - d);
+}
+
+namespace {
+
 // Smallest absolute difference of two angles [rad], in degrees in [0, 180].
 double YawErrorDeg(double a, double b) {
   double d = std::fmod(std::abs(a - b), 2 * kPi);
@@ -101,7 +113,8 @@ void Accumulate(const std::vector<Detection>& dets, const std::vector<GroundTrut
     auto& e = errors[m.det_class[i]];
     e.centre.push_back(PlaneDistance(dets[i].center, g.center));
     // Only a fitter estimates yaw; a voter hypothesis' yaw is a placeholder 0.
-    if (fitted && !dets[i].model.empty() && g.yaw) e.yaw.push_back(YawErrorDeg(dets[i].yaw, *g.yaw));
+    if (fitted && !dets[i].model.empty() && g.yaw)
+      e.yaw.push_back(FoldYawErrorDeg(YawErrorDeg(dets[i].yaw, *g.yaw), g.yaw_symmetry));
   }
 }
 
@@ -176,6 +189,8 @@ json ToJson(const ObjectRecord& r) {
           {"model", r.model},
           {"centre_error_m", Num(r.centre_error_m)},
           {"yaw_error_deg", Num(r.yaw_error_deg)},
+          {"yaw_symmetry", r.yaw_symmetry},
+          {"yaw_error_folded_deg", Num(r.yaw_error_folded_deg)},
           {"coverage", Num(r.coverage)},
           {"rejection", r.rejection}};
 }
@@ -190,6 +205,14 @@ ObjectRecord ObjectRecordFromJson(const json& j, const std::string& where) {
   r.model = j.value("model", "");
   r.centre_error_m = GetNum(j, "centre_error_m", where);
   r.yaw_error_deg = GetNum(j, "yaw_error_deg", where);
+  // Records written before yaw symmetries were known: none declared, folded = raw.
+  r.yaw_symmetry = -1;
+  if (j.contains("yaw_symmetry")) {
+    const double y = GetNum(j, "yaw_symmetry", where);
+    if (!(y >= -1 && y <= 360)) throw InputError(where + "/yaw_symmetry: expected an integer -1..360");
+    r.yaw_symmetry = static_cast<int>(y);
+  }
+  r.yaw_error_folded_deg = j.contains("yaw_error_folded_deg") ? GetNum(j, "yaw_error_folded_deg", where) : r.yaw_error_deg;
   r.coverage = GetNum(j, "coverage", where);
   r.rejection = j.value("rejection", "");
   return r;
@@ -495,6 +518,7 @@ EvalMetrics Evaluate(const std::vector<SceneEval>& scenes, const ClassMap& class
       r.index = static_cast<int>(g);
       r.cls = m.gt_class[g];
       r.gt_model = se.truth[g].model;
+      r.yaw_symmetry = se.truth[g].yaw_symmetry.value_or(-1);
       int shown = -1;
       if (mv.gt_to_det[g] >= 0) {
         shown = kept_index[mv.gt_to_det[g]];
@@ -509,7 +533,10 @@ EvalMetrics Evaluate(const std::vector<SceneEval>& scenes, const ClassMap& class
         const Detection& d = se.detections[shown];
         r.model = d.model;
         r.centre_error_m = PlaneDistance(d.center, se.truth[g].center);
-        if (se.fitted && !d.model.empty() && se.truth[g].yaw) r.yaw_error_deg = YawErrorDeg(d.yaw, *se.truth[g].yaw);
+        if (se.fitted && !d.model.empty() && se.truth[g].yaw) {
+          r.yaw_error_deg = YawErrorDeg(d.yaw, *se.truth[g].yaw);
+          r.yaw_error_folded_deg = FoldYawErrorDeg(r.yaw_error_deg, se.truth[g].yaw_symmetry);
+        }
         if (d.coverage >= 0) r.coverage = d.coverage;
         r.rejection = d.rejection;
       }
@@ -817,13 +844,15 @@ std::string Cell(double v, int decimals) { return std::isfinite(v) ? Fixed(v, de
 
 // Markdown table of the per-object records of one run.
 void ObjectTable(std::ostringstream& o, const std::vector<ObjectRecord>& objects) {
-  o << "| scene | # | class | gt model | status | fitted model | centre err [m] | yaw err [deg] | yaw err mod 180° | coverage | rejection |\n"
-       "|---|---:|---|---|---|---|---:|---:|---:|---:|---|\n";
+  o << "| scene | # | class | gt model | status | fitted model | centre err [m] | yaw err [deg] | gt symmetry | "
+       "yaw err, symmetric [deg] | coverage | rejection |\n"
+       "|---|---:|---|---|---|---|---:|---:|---:|---:|---:|---|\n";
   for (const auto& r : objects) {
-    const double folded = std::isfinite(r.yaw_error_deg) ? std::min(r.yaw_error_deg, 180.0 - r.yaw_error_deg) : NAN;
+    const std::string sym = r.yaw_symmetry < 0 ? "?" : r.yaw_symmetry == 0 ? "any" : std::to_string(r.yaw_symmetry);
     o << "| " << r.scene << " | " << r.index << " | " << r.cls << " | " << (r.gt_model.empty() ? "?" : r.gt_model)
       << " | " << r.status << " | " << (r.model.empty() ? "–" : r.model) << " | " << Cell(r.centre_error_m, 3) << " | "
-      << Cell(r.yaw_error_deg, 1) << " | " << Cell(folded, 1) << " | " << Cell(r.coverage, 2) << " | "
+      << Cell(r.yaw_error_deg, 1) << " | " << sym << " | " << Cell(r.yaw_error_folded_deg, 1) << " | "
+      << Cell(r.coverage, 2) << " | "
       << (r.rejection.empty() ? "" : r.rejection) << " |\n";
   }
   o << "\n";
@@ -949,8 +978,9 @@ std::string RenderReport(const std::vector<ConfigSummary>& configs, const Report
     const RunFigures& r = configs[i].runs.front();
     o << "### per object: " << Letter(i) << " = " << configs[i].name << " (seed " << r.seed << ")\n\n";
     o << "Errors of the detection shown: the verified one on the object, else the rejected hypothesis on it. "
-         "Yaw errors are raw (the catalog declares no symmetries); the folded column is min(e, 180° − e), for "
-         "models that look alike turned by 180°.\n\n";
+         "Yaw errors: raw, and folded by the turns that map the ground-truth model onto itself (its gt "
+         "yaw_symmetry, written by `furnihost simulate` from the mesh: n-fold, any, or ? = not declared, "
+         "then not folded); the tables above fold them the same way.\n\n";
     ObjectTable(o, r.metrics.objects);
   }
 

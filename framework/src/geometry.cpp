@@ -5,6 +5,7 @@
 #include <cmath>
 #include <random>
 #include <unordered_map>
+#include <unordered_set>
 
 namespace furnihost {
 
@@ -202,6 +203,39 @@ Points SampleSurface(const Mesh& mesh, float per_m2, uint64_t seed, Points* norm
     }
   }
   return out;
+}
+
+int YawSymmetry(const Mesh& mesh, float tolerance) {
+  double area = 0.0;
+  const int nv = static_cast<int>(mesh.vertices.size());
+  for (const auto& t : mesh.triangles)
+    if (t.minCoeff() >= 0 && t.maxCoeff() < nv)
+      area += 0.5 * double((mesh.vertices[t[1]] - mesh.vertices[t[0]]).cross(mesh.vertices[t[2]] - mesh.vertices[t[0]]).norm());
+  if (!(area > 0.0) || !(tolerance > 0.f)) return 1;
+  const Points pts = SampleSurface(mesh, static_cast<float>(6000.0 / area), 1);
+  if (pts.empty()) return 1;
+  auto key = [&](const Eigen::Vector3f& p, int dx, int dy, int dz) {
+    auto q = [&](float v, int d) { return static_cast<uint64_t>((static_cast<int64_t>(std::floor(v / tolerance)) + d) & 0x1FFFFF); };
+    return q(p.x(), dx) | (q(p.y(), dy) << 21) | (q(p.z(), dz) << 42);
+  };
+  std::unordered_set<uint64_t> occupied;
+  for (const auto& p : pts) occupied.insert(key(p, 0, 0, 0));
+  auto maps_onto_itself = [&](float degrees) {
+    const Eigen::Matrix3f r = Eigen::AngleAxisf(degrees * 3.14159265f / 180.f, Eigen::Vector3f::UnitZ()).toRotationMatrix();
+    size_t hit = 0;
+    for (const auto& p : pts) {
+      const Eigen::Vector3f q = r * p;
+      bool near = false;
+      for (int dz = -1; dz <= 1 && !near; ++dz)
+        for (int dy = -1; dy <= 1 && !near; ++dy)
+          for (int dx = -1; dx <= 1 && !near; ++dx) near = occupied.count(key(q, dx, dy, dz)) > 0;
+      hit += near;
+    }
+    return double(hit) >= 0.95 * double(pts.size());
+  };
+  if (!maps_onto_itself(180.f)) return 1;
+  if (!maps_onto_itself(90.f)) return 2;
+  return maps_onto_itself(30.f) && maps_onto_itself(45.f) ? 0 : 4;
 }
 
 std::array<uint8_t, 3> ClassColor(const std::string& cls) {

@@ -575,6 +575,12 @@ std::vector<GroundTruthObject> ReadGroundTruth(const std::string& path) {
     g.size = Vec3(o.value("size", nlohmann::json()), at + "/size");
     if (o.contains("yaw") && o["yaw"].is_number()) g.yaw = o["yaw"].get<float>();
     if (o.contains("model") && o["model"].is_string()) g.model = o["model"].get<std::string>();
+    if (o.contains("yaw_symmetry")) {
+      const auto& y = o["yaw_symmetry"];
+      if (!y.is_number_integer() || y.get<long long>() < 0 || y.get<long long>() > 360)
+        throw InputError(at + "/yaw_symmetry: expected an integer 0..360 (0 = any turn, n = n-fold)");
+      g.yaw_symmetry = y.get<int>();
+    }
     out.push_back(g);
   }
   return out;
@@ -590,6 +596,7 @@ nlohmann::json GroundTruthToJson(const std::vector<GroundTruthObject>& objects) 
                         {"size", {r(g.size.x(), 1e-4), r(g.size.y(), 1e-4), r(g.size.z(), 1e-4)}}};
     if (g.yaw) o["yaw"] = r(*g.yaw, 1e-6);
     if (!g.model.empty()) o["model"] = g.model;
+    if (g.yaw_symmetry) o["yaw_symmetry"] = *g.yaw_symmetry;
     arr.push_back(o);
   }
   return {{"units", "m"}, {"up", "z"}, {"objects", arr}};

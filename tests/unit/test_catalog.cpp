@@ -5,6 +5,7 @@
 #include <map>
 
 #include "furnihost/catalog.hpp"
+#include "furnihost/geometry.hpp"
 #include "furnihost/io.hpp"
 #include "test_support.hpp"
 
@@ -61,6 +62,21 @@ TEST(Catalog, EverySharedModelLoadsWithAPlausibleSize) {
   const auto classes = cat.Classes();
   EXPECT_TRUE(std::is_sorted(classes.begin(), classes.end()));
   EXPECT_EQ(classes.size(), kHeight.size());
+}
+
+// Turn symmetries of the shared models (what `furnihost simulate` writes into the ground truth):
+// nothing one sits on looks the same turned round; a rectangular table does by half turns, a
+// square one by quarter turns.
+TEST(Catalog, SharedModelsTurnSymmetries) {
+  const std::string data = furnihost::testing::SharedDataDir();
+  ASSERT_FALSE(data.empty());
+  const Catalog cat = LoadCatalog(data + "/cad_catalog/catalog.json", true);
+  for (const auto& m : cat.models)
+    if (m.cls == "chair" || m.cls == "armchair" || m.cls == "sofa") {
+      EXPECT_EQ(YawSymmetry(m.mesh), 1) << m.id;
+    }
+  EXPECT_EQ(YawSymmetry(cat.Find("sh3d_table")->mesh), 2);
+  EXPECT_EQ(YawSymmetry(cat.Find("sh3d_squareTable")->mesh), 4);
 }
 
 // A tiny temporary catalog folder.

@@ -8,6 +8,8 @@
 #include <filesystem>
 #include <fstream>
 
+#include "furnihost/catalog.hpp"
+#include "furnihost/geometry.hpp"
 #include "furnihost/io.hpp"
 #include "furnihost/pipeline.hpp"
 #include "test_support.hpp"
@@ -85,6 +87,14 @@ TEST(Determinism, StubChainIdenticalAcrossThreadsAndRuns) {
   ASSERT_EQ(Furnihost(sim + "--threads 2 --seed 43 --out " + dir + "/room43.pcd", dir).code, 0);
   EXPECT_EQ(Bytes(dir + "/room1.pcd"), Bytes(dir + "/room2.pcd")) << "simulated scan depends on the thread count";
   EXPECT_NE(Bytes(dir + "/room1.pcd"), Bytes(dir + "/room43.pcd")) << "the seed does not reach the sensor noise";
+  // The ground truth names each object's turn symmetry (what evaluation folds yaw errors by).
+  const furnihost::Catalog tiny = furnihost::LoadCatalog(corpus + "/catalogs/tiny/catalog.json");
+  const auto truth = furnihost::ReadGroundTruth(dir + "/room1.gt.json");
+  ASSERT_FALSE(truth.empty());
+  for (const auto& t : truth) {
+    ASSERT_TRUE(t.yaw_symmetry.has_value()) << t.model;
+    EXPECT_EQ(*t.yaw_symmetry, furnihost::YawSymmetry(tiny.Find(t.model)->mesh)) << t.model;
+  }
 
   std::ifstream in(corpus + "/graphs/stub_chain.json");
   std::string graph(std::istreambuf_iterator<char>(in), {});

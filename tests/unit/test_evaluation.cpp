@@ -273,6 +273,41 @@ TEST(Metrics, VerificationRemovalRatesAndObjectRecords) {
   EXPECT_NE(md.find("| room | 1 | chair | ? | rejected | chair_b |"), std::string::npos) << md;
 }
 
+// A yaw error is folded by the turns that map the gt object onto itself: a table (2-fold)
+// fitted the other way round is right, a chair (1-fold) or an undeclared object is not.
+TEST(Metrics, YawErrorsFoldByTheGroundTruthsSymmetry) {
+  EXPECT_NEAR(FoldYawErrorDeg(170.0, std::nullopt), 170.0, 1e-12);
+  EXPECT_NEAR(FoldYawErrorDeg(170.0, 1), 170.0, 1e-12);
+  EXPECT_NEAR(FoldYawErrorDeg(170.0, 2), 10.0, 1e-9);
+  EXPECT_NEAR(FoldYawErrorDeg(100.0, 4), 10.0, 1e-9);
+  EXPECT_NEAR(FoldYawErrorDeg(50.0, 4), 40.0, 1e-9);
+  EXPECT_NEAR(FoldYawErrorDeg(123.0, 0), 0.0, 1e-12);
+  EXPECT_TRUE(std::isnan(FoldYawErrorDeg(NAN, 2)));
+
+  GroundTruthObject table = Gt("table", 1, 1, 1.2f, 0.8f), chair = Gt("chair", 4, 4, 0.6f, 0.6f);
+  table.yaw = chair.yaw = 0.f;
+  table.yaw_symmetry = 2;
+  chair.yaw_symmetry = 1;
+  Detection t = Det("table", 1.f, 1.f, 0.9f), c = Det("chair", 4.f, 4.f, 0.9f);
+  t.verified = c.verified = true;
+  t.model = c.model = "m";
+  t.yaw = c.yaw = 175.f * float(M_PI) / 180.f;
+  const EvalMetrics e = Evaluate({{{t, c}, {table, chair}, true, "room", {}}}, Classes(), WidthConvention::Max);
+  EXPECT_NEAR(e.classes[0].verified->yaw_error_deg.median, 175.0, 1e-3);  // chair
+  EXPECT_NEAR(e.classes[1].verified->yaw_error_deg.median, 5.0, 1e-3);    // table
+  ASSERT_EQ(e.objects.size(), 2u);
+  EXPECT_NEAR(e.objects[0].yaw_error_deg, 175.0, 1e-3);
+  EXPECT_NEAR(e.objects[0].yaw_error_folded_deg, 5.0, 1e-3);
+  EXPECT_EQ(e.objects[0].yaw_symmetry, 2);
+  RunFigures f;
+  f.metrics = e;
+  const RunFigures back = RunFiguresFromJson(ToJson(f), "test");
+  EXPECT_EQ(back.metrics.objects[0].yaw_symmetry, 2);
+  EXPECT_NEAR(back.metrics.objects[0].yaw_error_folded_deg, 5.0, 1e-3);
+  const std::string md = RenderReport({{"A", "a.json", {back}}}, ReportInfo{});
+  EXPECT_NE(md.find("| 175.0 | 2 | 5.0 |"), std::string::npos) << md;
+}
+
 TEST(Metrics, SummariseInterpolatesBetweenOrderStatistics) {
   const ErrorStats s = Summarise({10, 1, 9, 2, 8, 3, 7, 4, 6, 5});
   EXPECT_EQ(s.n, 10);

@@ -173,6 +173,17 @@ TEST(Io, JsonErrorsAndGroundTruth) {
   EXPECT_EQ(back[0].cls, "chair");
   EXPECT_TRUE(back[0].center.isApprox(g.center));
   EXPECT_FLOAT_EQ(*back[0].yaw, 0.5f);
+  EXPECT_FALSE(back[0].yaw_symmetry.has_value());
+  g.yaw_symmetry = 2;
+  WriteJson(dir + "/x.gt.json", GroundTruthToJson({g}));
+  EXPECT_EQ(ReadGroundTruth(dir + "/x.gt.json")[0].yaw_symmetry, 2);
+  WriteText(dir + "/y.gt.json", R"({"objects": [{"class": "table", "center": [0, 0, 0], "size": [1, 1, 1], "yaw_symmetry": 1.5}]})");
+  try {
+    ReadGroundTruth(dir + "/y.gt.json");
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("y.gt.json:/objects/0/yaw_symmetry"), std::string::npos) << e.what();
+  }
 }
 
 TEST(Io, ReadsSharedScanNetPly) {
@@ -236,4 +247,43 @@ TEST(Geometry, FloorPlaneFollowsATiltedFloor) {
   const FloorPlane none = EstimateFloorPlane({});
   EXPECT_EQ(none.a, 0.f);
   EXPECT_EQ(none.c, 0.f);
+}
+
+// Turn symmetries of simple shapes in a catalog model's frame (bottom centre at the origin):
+// a 1.2 x 0.6 box turns onto itself by half turns, a square box by quarter turns, a 48-sided
+// prism by any turn, and a box with a back panel (a chair's seat and back) by none.
+TEST(Geometry, YawSymmetryOfBoxesAPrismAndAChairShape) {
+  auto box = [](Mesh& m, Eigen::Vector3f lo, Eigen::Vector3f hi) {
+    const int b = static_cast<int>(m.vertices.size());
+    for (int i = 0; i < 8; ++i)
+      m.vertices.emplace_back(i & 1 ? hi.x() : lo.x(), i & 2 ? hi.y() : lo.y(), i & 4 ? hi.z() : lo.z());
+    const int f[12][3] = {{0, 2, 1}, {1, 2, 3}, {4, 5, 6}, {5, 7, 6}, {0, 1, 4}, {1, 5, 4},
+                          {2, 6, 3}, {3, 6, 7}, {0, 4, 2}, {2, 4, 6}, {1, 3, 5}, {3, 7, 5}};
+    for (const auto& t : f) m.triangles.emplace_back(b + t[0], b + t[1], b + t[2]);
+  };
+  Mesh rect, square, chair, prism;
+  box(rect, {-0.6f, -0.3f, 0.f}, {0.6f, 0.3f, 0.75f});
+  box(square, {-0.4f, -0.4f, 0.f}, {0.4f, 0.4f, 0.75f});
+  box(chair, {-0.25f, -0.25f, 0.4f}, {0.25f, 0.25f, 0.45f});
+  box(chair, {-0.25f, 0.2f, 0.45f}, {0.25f, 0.25f, 0.9f});
+  const int n = 48;
+  for (int i = 0; i < n; ++i) {
+    const float a = 6.2831853f * static_cast<float>(i) / n;
+    prism.vertices.emplace_back(0.4f * std::cos(a), 0.4f * std::sin(a), 0.f);
+    prism.vertices.emplace_back(0.4f * std::cos(a), 0.4f * std::sin(a), 0.7f);
+  }
+  for (int i = 0; i < n; ++i) {
+    const int j = (i + 1) % n;
+    prism.triangles.emplace_back(2 * i, 2 * j, 2 * i + 1);
+    prism.triangles.emplace_back(2 * j, 2 * j + 1, 2 * i + 1);
+    if (i > 0 && j > 0) {
+      prism.triangles.emplace_back(0, 2 * j, 2 * i);
+      prism.triangles.emplace_back(1, 2 * i + 1, 2 * j + 1);
+    }
+  }
+  EXPECT_EQ(YawSymmetry(rect), 2);
+  EXPECT_EQ(YawSymmetry(square), 4);
+  EXPECT_EQ(YawSymmetry(prism), 0);
+  EXPECT_EQ(YawSymmetry(chair), 1);
+  EXPECT_EQ(YawSymmetry(Mesh{}), 1);
 }

@@ -108,12 +108,18 @@ struct ErrorStats {
 };
 FURNIHOST_API ErrorStats Summarise(std::vector<double> values);
 
+// |yaw error| [deg] of a detection whose yaw differs from the gt's by `raw_deg` (in [0, 180]),
+// folded by the gt object's turn symmetry: 0 = any turn (error 0), n = n-fold (the distance to
+// the nearest multiple of 360/n), none or 1 = raw.
+FURNIHOST_API double FoldYawErrorDeg(double raw_deg, std::optional<int> yaw_symmetry);
+
 // Counts at one operating point plus the errors of its true positives.
 struct OperatingPoint {
   int tp = 0, fp = 0, fn = 0;
   double precision = NAN, recall = NAN;  // NaN when undefined (no detections / no gt)
   ErrorStats centre_error_m;             // floor-plane distance of TPs to the gt centre
-  ErrorStats yaw_error_deg;              // |yaw - gt yaw| in [0, 180] of fitted TPs with gt yaw
+  ErrorStats yaw_error_deg;              // |yaw - gt yaw| in [0, 180] of fitted TPs with gt yaw,
+                                         // folded by the gt's yaw_symmetry when it declares one
 };
 
 // Verification as a filter of the voter's hypotheses: each hypothesis is matched at the centre
@@ -138,6 +144,8 @@ struct ObjectRecord {
   // Of the detection shown (the verified one, else the rejected hypothesis):
   std::string model;                                 // fitted model id, "" when none
   double centre_error_m = NAN, yaw_error_deg = NAN;  // floor-plane centre distance; raw yaw in [0, 180]
+  int yaw_symmetry = -1;                             // the gt's yaw_symmetry, -1 when not declared
+  double yaw_error_folded_deg = NAN;                 // yaw error folded by yaw_symmetry (= raw without)
   double coverage = NAN;
   std::string rejection;
 };

@@ -40,6 +40,9 @@ struct GroundTruthObject {
   Eigen::Vector3f size = Eigen::Vector3f::Zero();    // axis-aligned extents [m]
   std::optional<float> yaw;                          // [rad] about +z, when known
   std::string model;                                 // catalog model id, when known
+  // Turns about +z mapping the object onto itself, when known (furnihost::YawSymmetry of its
+  // model): 0 = any turn, n = n-fold (1 = none). Yaw errors are folded by them.
+  std::optional<int> yaw_symmetry;
 };
 
 // A point cloud as acquired by a sensor, in the scan frame.
