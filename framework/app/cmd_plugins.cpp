@@ -35,9 +35,7 @@ int RunPlugins(const std::vector<std::string>& args) {
                 << "\n  " << p.path << "\n";
       for (const auto& s : p.params.Specs()) {
         std::cout << "    " << s.name << " (" << ToString(s.type);
-        if (s.min || s.max)
-          std::cout << " in [" << (s.min ? std::to_string(*s.min) : "-inf") << ", "
-                    << (s.max ? std::to_string(*s.max) : "inf") << "]";
+        std::cout << RangeText(s);
         if (!s.choices.empty()) {
           std::cout << ":";
           for (const auto& c : s.choices) std::cout << " " << c;

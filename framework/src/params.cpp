@@ -23,14 +23,9 @@ namespace {
 
 std::string FormatNumber(double v) {
   std::ostringstream s;
-  s << v;
+  if (std::abs(v) < 1e15 && v == std::floor(v)) s << static_cast<long long>(v);  // 2147483647, not 2.14748e+09
+  else s << v;
   return s.str();
-}
-
-std::string RangeText(const ParamSpec& s) {
-  if (!s.min && !s.max) return "";
-  return " in [" + (s.min ? FormatNumber(*s.min) : std::string("-inf")) + ", " +
-         (s.max ? FormatNumber(*s.max) : std::string("inf")) + "]";
 }
 
 // Shortened dump of an offending value for messages.
@@ -45,6 +40,12 @@ bool InRange(const ParamSpec& s, double v) {
 }
 
 }  // namespace
+
+std::string RangeText(const ParamSpec& s) {
+  if (!s.min && !s.max) return "";
+  return " in [" + (s.min ? FormatNumber(*s.min) : std::string("-inf")) + ", " +
+         (s.max ? FormatNumber(*s.max) : std::string("inf")) + "]";
+}
 
 ParamSchema& ParamSchema::Bool(const std::string& name, bool def, const std::string& help) {
   specs_.push_back({name, ParamType::Bool, def, {}, {}, {}, help});

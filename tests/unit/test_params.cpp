@@ -65,6 +65,20 @@ TEST(Params, SchemaJsonListsRanges) {
   EXPECT_EQ(j[3]["choices"], json({"a", "b"}));
 }
 
+TEST(Params, RangeTextPrintsNumbersAsWritten) {
+  furnihost::ParamSpec s;
+  EXPECT_EQ(furnihost::RangeText(s), "");
+  s.min = 0;
+  s.max = 2147483647;
+  EXPECT_EQ(furnihost::RangeText(s), " in [0, 2147483647]");
+  s.min = -1e-6;
+  s.max.reset();
+  EXPECT_EQ(furnihost::RangeText(s), " in [-1e-06, inf]");
+  s.min.reset();
+  s.max = 0.25;
+  EXPECT_EQ(furnihost::RangeText(s), " in [-inf, 0.25]");
+}
+
 TEST(Params, DetectionOnlyParamsLeaveTheTrainingKey) {
   ParamSchema s = ParamSchema()
                       .Int("k", 40, 1, 1e6, "words")

@@ -26,6 +26,10 @@ struct ParamSpec {
   bool training = true;
 };
 
+// " in [min, max]" of a numeric spec: whole numbers in full ("2147483647"), others as a stream
+// prints them ("0.5", "1e-06"); "-inf" / "inf" for a missing bound; "" when it has neither.
+FURNIHOST_API std::string RangeText(const ParamSpec& s);
+
 class FURNIHOST_API ParamSchema {
  public:
   ParamSchema& Bool(const std::string& name, bool def, const std::string& help);
