@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
 
 #include "synthetic_views.hpp"
 #include "test_support.hpp"
@@ -288,50 +289,45 @@ TEST(HoughVocabulary, HeightGateDropsPartsAtTheWrongHeight) {
   EXPECT_LT(Dist2D(kept[0]->center, on_floor), 0.05f);
 }
 
-TEST(HoughVocabulary, HeightGateEstimatesTheFloor) {
-  // The room's floor is at z = -0.3 (a dense plane of points that belongs to no part): the
-  // estimated floor keeps the chair standing on it, a floor fixed at z = 0 gates it out.
+// Height gate (0.1 m) with two floor modes: the chair standing at `truth` on the floor
+// z = floor_z(x) (a dense grid of points that belongs to no part, x from -1 m over nx cells of
+// 5 cm, y from -1 m over 60) is found at its place with floor mode `keeps` and gated out with
+// floor mode `drops`.
+void ExpectFloorModeDecides(const char* keeps, const char* drops, const Eigen::Vector3f& truth, int nx,
+                            const std::function<float(float)>& floor_z) {
   RunContext ctx;
   json p = BaseParams();
   p["height_tolerance_m"] = 0.1;
-  auto automatic = MakeVoter(p);
-  p["floor"] = "fixed";
-  auto fixed = MakeVoter(p);
-  automatic->Train(TwoClassViews(), ctx);
-  fixed->Train(TwoClassViews(), ctx);
-  const Eigen::Vector3f truth(1.f, 1.f, 0.15f);
+  p["floor"] = keeps;
+  auto kept = MakeVoter(p);
+  p["floor"] = drops;
+  auto dropped = MakeVoter(p);
+  kept->Train(TwoClassViews(), ctx);
+  dropped->Train(TwoClassViews(), ctx);
   auto scene = MakeScene({{Chair(), truth, {}}}, Eigen::Isometry3f::Identity(), 0.02f, 6);
-  for (int i = 0; i < 60; ++i)
-    for (int j = 0; j < 60; ++j) scene.scan.points.emplace_back(-1.f + 0.05f * i, -1.f + 0.05f * j, -0.3f);
-  const auto found = OfClass(automatic->Vote({scene.Parts()}, ctx), "chair");
-  ASSERT_EQ(found.size(), 1u);
-  EXPECT_LT(Dist2D(found[0]->center, truth), 0.05f);
-  EXPECT_TRUE(OfClass(fixed->Vote({scene.Parts()}, ctx), "chair").empty());
+  for (int i = 0; i < nx; ++i)
+    for (int j = 0; j < 60; ++j) {
+      const float x = -1.f + 0.05f * i;
+      scene.scan.points.emplace_back(x, -1.f + 0.05f * j, floor_z(x));
+    }
+  const auto found = OfClass(kept->Vote({scene.Parts()}, ctx), "chair");
+  ASSERT_EQ(found.size(), 1u) << keeps;
+  EXPECT_LT(Dist2D(found[0]->center, truth), 0.05f) << keeps;
+  EXPECT_TRUE(OfClass(dropped->Vote({scene.Parts()}, ctx), "chair").empty()) << drops;
+}
+
+TEST(HoughVocabulary, HeightGateEstimatesTheFloor) {
+  // The room's floor is at z = -0.3: the estimated floor keeps the chair standing on it, a
+  // floor fixed at z = 0 gates it out.
+  ExpectFloorModeDecides("auto", "fixed", {1.f, 1.f, 0.15f}, 60, [](float) { return -0.3f; });
 }
 
 TEST(HoughVocabulary, HeightGateOnATiltedFloorPlane) {
   // A drifted reconstruction: the floor rises 0.1 m per metre along x, and the chair stands on
   // it at x = 4, 0.4 m above the floor's low end. floor = plane measures its parts' heights
   // from the plane under them and keeps it; the level floor (the densest low slice) gates it out.
-  RunContext ctx;
-  json p = BaseParams();
-  p["height_tolerance_m"] = 0.1;
-  auto level = MakeVoter(p);
-  p["floor"] = "plane";
-  auto plane = MakeVoter(p);
-  level->Train(TwoClassViews(), ctx);
-  plane->Train(TwoClassViews(), ctx);
-  const Eigen::Vector3f truth(4.f, 1.f, -0.1f + 0.4f + 0.45f);
-  auto scene = MakeScene({{Chair(), truth, {}}}, Eigen::Isometry3f::Identity(), 0.02f, 6);
-  for (int i = 0; i < 120; ++i)
-    for (int j = 0; j < 60; ++j) {
-      const float x = -1.f + 0.05f * i;
-      scene.scan.points.emplace_back(x, -1.f + 0.05f * j, -0.1f + 0.1f * x);
-    }
-  const auto found = OfClass(plane->Vote({scene.Parts()}, ctx), "chair");
-  ASSERT_EQ(found.size(), 1u);
-  EXPECT_LT(Dist2D(found[0]->center, truth), 0.05f);
-  EXPECT_TRUE(OfClass(level->Vote({scene.Parts()}, ctx), "chair").empty());
+  ExpectFloorModeDecides("plane", "auto", {4.f, 1.f, -0.1f + 0.4f + 0.45f}, 120,
+                         [](float x) { return -0.1f + 0.1f * x; });
 }
 
 TEST(HoughVocabulary, PartsFarOutsideTheTrainingRangeDoNotVote) {
