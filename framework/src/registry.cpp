@@ -7,6 +7,7 @@
 #include <boost/dll/runtime_symbol_info.hpp>
 #include <boost/dll/shared_library.hpp>
 #include <cstdlib>
+#include <dlfcn.h>
 #include <filesystem>
 #include <map>
 #include <set>
@@ -62,7 +63,8 @@ Registry::Registry(const std::vector<std::string>& search_dirs) : impl_(new Impl
 
 Registry::~Registry() {
   // Entries hold ParamSchema copies made by plugin code, but copies live in host memory and
-  // use the core library's code; clearing them before the libraries unload is still tidy.
+  // use the core library's code; clearing them before the library handles close is still tidy
+  // (accepted plugins stay mapped anyway: see LoadFile).
   plugins_.clear();
 }
 
@@ -98,6 +100,14 @@ bool Registry::LoadFile(const std::string& path) {
                     "' does not start with sensors., segmenters., features., voters. or fitters.");
     if (auto* other = Find(info.type))
       return refuse("duplicate type " + info.type + " (already loaded from " + other->path + ")");
+    // Accepted plugins stay mapped until the process ends (RTLD_NODELETE, set on the already
+    // loaded library; the extra reference is never dropped). TBB worker threads can still be
+    // returning through a plugin's task code (oneTBB's templates are instantiated in the plugin)
+    // after its parallel_for has returned, and they outlive every registry: unmapping the code
+    // under them crashed ~2 % of test processes at exit under load (worker thread PC in the
+    // unmapped fitter plugin, main thread in exit handlers).
+    if (!dlopen(path.c_str(), RTLD_LAZY | RTLD_LOCAL | RTLD_NOLOAD | RTLD_NODELETE))
+      spdlog::debug("plugin {}: could not pin it in memory ({})", path, dlerror());
     PluginEntry e{info.type, info.version, info.description, path, *kind, info.params};
     plugins_.push_back(std::move(e));
     impl_->by_type[info.type] = {lib, create};
