@@ -9,6 +9,21 @@
 
 namespace furnihost {
 
+namespace {
+
+// Key of the cubic voxel of edge `voxel` holding p, shifted by (dx, dy, dz) voxels. 21 bits
+// per axis: +-1e6 voxels around the origin; wraps beyond (still deterministic). v / voxel, not
+// v * (1 / voxel): the correctly rounded quotient puts a point that lies on a voxel boundary
+// (k * voxel) in voxel k, as floor(v / voxel) computed anywhere else does.
+uint64_t VoxelKey(const Eigen::Vector3f& p, float voxel, int dx = 0, int dy = 0, int dz = 0) {
+  auto q = [&](float v, int d) {
+    return static_cast<uint64_t>((static_cast<int64_t>(std::floor(v / voxel)) + d) & 0x1FFFFF);
+  };
+  return q(p.x(), dx) | (q(p.y(), dy) << 21) | (q(p.z(), dz) << 42);
+}
+
+}  // namespace
+
 Points VoxelDownsample(const Points& points, float voxel, std::vector<int>* kept) {
   if (!(voxel > 0.f)) {
     if (kept) {
@@ -25,11 +40,7 @@ Points VoxelDownsample(const Points& points, float voxel, std::vector<int>* kept
   std::vector<int> count, first;
   for (size_t i = 0; i < points.size(); ++i) {
     const auto& p = points[i];
-    // 21 bits per axis: +-1e6 voxels around the origin; wraps beyond (still deterministic).
-    // v / voxel, not v * (1 / voxel): the correctly rounded quotient puts a point that lies on
-    // a voxel boundary (k * voxel) in voxel k, as floor(v / voxel) computed anywhere else does.
-    auto q = [&](float v) { return static_cast<uint64_t>(static_cast<int64_t>(std::floor(v / voxel)) & 0x1FFFFF); };
-    const uint64_t key = q(p.x()) | (q(p.y()) << 21) | (q(p.z()) << 42);
+    const uint64_t key = VoxelKey(p, voxel);
     auto [it, fresh] = slot.try_emplace(key, static_cast<int>(sum.size()));
     if (fresh) {
       sum.emplace_back(Eigen::Vector3d::Zero());
@@ -114,12 +125,12 @@ FloorPlane EstimateFloorPlane(const std::vector<const Scan*>& scans) {
   // RANSAC over (a stride sample of) the lowest 30 %: the plane, tilted at most 10 degrees,
   // with the most points within 2 cm. The level plane through the densest slice competes too,
   // so a plane is only tilted when that explains more of the floor.
-  Points low;
-  for (const auto& p : w)
-    if (p.z() <= hi) low.push_back(p);
-  const size_t stride = std::max<size_t>(1, low.size() / 4000);
+  const size_t n_low = static_cast<size_t>(std::count_if(w.begin(), w.end(), [&](const auto& p) { return p.z() <= hi; }));
+  const size_t stride = std::max<size_t>(1, n_low / 4000);
   Points q;
-  for (size_t i = 0; i < low.size(); i += stride) q.push_back(low[i]);
+  size_t k = 0;
+  for (const auto& p : w)
+    if (p.z() <= hi && k++ % stride == 0) q.push_back(p);
   const float band = 0.02f;
   const float min_nz = std::cos(10.f * 3.14159265f / 180.f);
   auto inliers = [&](const Eigen::Vector3f& n, float d) {
@@ -205,6 +216,12 @@ Points SampleSurface(const Mesh& mesh, float per_m2, uint64_t seed, Points* norm
   return out;
 }
 
+FloorPlane FloorByMode(const std::string& mode, const std::vector<const Scan*>& scans, float fixed_z) {
+  if (mode == "fixed") return FloorPlane{0.f, 0.f, fixed_z};
+  if (mode == "plane") return EstimateFloorPlane(scans);
+  return FloorPlane{0.f, 0.f, EstimateFloorZ(scans)};
+}
+
 int YawSymmetry(const Mesh& mesh, float tolerance) {
   double area = 0.0;
   const int nv = static_cast<int>(mesh.vertices.size());
@@ -214,12 +231,8 @@ int YawSymmetry(const Mesh& mesh, float tolerance) {
   if (!(area > 0.0) || !(tolerance > 0.f)) return 1;
   const Points pts = SampleSurface(mesh, static_cast<float>(6000.0 / area), 1);
   if (pts.empty()) return 1;
-  auto key = [&](const Eigen::Vector3f& p, int dx, int dy, int dz) {
-    auto q = [&](float v, int d) { return static_cast<uint64_t>((static_cast<int64_t>(std::floor(v / tolerance)) + d) & 0x1FFFFF); };
-    return q(p.x(), dx) | (q(p.y(), dy) << 21) | (q(p.z(), dz) << 42);
-  };
   std::unordered_set<uint64_t> occupied;
-  for (const auto& p : pts) occupied.insert(key(p, 0, 0, 0));
+  for (const auto& p : pts) occupied.insert(VoxelKey(p, tolerance));
   auto maps_onto_itself = [&](float degrees) {
     const Eigen::Matrix3f r = Eigen::AngleAxisf(degrees * 3.14159265f / 180.f, Eigen::Vector3f::UnitZ()).toRotationMatrix();
     size_t hit = 0;
@@ -228,7 +241,7 @@ int YawSymmetry(const Mesh& mesh, float tolerance) {
       bool near = false;
       for (int dz = -1; dz <= 1 && !near; ++dz)
         for (int dy = -1; dy <= 1 && !near; ++dy)
-          for (int dx = -1; dx <= 1 && !near; ++dx) near = occupied.count(key(q, dx, dy, dz)) > 0;
+          for (int dx = -1; dx <= 1 && !near; ++dx) near = occupied.count(VoxelKey(q, tolerance, dx, dy, dz)) > 0;
       hit += near;
     }
     return double(hit) >= 0.95 * double(pts.size());

@@ -38,6 +38,10 @@ struct FloorPlane {
 // finite points.
 FURNIHOST_API FloorPlane EstimateFloorPlane(const std::vector<const Scan*>& scans);
 
+// The floor a stage's `floor` parameter names: "fixed" = level at `fixed_z`, "plane" =
+// EstimateFloorPlane, anything else ("auto") = level at EstimateFloorZ.
+FURNIHOST_API FloorPlane FloorByMode(const std::string& mode, const std::vector<const Scan*>& scans, float fixed_z);
+
 }  // namespace furnihost
 
 namespace furnihost {

@@ -208,14 +208,12 @@ class RansacUprightFitter : public Fitter {
  private:
   void FitAll(std::vector<Detection>* dets, const FitContext& ctx) {
     // The floor each detection's models stand on: fixed, or estimated once for all of them.
-    FloorPlane floor{0.f, 0.f, o_.ransac.floor_z};
-    if (o_.floor != "fixed") {
-      std::vector<const Scan*> all;
+    std::vector<const Scan*> all;
+    if (o_.floor != "fixed")
       for (const SceneParts& sp : ctx.scenes) all.push_back(sp.scan);
-      floor = o_.floor == "plane" ? EstimateFloorPlane(all) : FloorPlane{0.f, 0.f, EstimateFloorZ(all)};
-      spdlog::debug("ransac_upright: floor z = {:.4f} x + {:.4f} y + {:.3f} m ({})", floor.a, floor.b, floor.c,
-                    o_.floor);
-    }
+    const FloorPlane floor = FloorByMode(o_.floor, all, o_.ransac.floor_z);
+    spdlog::debug("ransac_upright: floor z = {:.4f} x + {:.4f} y + {:.3f} m ({})", floor.a, floor.b, floor.c,
+                  o_.floor);
     std::vector<RansacOptions> ro(dets->size(), o_.ransac);
     for (size_t d = 0; d < dets->size(); ++d)
       ro[d].floor_z = floor.HeightAt((*dets)[d].center.x(), (*dets)[d].center.y());

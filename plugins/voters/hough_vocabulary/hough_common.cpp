@@ -876,11 +876,9 @@ std::vector<Hypothesis> SelectClass(const VoteSet& votes, size_t vb, size_t ve,
 }  // namespace
 
 FloorPlane SceneFloor(const std::vector<SceneParts>& scenes, const SelectionOptions& opt) {
-  if (opt.floor == "fixed") return FloorPlane{0.f, 0.f, opt.floor_z};
   std::vector<const Scan*> scans;
   for (const auto& sc : scenes) scans.push_back(sc.scan);
-  if (opt.floor == "plane") return EstimateFloorPlane(scans);
-  return FloorPlane{0.f, 0.f, EstimateFloorZ(scans)};
+  return FloorByMode(opt.floor, scans, opt.floor_z);
 }
 
 VoteResult VoteAndSelect(const Codebook& book, const WordIndex& index,
@@ -971,8 +969,10 @@ VoteResult VoteAndSelect(const Codebook& book, const WordIndex& index,
   const FloorPlane floor = gate || column ? SceneFloor(scenes, opt) : FloorPlane{};
   if (gate || column)
     spdlog::debug("voter: floor z = {:.4f} x + {:.4f} y + {:.3f} m ({})", floor.a, floor.b, floor.c, opt.floor);
-  auto height_ok = [&](const PartRef& pr, int e) {
-    return !gate || std::abs(floor.Above(pr.world) - book.element_height[e]) <= opt.height_tolerance;
+  std::vector<float> part_height(gate ? parts.size() : 0);  // above the floor, once per part
+  for (size_t i = 0; i < part_height.size(); ++i) part_height[i] = floor.Above(parts[i].world);
+  auto height_ok = [&](int part, int e) {
+    return !gate || std::abs(part_height[part] - book.element_height[e]) <= opt.height_tolerance;
   };
 
   // ---- votes x_v = l + d with weight p(A_i|f) / #(A_i, o) (eq. 5), grouped by class ----
@@ -989,7 +989,7 @@ VoteResult VoteAndSelect(const Codebook& book, const WordIndex& index,
   } else {
     for (const auto& a : acts)
       for (int e = book.element_begin[a.word]; e < book.element_begin[a.word + 1]; ++e)
-        if (active[book.element_class[e]] && height_ok(parts[a.part], e)) ++votes.class_begin[book.element_class[e] + 1];
+        if (active[book.element_class[e]] && height_ok(a.part, e)) ++votes.class_begin[book.element_class[e] + 1];
   }
   std::partial_sum(votes.class_begin.begin(), votes.class_begin.end(), votes.class_begin.begin());
   const size_t total = votes.class_begin.back();
@@ -1013,7 +1013,7 @@ VoteResult VoteAndSelect(const Codebook& book, const WordIndex& index,
       }
       for (int e = book.element_begin[a.word]; e < book.element_begin[a.word + 1]; ++e) {
         const int c = book.element_class[e];
-        if (!active[c] || !height_ok(pr, e)) continue;
+        if (!active[c] || !height_ok(a.part, e)) continue;
         const size_t i = next[c]++;
         const Eigen::Vector3f x = pr.world + rd[e];
         votes.x[i] = x.x();
