@@ -551,9 +551,16 @@ WordIndex::WordIndex(const RowMatrixXf& words, int leaf_size) : impl_(std::make_
 
 WordIndex::~WordIndex() = default;
 
-int WordIndex::Nearest(const float* query, int k, long* indices, float* dist_sq) const {
+int WordIndex::Nearest(const float* query, int k, long* indices, float* dist_sq, float max_dist_sq) const {
   const size_t want = std::min<size_t>(static_cast<size_t>(k), impl_->words.rows());
-  return static_cast<int>(impl_->tree->index->knnSearch(query, want, indices, dist_sq));
+  if (want == 0) return 0;
+  nanoflann::KNNResultSet<float, long> result(want);
+  result.init(indices, dist_sq);
+  // init() sets the worst distance to +max; a bound in its place prunes every branch farther
+  // than it (the tree only offers points closer than worstDist()).
+  if (max_dist_sq > 0.f) dist_sq[want - 1] = max_dist_sq;
+  impl_->tree->index->findNeighbors(result, query, nanoflann::SearchParams());
+  return static_cast<int>(result.size());
 }
 
 // ---- voting and selection ---------------------------------------------------------------
@@ -937,7 +944,9 @@ VoteResult VoteAndSelect(const Codebook& book, const WordIndex& index,
         continue;
       }
       for (int j = 0; j < dim; ++j) q[j] = F(i, j);
-      const int n = index.Nearest(q.data(), act, idx.data(), d2.data());
+      // Bounded a hair above max_distance: the exact cut stays the check below.
+      const float bound = opt.max_distance > 0.f ? opt.max_distance * opt.max_distance * 1.0001f : 0.f;
+      const int n = index.Nearest(q.data(), act, idx.data(), d2.data(), bound);
       double wsum = 0.0;
       int used = 0;
       for (int a = 0; a < n; ++a) {

@@ -169,7 +169,9 @@ class WordIndex {
   WordIndex(const WordIndex&) = delete;
   WordIndex& operator=(const WordIndex&) = delete;
   // Nearest `k` words of `query` (D floats): indices and squared distances, nearest first.
-  int Nearest(const float* query, int k, long* indices, float* dist_sq) const;
+  // With `max_dist_sq` > 0 only words closer than that count (fewer may come back): the bound
+  // prunes the tree from the start, which is what makes far-off queries cheap in 24-D.
+  int Nearest(const float* query, int k, long* indices, float* dist_sq, float max_dist_sq = 0.f) const;
 
  private:
   struct Impl;

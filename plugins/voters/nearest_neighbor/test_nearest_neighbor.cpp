@@ -2,6 +2,8 @@
 // voters.hough_vocabulary on the same scene.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include "synthetic_views.hpp"
 #include "test_support.hpp"
 
@@ -84,6 +86,36 @@ TEST(NearestNeighbor, InverseDistanceWeightsAreAtMostOne) {
     EXPECT_LT(v.w(), 1.f);
     EXPECT_GT(v.w(), 0.8f);  // feature noise 0.05 per dimension: distance well below 0.25
   }
+}
+
+TEST(NearestNeighbor, MaxDistanceKeepsExactlyThePartsWithinIt) {
+  // inverse_distance weights give each part's distance to its nearest training part
+  // (w = 1 / (1 + d)); with max_distance at the median of those distances, exactly the parts
+  // at or below it vote (the kd-tree search is bounded by it, the cut must stay exact).
+  RunContext ctx;
+  const json base = {{"thresholds", kThresholds}, {"weighting", "inverse_distance"}};
+  auto all = MakeVoter("voters.nearest_neighbor", base);
+  const json model = all->Train(Views(), ctx);
+  const auto scene = MakeScene({{Chair(), {1.f, 1.f, 0.45f}, {}}, {Table(), {3.f, 2.5f, 0.45f}, {}}},
+                               Pose(0.5f, 0.f, 0.3f), 0.15f, 4);
+  const VoteResult r = all->Vote({scene.Parts()}, ctx);
+  ASSERT_EQ(r.votes.size(), scene.seg.parts.size());
+  std::vector<float> d;
+  for (const auto& v : r.votes) d.push_back(1.f / v.w() - 1.f);
+  std::sort(d.begin(), d.end());
+  ASSERT_GT(d.back(), d.front() + 0.05f) << "the scene noise should spread the distances";
+  const float cut = d[d.size() / 2];
+  const auto within = std::count_if(d.begin(), d.end(), [&](float x) { return x <= cut + 1e-4f; });
+  const auto beyond = std::count_if(d.begin(), d.end(), [&](float x) { return x > cut + 1e-4f; });
+  ASSERT_GT(beyond, 0);
+
+  json cut_params = base;
+  cut_params["max_distance"] = cut + 1e-4f;
+  auto bounded = MakeVoter("voters.nearest_neighbor", cut_params);
+  bounded->Load(model);
+  const VoteResult rb = bounded->Vote({scene.Parts()}, ctx);
+  EXPECT_EQ(static_cast<long>(rb.votes.size()), within);
+  for (const auto& v : rb.votes) EXPECT_LE(1.f / v.w() - 1.f, cut + 2e-4f);
 }
 
 TEST(NearestNeighbor, AgreesWithHoughVocabularyOnACleanScene) {
