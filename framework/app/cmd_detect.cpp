@@ -210,7 +210,11 @@ int RunDetect(const std::vector<std::string>& args) {
   if (!missing.empty()) {
     std::string m;
     for (const auto& s : missing) m += (m.empty() ? "" : ", ") + s;
-    spdlog::warn("{}: the graph has no {} stage: running the stages that exist; no detections are made without a voter", graph, m);
+    const bool only_fitter = missing.size() == 1 && missing.front() == "fitter";
+    spdlog::warn("{}: the graph has no {} stage: running the stages that exist; {}", graph, m,
+                 only_fitter ? "the voter's hypotheses are the detections (neither fitted nor verified)"
+                       : "no detections are made without a segmenter, features and a voter");
+
   }
 
   std::vector<std::vector<Pipeline::SceneInput>> groups;
