@@ -110,6 +110,26 @@ uint64_t SplitMix(uint64_t x) {
   return x ^ (x >> 31);
 }
 
+// RANSAC seed of one hypothesis: the run's seed mixed with the hypothesis itself (class and
+// voter centre, FNV-1a over their bytes), not with its place in the list, so a hypothesis fits
+// the same whatever else the voter found (an A/B change of one class's threshold leaves the
+// other classes' fits alone; with list-index seeds it re-drew all of them).
+uint64_t HypothesisSeed(uint64_t run_seed, const Detection& d) {
+  uint64_t h = 1469598103934665603ull;
+  auto mix = [&h](const void* p, size_t n) {
+    const auto* b = static_cast<const unsigned char*>(p);
+    for (size_t i = 0; i < n; ++i) h = (h ^ b[i]) * 1099511628211ull;
+  };
+  mix(d.cls.data(), d.cls.size());
+  for (int k = 0; k < 3; ++k) {
+    uint32_t bits;
+    const float v = d.center[k];
+    std::memcpy(&bits, &v, sizeof bits);
+    mix(&bits, sizeof bits);
+  }
+  return SplitMix(run_seed ^ SplitMix(h));
+}
+
 // Identifies a scan's grid in the cache: the pointer alone could be reused by a later scan.
 struct GridKey {
   const Scan* scan = nullptr;
@@ -254,12 +274,13 @@ class RansacUprightFitter : public Fitter {
       scenes[d].context = std::move(context);
     }
 
-    // RANSAC per detection, in parallel; each has its own seed so the order does not matter.
+    // RANSAC per detection, in parallel; each has its own seed (HypothesisSeed), so neither
+    // the order nor the other hypotheses matter.
     std::vector<FitResult> fits(dets->size());
     tbb::parallel_for(size_t(0), dets->size(), [&](size_t d) {
       auto it = by_class.find((*dets)[d].cls);
       if (it == by_class.end() || scenes[d].points.empty()) return;
-      fits[d] = FitUpright(scenes[d], it->second, ro[d], SplitMix(ctx.run.seed ^ SplitMix(d + 1)));
+      fits[d] = FitUpright(scenes[d], it->second, ro[d], HypothesisSeed(ctx.run.seed, (*dets)[d]));
     });
 
     std::vector<char> passed(dets->size(), 0);
