@@ -15,13 +15,16 @@ plugins/voters/hough_vocabulary/hough_common.hpp).
    ScanNet dev set they generalise worse (leave-one-space-out F1, scannet.json: chair 0.195
    against 0.263 with one threshold per evaluated class, table 0.175 against 0.194).
 
-usage: scripts/derive_thresholds.py --graph configs/scannet.json --dataset benchmarks/scannet_dev.json
-Prints the thresholds as JSON and the precision / recall / F1 before and after.
+usage: scripts/derive_thresholds.py --graph configs/scannet.json --dataset benchmarks/scannet_dev.json \
+           [--cross-validate 'scene(\\d{4})']
+Prints the thresholds as JSON and the precision / recall / F1 before and after; with
+--cross-validate also the leave-one-group-out figures (what to expect on rooms not tuned on).
 """
 import argparse
 import json
 import math
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -43,6 +46,10 @@ def main():
     ap.add_argument("--per", choices=["class", "voter-class"], default="class",
                     help="one threshold per evaluated class (shared by the voter classes mapping to it), "
                          "or one per voter class")
+    ap.add_argument("--cross-validate", metavar="REGEX",
+                    help="also estimate how the thresholds generalise: leave one group of scans out at a time, "
+                         "derive on the rest, count on it; a scan's group is REGEX's first group (or match) in "
+                         "its file name, e.g. 'scene(\\d{4})' keeps the scans of one ScanNet space together")
     args = ap.parse_args()
 
     manifest = load(args.dataset)
@@ -89,7 +96,7 @@ def main():
     finally:
         os.remove(sweep)
 
-    def evaluate(th):
+    def evaluate(th, scenes=scenes):
         tp, fp, ng = defaultdict(int), defaultdict(int), defaultdict(int)
         for gt, dets in scenes:
             for t in gt:
@@ -116,32 +123,62 @@ def main():
             res[c] = (p, r, 2 * p * r / (p + r) if p + r else 0.0, tp[c], fp[c])
         return res
 
-    voter_classes = sorted({d["class"] for _, ds in scenes for d in ds})
-    th = {c: 0.0 for c in voter_classes}
-    before = evaluate(th)
-    # Groups of voter classes that share a threshold.
-    if args.per == "class":
-        groups = [[vc for vc in voter_classes if mapped(vc) == c] for c in classes]
-    else:
-        groups = [[vc] for vc in voter_classes]
-    groups = [g for g in groups if g]
-    for _ in range(3 if args.per == "voter-class" else 1):
-        for group in groups:
-            mc = mapped(group[0])
-            s = sorted(d["score"] for _, ds in scenes for d in ds if d["class"] in group)
-            best = (evaluate(th)[mc][2], th[group[0]])
-            for q in range(0, 91, 5):
-                t = s[int(q / 100 * (len(s) - 1))]
-                trial = dict(th, **{vc: t for vc in group})
-                f1 = evaluate(trial)[mc][2]
-                if f1 > best[0] + 1e-9:
-                    best = (f1, t)
-            for vc in group:
-                th[vc] = best[1]
+    def derive(scenes):
+        voter_classes = sorted({d["class"] for _, ds in scenes for d in ds})
+        th = {c: 0.0 for c in voter_classes}
+        # Groups of voter classes that share a threshold.
+        if args.per == "class":
+            groups = [[vc for vc in voter_classes if mapped(vc) == c] for c in classes]
+        else:
+            groups = [[vc] for vc in voter_classes]
+        groups = [g for g in groups if g]
+        for _ in range(3 if args.per == "voter-class" else 1):
+            for group in groups:
+                mc = mapped(group[0])
+                s = sorted(d["score"] for _, ds in scenes for d in ds if d["class"] in group)
+                best = (evaluate(th, scenes)[mc][2], th[group[0]])
+                for q in range(0, 91, 5):
+                    t = s[int(q / 100 * (len(s) - 1))]
+                    trial = dict(th, **{vc: t for vc in group})
+                    f1 = evaluate(trial, scenes)[mc][2]
+                    if f1 > best[0] + 1e-9:
+                        best = (f1, t)
+                for vc in group:
+                    th[vc] = best[1]
+        return th
+
+    th = derive(scenes)
+    before = evaluate({c: 0.0 for c in th})
     after = evaluate(th)
     for c in classes:
         print("%-8s threshold 0: P %.3f R %.3f F1 %.3f (TP %d FP %d)  ->  derived: P %.3f R %.3f F1 %.3f (TP %d FP %d)"
               % ((c,) + before[c] + after[c]), file=sys.stderr)
+    if args.cross_validate:
+        # Leave one group out: thresholds derived without the group's scans, counted on them.
+        key = re.compile(args.cross_validate)
+        names = [os.path.basename(sc["scan"]) for sc in manifest["scenes"]]
+        keys = []
+        for n in names:
+            m = key.search(n)
+            keys.append((m.group(1) if m.groups() else m.group(0)) if m else n)
+        tp, fp, ng = defaultdict(int), defaultdict(int), defaultdict(int)
+        for g in sorted(set(keys)):
+            train = [sc for sc, k in zip(scenes, keys) if k != g]
+            test = [sc for sc, k in zip(scenes, keys) if k == g]
+            if not train:
+                continue
+            res = evaluate(derive(train), test)
+            for c in classes:
+                tp[c] += res[c][3]
+                fp[c] += res[c][4]
+                ng[c] += sum(1 for gt, _ in test for t in gt if t[0] == c)
+        print("leave-one-group-out over %d groups (--cross-validate %s):" % (len(set(keys)), args.cross_validate),
+              file=sys.stderr)
+        for c in classes:
+            p = tp[c] / (tp[c] + fp[c]) if tp[c] + fp[c] else 0.0
+            r = tp[c] / ng[c] if ng[c] else 0.0
+            print("%-8s held out: P %.3f R %.3f F1 %.3f (TP %d FP %d of %d)"
+                  % (c, p, r, 2 * p * r / (p + r) if p + r else 0.0, tp[c], fp[c], ng[c]), file=sys.stderr)
     print(json.dumps({k: round(v, 2) for k, v in th.items()}))
 
 
