@@ -350,20 +350,33 @@ TEST(RansacUpright, ClassWithoutModelsAndBadSupport) {
   EXPECT_THROW(fitter->Fit({Hypothesis(sc, "chair", 3, parts)}, sc.Ctx(cat)), StageError);
 }
 
-TEST(RansacUpright, DeterministicForASeedWhateverTheThreads) {
-  const Catalog cat = FurnitureCatalog();
+// One scan of a room with a chair (object 0) and a table (object 1); each object's parts are
+// a scene of their own (the same scan twice).
+struct ChairAndTableRoom {
   Scenes sc;
   std::vector<int> chair_parts, table_parts;
+  int chair_scene = 0, table_scene = 0;
+};
+ChairAndTableRoom MakeChairAndTableRoom() {
+  ChairAndTableRoom r;
   World w;
   w.AddRoom(5.f, 2.5f);
   const Furniture chair = Chair(0.45f, 0.45f, 0.45f, 0.45f), table = Table(1.2f, 0.8f, 0.75f);
   w.Add(chair.mesh, Upright(1.8f, 0.9f, 2.2f), 0, &chair.component);
   w.Add(table.mesh, Upright(1.2f, -1.4f, 0.3f), 1, &table.component);
   const SimScan room = Simulate(w, kSensor, -1.6f, 1.0f, 200, -0.9f, 0.1f, 60, 0.003f, 0.05f, 9, kScanPose);
-  const int s0 = sc.Add(room, 0, &chair_parts);
-  const int s1 = sc.Add(room, 1, &table_parts);
-  const std::vector<Detection> in = {Hypothesis(sc, "chair", s0, chair_parts), Hypothesis(sc, "table", s1, table_parts),
-                                     Hypothesis(sc, "chair", s1, table_parts)};
+  r.chair_scene = r.sc.Add(room, 0, &r.chair_parts);
+  r.table_scene = r.sc.Add(room, 1, &r.table_parts);
+  return r;
+}
+
+TEST(RansacUpright, DeterministicForASeedWhateverTheThreads) {
+  const Catalog cat = FurnitureCatalog();
+  const ChairAndTableRoom room = MakeChairAndTableRoom();
+  const Scenes& sc = room.sc;
+  const std::vector<Detection> in = {Hypothesis(sc, "chair", room.chair_scene, room.chair_parts),
+                                     Hypothesis(sc, "table", room.table_scene, room.table_parts),
+                                     Hypothesis(sc, "chair", room.table_scene, room.table_parts)};
   auto run = [&](int threads, uint64_t seed) { return MakeFitter()->Fit(in, sc.Ctx(cat, threads, seed)); };
   const auto a = run(1, 11), b = run(2, 11);
   ASSERT_EQ(a.size(), b.size());
@@ -396,17 +409,10 @@ TEST(RansacUpright, DeterministicForASeedWhateverTheThreads) {
 // hypotheses leave the other classes' fits alone).
 TEST(RansacUpright, AHypothesisFitsTheSameWhateverElseIsInTheList) {
   const Catalog cat = FurnitureCatalog();
-  Scenes sc;
-  std::vector<int> chair_parts, table_parts;
-  World w;
-  w.AddRoom(5.f, 2.5f);
-  const Furniture chair = Chair(0.45f, 0.45f, 0.45f, 0.45f), table = Table(1.2f, 0.8f, 0.75f);
-  w.Add(chair.mesh, Upright(1.8f, 0.9f, 2.2f), 0, &chair.component);
-  w.Add(table.mesh, Upright(1.2f, -1.4f, 0.3f), 1, &table.component);
-  const SimScan room = Simulate(w, kSensor, -1.6f, 1.0f, 200, -0.9f, 0.1f, 60, 0.003f, 0.05f, 9, kScanPose);
-  const int s0 = sc.Add(room, 0, &chair_parts);
-  const int s1 = sc.Add(room, 1, &table_parts);
-  const Detection c = Hypothesis(sc, "chair", s0, chair_parts), t = Hypothesis(sc, "table", s1, table_parts);
+  const ChairAndTableRoom room = MakeChairAndTableRoom();
+  const Scenes& sc = room.sc;
+  const Detection c = Hypothesis(sc, "chair", room.chair_scene, room.chair_parts),
+                  t = Hypothesis(sc, "table", room.table_scene, room.table_parts);
   const auto fit = [&](const std::vector<Detection>& in) { return MakeFitter()->Fit(in, sc.Ctx(cat, 1, 5)); };
   const auto both = fit({c, t}), reversed = fit({t, c}), alone = fit({t});
   ASSERT_EQ(both.size(), 2u);
