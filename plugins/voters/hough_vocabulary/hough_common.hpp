@@ -31,8 +31,10 @@
 // hypotheses to the ground truth (true positive: centre within half the class width, Sect.
 // VII-A), sweep t over the sorted scores per class to get recall / precision, and put the
 // chosen working point in the config. scripts/derive_thresholds.py does exactly this (max F1
-// per class over percentile candidates). Note: a merge patch `"thresholds": {}` changes
-// nothing (RFC 7386 merges objects); zero each class explicitly.
+// per evaluated class over percentile candidates, one threshold shared by the voter classes
+// mapping to it; --cross-validate estimates how it carries over to unseen rooms). Note: a
+// merge patch `"thresholds": {}` changes nothing (RFC 7386 merges objects); zero each class
+// explicitly.
 #pragma once
 #include <Eigen/Core>
 #include <map>
