@@ -256,44 +256,101 @@ void ModelCloud::BuildCoverageGrid() {
   // 10 µm of slack keeps float rounding from marking a cell covered that is not.
   const float d_in = inlier_ - half_diag - 1e-5f, d_out = inlier_ + half_diag + 1e-5f;
   const float d_in2 = d_in > 0 ? d_in * d_in : -1.f, d_out2 = d_out * d_out;
-  for (const Eigen::Vector3f& p : points_) {
-    const Eigen::Vector3f rel = (p - grid_min_) * inv_cell_;
+  // Per point: the cell box its d_out ball can reach, and x in cell-centre units.
+  struct Reach {
     int a[3], b[3];
+    float px;
+  };
+  const size_t n = points_.size();
+  std::vector<Reach> reach(n);
+  for (size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3f& p = points_[i];
+    const Eigen::Vector3f rel = (p - grid_min_) * inv_cell_;
     for (int d = 0; d < 3; ++d) {
-      a[d] = std::max(0, static_cast<int>(std::floor(rel[d] - d_out * inv_cell_ - 0.5f)));
-      b[d] = std::min(dims_[d] - 1, static_cast<int>(std::ceil(rel[d] + d_out * inv_cell_ - 0.5f)));
+      reach[i].a[d] = std::max(0, static_cast<int>(std::floor(rel[d] - d_out * inv_cell_ - 0.5f)));
+      reach[i].b[d] = std::min(dims_[d] - 1, static_cast<int>(std::ceil(rel[d] + d_out * inv_cell_ - 0.5f)));
     }
-    // Per row (y, z), the cells within d_out / d_in of p are x intervals around p.x: no
-    // per-cell distance test.
-    const float px = (p.x() - grid_min_.x()) * inv_cell_ - 0.5f;  // p.x in cell-centre units
-    for (int z = a[2]; z <= b[2]; ++z) {
-      const float dz = grid_min_.z() + (z + 0.5f) * cell - p.z();
-      for (int y = a[1]; y <= b[1]; ++y) {
+    reach[i].px = (p.x() - grid_min_.x()) * inv_cell_ - 0.5f;
+  }
+  std::vector<int> by_start(n);
+  std::iota(by_start.begin(), by_start.end(), 0);
+  std::sort(by_start.begin(), by_start.end(), [&](int i, int j) { return reach[i].a[2] < reach[j].a[2]; });
+
+  // One z-plane of cells at a time. Each point within reach adds, per row (y) of the plane,
+  // the x-interval of cells within d_out of it (and the sub-interval within d_in) to the row's
+  // difference arrays; then every cell of the plane is written once with the union's state
+  // (covered if in any covered interval, else ambiguous if in any interval). The intervals are
+  // those of a per-point loop over its ball (same arithmetic), only the writes are merged:
+  // at 1 cm sampling ~75 points reach each cell.
+  const int W = dims_[0], H = dims_[1];
+  std::vector<int32_t> any_diff(size_t(W + 1) * H, 0), cov_diff(size_t(W + 1) * H, 0);
+  std::vector<int> row_lo(H, std::numeric_limits<int>::max()), row_hi(H, -1), rows;
+  std::vector<int> active;
+  size_t next = 0;
+  for (int z = 0; z < dims_[2]; ++z) {
+    while (next < n && reach[by_start[next]].a[2] <= z) active.push_back(by_start[next++]);
+    active.erase(std::remove_if(active.begin(), active.end(), [&](int i) { return reach[i].b[2] < z; }),
+                 active.end());
+    if (active.empty()) continue;
+    const float cz = grid_min_.z() + (z + 0.5f) * cell;
+    for (int i : active) {
+      const Reach& r = reach[i];
+      const Eigen::Vector3f& p = points_[i];
+      const float dz = cz - p.z();
+      for (int y = r.a[1]; y <= r.b[1]; ++y) {
         const float dy = grid_min_.y() + (y + 0.5f) * cell - p.y();
         const float dyz = dy * dy + dz * dz;
         if (dyz > d_out2) continue;
         const float ro = std::sqrt(d_out2 - dyz) * inv_cell_;
-        const int x0 = std::max(a[0], static_cast<int>(std::ceil(px - ro)));
-        const int x1 = std::min(b[0], static_cast<int>(std::floor(px + ro)));
-        int i0 = x1 + 1, i1 = x1;  // covered sub-interval (empty by default)
+        const int x0 = std::max(r.a[0], static_cast<int>(std::ceil(r.px - ro)));
+        const int x1 = std::min(r.b[0], static_cast<int>(std::floor(r.px + ro)));
+        if (x0 > x1) continue;
+        int32_t* any = &any_diff[size_t(y) * (W + 1)];
+        ++any[x0];
+        --any[x1 + 1];
         if (dyz <= d_in2) {
           const float ri = std::sqrt(d_in2 - dyz) * inv_cell_;
-          i0 = std::max(x0, static_cast<int>(std::ceil(px - ri)));
-          i1 = std::min(x1, static_cast<int>(std::floor(px + ri)));
-        }
-        const unsigned yz = ((z & 7) << 6) | ((y & 7) << 3);
-        for (int x = x0; x <= x1;) {  // one block segment of the row at a time
-          uint8_t* blk = block(x, y, z);
-          const int xe = std::min(x1, x | 7);
-          for (; x <= xe; ++x) {
-            const unsigned state = (x >= i0 && x <= i1) ? kCovered : kAmbiguous;
-            const unsigned idx = yz | (x & 7), sh = (idx & 3) * 2;
-            uint8_t& byte = blk[idx >> 2];
-            if (((byte >> sh) & 3u) < state) byte = static_cast<uint8_t>((byte & ~(3u << sh)) | (state << sh));
+          const int i0 = std::max(x0, static_cast<int>(std::ceil(r.px - ri)));
+          const int i1 = std::min(x1, static_cast<int>(std::floor(r.px + ri)));
+          if (i0 <= i1) {
+            int32_t* cov = &cov_diff[size_t(y) * (W + 1)];
+            ++cov[i0];
+            --cov[i1 + 1];
           }
         }
+        if (row_hi[y] < 0) rows.push_back(y);
+        row_lo[y] = std::min(row_lo[y], x0);
+        row_hi[y] = std::max(row_hi[y], x1);
       }
     }
+    for (int y : rows) {
+      int32_t* any = &any_diff[size_t(y) * (W + 1)];
+      int32_t* cov = &cov_diff[size_t(y) * (W + 1)];
+      const unsigned yz = ((z & 7) << 6) | ((y & 7) << 3);
+      int in_any = 0, in_cov = 0;
+      uint8_t* blk = nullptr;
+      int blk_x = -1;
+      for (int x = row_lo[y]; x <= row_hi[y]; ++x) {
+        in_any += any[x];
+        in_cov += cov[x];
+        any[x] = 0;
+        cov[x] = 0;
+        if (in_any <= 0) continue;
+        if ((x >> 3) != blk_x) {
+          blk = block(x, y, z);
+          blk_x = x >> 3;
+        }
+        const unsigned state = in_cov > 0 ? kCovered : kAmbiguous;
+        const unsigned idx = yz | (x & 7), sh = (idx & 3) * 2;
+        uint8_t& byte = blk[idx >> 2];
+        if (((byte >> sh) & 3u) < state) byte = static_cast<uint8_t>((byte & ~(3u << sh)) | (state << sh));
+      }
+      any[row_hi[y] + 1] = 0;
+      cov[row_hi[y] + 1] = 0;
+      row_lo[y] = std::numeric_limits<int>::max();
+      row_hi[y] = -1;
+    }
+    rows.clear();
   }
 }
 
