@@ -36,6 +36,13 @@ def load(path):
         return json.load(f)
 
 
+def prf(tp, fp, ng):
+    """Precision, recall and F1 of tp true and fp false detections of ng objects (0 when undefined)."""
+    p = tp / (tp + fp) if tp + fp else 0.0
+    r = tp / ng if ng else 0.0
+    return p, r, 2 * p * r / (p + r) if p + r else 0.0
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--graph", required=True)
@@ -116,12 +123,8 @@ def main():
                     tp[c] += 1
                 else:
                     fp[c] += 1
-        res = {}
-        for c in classes:
-            p = tp[c] / (tp[c] + fp[c]) if tp[c] + fp[c] else 0.0
-            r = tp[c] / ng[c] if ng[c] else 0.0
-            res[c] = (p, r, 2 * p * r / (p + r) if p + r else 0.0, tp[c], fp[c])
-        return res
+        # Per class: precision, recall, F1, TP, FP, number of objects.
+        return {c: prf(tp[c], fp[c], ng[c]) + (tp[c], fp[c], ng[c]) for c in classes}
 
     def derive(scenes):
         voter_classes = sorted({d["class"] for _, ds in scenes for d in ds})
@@ -152,7 +155,7 @@ def main():
     after = evaluate(th)
     for c in classes:
         print("%-8s threshold 0: P %.3f R %.3f F1 %.3f (TP %d FP %d)  ->  derived: P %.3f R %.3f F1 %.3f (TP %d FP %d)"
-              % ((c,) + before[c] + after[c]), file=sys.stderr)
+              % ((c,) + before[c][:5] + after[c][:5]), file=sys.stderr)
     if args.cross_validate:
         # Leave one group out: thresholds derived without the group's scans, counted on them.
         key = re.compile(args.cross_validate)
@@ -171,14 +174,12 @@ def main():
             for c in classes:
                 tp[c] += res[c][3]
                 fp[c] += res[c][4]
-                ng[c] += sum(1 for gt, _ in test for t in gt if t[0] == c)
+                ng[c] += res[c][5]
         print("leave-one-group-out over %d groups (--cross-validate %s):" % (len(set(keys)), args.cross_validate),
               file=sys.stderr)
         for c in classes:
-            p = tp[c] / (tp[c] + fp[c]) if tp[c] + fp[c] else 0.0
-            r = tp[c] / ng[c] if ng[c] else 0.0
             print("%-8s held out: P %.3f R %.3f F1 %.3f (TP %d FP %d of %d)"
-                  % (c, p, r, 2 * p * r / (p + r) if p + r else 0.0, tp[c], fp[c], ng[c]), file=sys.stderr)
+                  % ((c,) + prf(tp[c], fp[c], ng[c]) + (tp[c], fp[c], ng[c])), file=sys.stderr)
     print(json.dumps({k: round(v, 2) for k, v in th.items()}))
 
 

@@ -214,7 +214,6 @@ int RunDetect(const std::vector<std::string>& args) {
     spdlog::warn("{}: the graph has no {} stage: running the stages that exist; {}", graph, m,
                  only_fitter ? "the voter's hypotheses are the detections (neither fitted nor verified)"
                        : "no detections are made without a segmenter, features and a voter");
-
   }
 
   std::vector<std::vector<Pipeline::SceneInput>> groups;

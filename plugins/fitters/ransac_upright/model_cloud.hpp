@@ -109,5 +109,7 @@ class ModelCloud {
 
 // Stable 64-bit FNV-1a hash (sampling seeds and cache keys must not depend on std::hash).
 uint64_t Fnv1a(const std::string& s, uint64_t h = 1469598103934665603ull);
+// SplitMix64 finaliser: derives independent seeds from related ones (x, x + 1, a hash).
+uint64_t SplitMix(uint64_t x);
 
 }  // namespace furnihost::ransac_upright

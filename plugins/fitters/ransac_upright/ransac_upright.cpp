@@ -103,31 +103,13 @@ std::string Fixed2(double v) {
   return buf;
 }
 
-uint64_t SplitMix(uint64_t x) {
-  x += 0x9e3779b97f4a7c15ull;
-  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
-  x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
-  return x ^ (x >> 31);
-}
-
 // RANSAC seed of one hypothesis: the run's seed mixed with the hypothesis itself (class and
 // voter centre, FNV-1a over their bytes), not with its place in the list, so a hypothesis fits
 // the same whatever else the voter found (an A/B change of one class's threshold leaves the
 // other classes' fits alone; with list-index seeds it re-drew all of them).
 uint64_t HypothesisSeed(uint64_t run_seed, const Detection& d) {
-  uint64_t h = 1469598103934665603ull;
-  auto mix = [&h](const void* p, size_t n) {
-    const auto* b = static_cast<const unsigned char*>(p);
-    for (size_t i = 0; i < n; ++i) h = (h ^ b[i]) * 1099511628211ull;
-  };
-  mix(d.cls.data(), d.cls.size());
-  for (int k = 0; k < 3; ++k) {
-    uint32_t bits;
-    const float v = d.center[k];
-    std::memcpy(&bits, &v, sizeof bits);
-    mix(&bits, sizeof bits);
-  }
-  return SplitMix(run_seed ^ SplitMix(h));
+  const std::string centre(reinterpret_cast<const char*>(d.center.data()), sizeof(float) * 3);
+  return SplitMix(run_seed ^ SplitMix(Fnv1a(centre, Fnv1a(d.cls))));
 }
 
 // Identifies a scan's grid in the cache: the pointer alone could be reused by a later scan.

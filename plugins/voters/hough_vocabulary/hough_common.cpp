@@ -917,6 +917,8 @@ VoteResult VoteAndSelect(const Codebook& book, const WordIndex& index,
   std::vector<long> idx(act);
   std::vector<float> d2(act), q(dim);
   std::vector<double> wv(act);
+  // The word search is bounded a hair above max_distance; the exact cut stays the check below.
+  const float bound = opt.max_distance > 0.f ? opt.max_distance * opt.max_distance * 1.0001f : 0.f;
   size_t skipped = 0, out_of_range = 0;
   for (size_t s = 0; s < scenes.size(); ++s) {
     const SceneParts& sc = scenes[s];
@@ -944,8 +946,6 @@ VoteResult VoteAndSelect(const Codebook& book, const WordIndex& index,
         continue;
       }
       for (int j = 0; j < dim; ++j) q[j] = F(i, j);
-      // Bounded a hair above max_distance: the exact cut stays the check below.
-      const float bound = opt.max_distance > 0.f ? opt.max_distance * opt.max_distance * 1.0001f : 0.f;
       const int n = index.Nearest(q.data(), act, idx.data(), d2.data(), bound);
       double wsum = 0.0;
       int used = 0;
