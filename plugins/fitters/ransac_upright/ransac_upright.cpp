@@ -75,6 +75,7 @@ struct RansacUprightOptions {
     r.min_iterations = p.at("min_iterations").get<int>();
     r.model_tie_tolerance = p.at("model_tie_tolerance").get<float>();
     r.refine_iterations = p.at("refine_iterations").get<int>();
+    r.max_shift = p.at("max_shift_m").get<float>();
     o.min_coverage = r.min_coverage = p.at("min_coverage").get<float>();
     o.max_free_space_ratio = p.at("max_free_space_ratio").get<float>();
     o.grid.resolution = p.at("grid_resolution_m").get<double>();
@@ -165,6 +166,9 @@ class RansacUprightFitter : public Fitter {
         .Number("model_tie_tolerance", 0.02, 0, 1,
                 "models covering within this share of the best are ranked by explained model surface")
         .Int("refine_iterations", 0, 0, 100, "upright ICP steps after RANSAC (not in the paper; 0 = off)")
+        .Number("max_shift_m", 0.0, 0, 10,
+                "poses that move the centre farther than this [m] from the voter's centre are not tried (the voter's "
+                "centre error; keeps a fit from sliding onto a neighbouring object); 0 = no limit (paper)")
         .Number("min_point_height_m", 0.02, 0, 1,
                 "part points less than this above floor_z are not fitted (floor points; no model explains them) [m]")
         .Number("reach_margin_m", 0.3, 0, 10,
@@ -217,8 +221,10 @@ class RansacUprightFitter : public Fitter {
     spdlog::debug("ransac_upright: floor z = {:.4f} x + {:.4f} y + {:.3f} m ({})", floor.a, floor.b, floor.c,
                   o_.floor);
     std::vector<RansacOptions> ro(dets->size(), o_.ransac);
-    for (size_t d = 0; d < dets->size(); ++d)
+    for (size_t d = 0; d < dets->size(); ++d) {
       ro[d].floor_z = floor.HeightAt((*dets)[d].center.x(), (*dets)[d].center.y());
+      ro[d].prior_xy = (*dets)[d].center.head<2>();
+    }
     // Models per class, in catalog order; sampled once per stage object.
     std::set<std::string> classes;
     for (const auto& d : *dets) classes.insert(d.cls);
@@ -522,5 +528,5 @@ class RansacUprightFitter : public Fitter {
 }  // namespace
 }  // namespace furnihost
 
-FURNIHOST_PLUGIN(furnihost::RansacUprightFitter, "fitters.ransac_upright", "1.3.0",
+FURNIHOST_PLUGIN(furnihost::RansacUprightFitter, "fitters.ransac_upright", "1.4.0",
                  "upright RANSAC fit of catalog models (x, y, yaw) with coverage and OctoMap free-space verification")

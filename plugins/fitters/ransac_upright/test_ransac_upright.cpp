@@ -228,6 +228,37 @@ TEST(RansacUpright, BackgroundPartsInTheSupportAreLeftOut) {
   EXPECT_LT(all[0].coverage, out[0].coverage - 0.1f);
 }
 
+// max_shift_m: a hypothesis whose centre is 0.3 m off the chair. Unlimited, the fit finds the
+// chair; limited to 0.15 m, no pose may put the centre farther than that from the hypothesis
+// (the fit then covers too little and is rejected); limited to 0.5 m, the chair again.
+TEST(RansacUpright, MaxShiftKeepsTheFitNearTheVotersCentre) {
+  const Catalog cat = FurnitureCatalog();
+  Scenes sc;
+  std::vector<int> parts;
+  const Eigen::Isometry3f truth = Upright(1.8f, 0.9f, 2.2f);
+  const int s = sc.Add(ScanOf(cat.Get("chair_a"), truth, 1), 0, &parts);
+  Detection h = Hypothesis(sc, "chair", s, parts);
+  const Eigen::Vector3f true_centre = truth * BoundsOf(cat.Get("chair_a").mesh).center();
+  h.center = true_centre + Eigen::Vector3f(0.3f, 0.f, 0.f);
+  const auto free = MakeFitter()->Fit({h}, sc.Ctx(cat));
+  ASSERT_EQ(free.size(), 1u);
+  EXPECT_LT(ErrorOf(free[0], cat.Get("chair_a"), truth).centre, kCentreTol);
+  EXPECT_TRUE(free[0].verified.value_or(false)) << free[0].rejection;
+
+  const auto tight = MakeFitter({{"max_shift_m", 0.15}})->Fit({h}, sc.Ctx(cat));
+  ASSERT_EQ(tight.size(), 1u);
+  if (!tight[0].model.empty()) {
+    EXPECT_LE((tight[0].center - h.center).head<2>().norm(), 0.15f + 1e-4f);
+  }
+  EXPECT_FALSE(tight[0].verified.value_or(true));
+
+  const auto loose = MakeFitter({{"max_shift_m", 0.5}})->Fit({h}, sc.Ctx(cat));
+  EXPECT_LT(ErrorOf(loose[0], cat.Get("chair_a"), truth).centre, kCentreTol);
+  EXPECT_TRUE(loose[0].verified.value_or(false)) << loose[0].rejection;
+
+  EXPECT_THROW(MakeFitter({{"max_shift_m", -0.1}}), std::exception);
+}
+
 TEST(RansacUpright, RecoversTablePoseUpToItsSymmetry) {
   const Catalog cat = FurnitureCatalog();
   Scenes sc;

@@ -78,6 +78,7 @@ void RansacOptions::Check() const {
   if (max_iterations < 1 || min_iterations < 0 || min_iterations > max_iterations)
     throw StageError("iterations: need 0 <= min_iterations <= max_iterations, max_iterations >= 1");
   if (max_correspondences < 0) throw StageError("max_correspondences must be >= 0");
+  if (!(max_shift >= 0.f)) throw StageError("max_shift_m must be >= 0");
 }
 
 double RequiredIterations(double p_success, double p_good) {
@@ -189,6 +190,9 @@ FitResult FitUpright(const ScenePoints& scene, const std::vector<const ModelClou
           const float c = std::cos(yaw), s = std::sin(yaw);
           Hyp h;
           h.pose = {WrapAngle(yaw), p.x() - (c * m.x() - s * m.y()), p.y() - (s * m.x() + c * m.y())};
+          // The model origin is its bounding-box bottom centre: (tx, ty) is the fitted centre.
+          if (o.max_shift > 0.f && std::hypot(h.pose.tx - o.prior_xy.x(), h.pose.ty - o.prior_xy.y()) > o.max_shift)
+            return;
           hyps.push_back(h);
         };
         if (informative) {

@@ -16,6 +16,9 @@ namespace furnihost::ransac_upright {
 
 struct RansacOptions {
   float floor_z = 0.f;                 // [m] world height of the floor the models stand on
+  Eigen::Vector2f prior_xy = Eigen::Vector2f::Zero();  // [m] world x, y of the hypothesis' centre
+  float max_shift = 0.f;               // [m] poses placing the model origin farther than this from
+                                       // prior_xy are not scored (0 = no limit)
   float height_tolerance = 0.01f;      // [m] candidate model points: |z_model - z_scene| below this
   float correspondence_fraction = 0.5f;  // share of the candidates tried per sample (paper ~50 %)
   int max_correspondences = 0;         // cap per sample after the fraction; 0 = none
