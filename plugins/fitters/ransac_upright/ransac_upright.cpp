@@ -75,6 +75,7 @@ struct RansacUprightOptions {
     r.min_iterations = p.at("min_iterations").get<int>();
     r.model_tie_tolerance = p.at("model_tie_tolerance").get<float>();
     r.refine_iterations = p.at("refine_iterations").get<int>();
+    r.refine_plane = p.at("refine_metric").get<std::string>() == "plane";
     r.max_shift = p.at("max_shift_m").get<float>();
     o.min_coverage = r.min_coverage = p.at("min_coverage").get<float>();
     o.max_free_space_ratio = p.at("max_free_space_ratio").get<float>();
@@ -166,6 +167,8 @@ class RansacUprightFitter : public Fitter {
         .Number("model_tie_tolerance", 0.02, 0, 1,
                 "models covering within this share of the best are ranked by explained model surface")
         .Int("refine_iterations", 0, 0, 100, "upright ICP steps after RANSAC (not in the paper; 0 = off)")
+        .Enum("refine_metric", "plane", {"point", "plane"},
+              "ICP distance: 'point' to the nearest model sample, 'plane' along the model's horizontal normal there")
         .Number("max_shift_m", 0.0, 0, 10,
                 "poses that move the centre farther than this [m] from the voter's centre are not tried (the voter's "
                 "centre error; keeps a fit from sliding onto a neighbouring object); 0 = no limit (paper)")

@@ -317,15 +317,24 @@ FitResult FitUpright(const ScenePoints& scene, const std::vector<const ModelClou
   }
   const ModelCloud& m = *models[win];
 
-  // Optional upright ICP: nearest model point per scene point, closed-form 2D rigid update.
+  // Optional upright ICP: nearest model point per scene point. "point": closed-form 2D rigid
+  // update of the point-to-point distances; "plane": linearised least squares of the distances
+  // along the model's horizontal normals (points on near-horizontal faces carry no x, y, yaw
+  // information and are left out), which slides along walls of the model instead of pulling
+  // each scene point onto its nearest model sample.
   for (int r = 0; r < o.refine_iterations; ++r) {
     const Eigen::Isometry3f Tw = UprightIsometry(pose.tx, pose.ty, o.floor_z, pose.yaw);
     const Eigen::Isometry3f Ti = Tw.inverse();
-    std::vector<Eigen::Vector2f> a, b;
+    std::vector<Eigen::Vector2f> a, b, nrm;
     for (const auto& p : scene.points) {
       float d = 0.f;
       const int j = m.Nearest(Ti * p, &d);
       if (j < 0 || d > 2.f * m.InlierDistance()) continue;
+      if (o.refine_plane) {
+        const Eigen::Vector2f n = (Tw.linear() * m.Normals()[j]).head<2>();
+        if (n.norm() < 0.5f) continue;
+        nrm.push_back(n.normalized());
+      }
       a.push_back((Tw * m.Cloud()[j]).head<2>());
       b.push_back(p.head<2>());
     }
@@ -337,18 +346,38 @@ FitResult FitUpright(const ScenePoints& scene, const std::vector<const ModelClou
     }
     ca /= float(a.size());
     cb /= float(a.size());
-    double sxy = 0, sdot = 0;
-    for (size_t q = 0; q < a.size(); ++q) {
-      const Eigen::Vector2f u = a[q] - ca, v = b[q] - cb;
-      sxy += u.x() * v.y() - u.y() * v.x();
-      sdot += u.x() * v.x() + u.y() * v.y();
+    float dth = 0.f;
+    Eigen::Vector2f t = Eigen::Vector2f::Zero();
+    if (o.refine_plane) {
+      // Model moved by a rotation dth about ca then t: a' ~ a + dth perp(a - ca) + t.
+      Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+      Eigen::Vector3d g = Eigen::Vector3d::Zero();
+      for (size_t q = 0; q < a.size(); ++q) {
+        const Eigen::Vector2f u = a[q] - ca;
+        const Eigen::Vector3d J(double(-u.y() * nrm[q].x() + u.x() * nrm[q].y()), nrm[q].x(), nrm[q].y());
+        const double res = double((a[q] - b[q]).dot(nrm[q]));
+        A += J * J.transpose();
+        g += J * res;
+      }
+      A.diagonal().array() += 1e-6 * (A.trace() + 1e-12);
+      const Eigen::Vector3d x = A.ldlt().solve(-g);
+      if (!x.allFinite()) break;
+      dth = static_cast<float>(x(0));
+      t = ca - Eigen::Rotation2Df(dth) * ca + Eigen::Vector2f(float(x(1)), float(x(2)));
+    } else {
+      double sxy = 0, sdot = 0;
+      for (size_t q = 0; q < a.size(); ++q) {
+        const Eigen::Vector2f u = a[q] - ca, v = b[q] - cb;
+        sxy += u.x() * v.y() - u.y() * v.x();
+        sdot += u.x() * v.x() + u.y() * v.y();
+      }
+      dth = static_cast<float>(std::atan2(sxy, sdot));
+      t = cb - Eigen::Rotation2Df(dth) * ca;
     }
-    const float dth = static_cast<float>(std::atan2(sxy, sdot));
     const Eigen::Rotation2Df R(dth);
-    const Eigen::Vector2f t = cb - R * ca;
     const Eigen::Vector2f nt = R * Eigen::Vector2f(pose.tx, pose.ty) + t;
     pose = {WrapAngle(pose.yaw + dth), nt.x(), nt.y()};
-    if (std::fabs(dth) < 1e-5f && t.norm() < 1e-5f) break;
+    if (std::fabs(dth) < 1e-5f && (t - (ca - R * ca)).norm() < 1e-5f) break;
   }
 
   // Final figures on all scene points.

@@ -31,7 +31,8 @@ struct RansacOptions {
   int min_iterations = 10;             // samples per model, floor of eq. 7 once any pose reached the bound
   float min_coverage = 0.5f;           // candidates that cannot reach it are abandoned early
   float model_tie_tolerance = 0.02f;   // models within this coverage of the best are tie-broken
-  int refine_iterations = 0;           // upright point-to-point ICP steps on the result
+  int refine_iterations = 0;           // upright ICP steps on the result
+  bool refine_plane = true;            // ICP distances along the model's normals (else point-to-point)
   void Check() const;
 };
 
