@@ -66,27 +66,37 @@ void BM_SampleModel(benchmark::State& st) {
   st.counters["model_points"] = double(n);
 }
 
-void Fit(benchmark::State& st, const std::vector<const ModelCloud*>& models) {
+void Fit(benchmark::State& st, const std::vector<const ModelCloud*>& models, RansacOptions o = RansacOptions()) {
   const Fixture& f = F();
-  RansacOptions o;
   FitResult r;
   uint64_t seed = 1;
-  double coverage = 0, iterations = 0;
+  double coverage = 0, iterations = 0, centre_error = 0;
+  const Eigen::Vector3f truth = Upright(1.8f, 0.9f, 2.2f) * BoundsOf(f.chair_a.mesh).center();
   tbb::task_arena arena(static_cast<int>(st.range(0)));  // threads
   for (auto _ : st) {
     arena.execute([&] { r = FitUpright(f.chair_points, models, o, seed++); });
     coverage += r.coverage;
     iterations += r.iterations;
+    if (r.model >= 0) centre_error += (r.pose * models[r.model]->Bounds().center() - truth).norm();
   }
   st.counters["part_points"] = double(f.chair_points.points.size());
   st.counters["model_points"] = double(models[0]->Cloud().size());
   st.counters["coverage"] = benchmark::Counter(coverage, benchmark::Counter::kAvgIterations);
   st.counters["iterations"] = benchmark::Counter(iterations, benchmark::Counter::kAvgIterations);
+  st.counters["centre_error_mm"] = benchmark::Counter(1000 * centre_error, benchmark::Counter::kAvgIterations);
   st.counters["ambiguous_cells"] = models[0]->AmbiguousCellShare();
   st.counters["grid_MB"] = models[0]->GridBytes() / 1e6;
 }
 
 void BM_FitRightModel(benchmark::State& st) { Fit(st, {F().cloud_a.get()}); }
+// The right model with 5 upright ICP steps after RANSAC; arg 1: 0 point-to-point, 1 point-to-plane
+// (compare time and centre_error_mm with BM_FitRightModel/2, no refinement).
+void BM_FitRightModelRefined(benchmark::State& st) {
+  RansacOptions o;
+  o.refine_iterations = 5;
+  o.refine_plane = st.range(1) == 1;
+  Fit(st, {F().cloud_a.get()}, o);
+}
 void BM_FitNonMatchingModel(benchmark::State& st) { Fit(st, {F().cloud_table.get()}); }
 void BM_FitClassOfThree(benchmark::State& st) {
   Fit(st, {F().cloud_b.get(), F().cloud_a.get(), F().cloud_table.get()});
@@ -160,6 +170,7 @@ void BM_FreeSpaceTest(benchmark::State& st) {
 BENCHMARK(BM_SampleModel)->Unit(benchmark::kMillisecond);
 // Arg = TBB threads (1 and the 2 cores of the target machine).
 BENCHMARK(BM_FitRightModel)->Unit(benchmark::kMillisecond)->UseRealTime()->Arg(1)->Arg(2);
+BENCHMARK(BM_FitRightModelRefined)->Unit(benchmark::kMillisecond)->UseRealTime()->Args({2, 0})->Args({2, 1});
 BENCHMARK(BM_FitNonMatchingModel)->Unit(benchmark::kMillisecond)->UseRealTime()->Arg(1)->Arg(2);
 BENCHMARK(BM_FitClassOfThree)->Unit(benchmark::kMillisecond)->UseRealTime()->Arg(1)->Arg(2);
 BENCHMARK(BM_OccupancyGrid1M)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(5)->Arg(1)->Arg(2);
