@@ -7,7 +7,9 @@
 // Not in the paper: the part points fitted are those of the supporting parts within reach of
 // the hypothesis (see Gather: the voter's support also holds floor, wall and merged parts), and
 // near-tied poses / models are ranked by the share of the model explained by the scan around
-// the hypothesis (a partial support cannot tell a chair from its turn by 180°).
+// the hypothesis (a partial support cannot tell a chair from its turn by 180°); optionally
+// (max_shift_m) only poses within a distance of the voter's centre are tried, and the kept pose
+// is refined by upright ICP steps (refine_iterations, point-to-plane by default).
 //
 // Model clouds are sampled once per stage object (Pipeline keeps its stages for every scan of
 // a run), not cached in the model file: Pipeline does not call Fitter::Prepare, and sampling
