@@ -6,15 +6,23 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <limits>
 #include <numeric>
 #include <random>
+#include <sstream>
+#include <thread>
+
+#include <unistd.h>
 
 namespace furnihost::ransac_upright {
 
-uint64_t Fnv1a(const std::string& s, uint64_t h) {
-  for (unsigned char c : s) {
-    h ^= c;
+uint64_t Fnv1a(const void* data, size_t bytes, uint64_t h) {
+  const unsigned char* c = static_cast<const unsigned char*>(data);
+  for (size_t i = 0; i < bytes; ++i) {
+    h ^= c[i];
     h *= 1099511628211ull;
   }
   return h;
@@ -190,6 +198,11 @@ ModelCloud::ModelCloud(const CatalogModel& model, const SamplingOptions& o, uint
     if (f.minCoeff() >= 0 && f.maxCoeff() < nv)
       for (int c = 0; c < 3; ++c) bounds_.extend(mesh.vertices[f[c]]);
 
+  BuildIndices();
+  BuildCoverageGrid();
+}
+
+void ModelCloud::BuildIndices() {
   // Height index.
   std::vector<int> order(points_.size());
   std::iota(order.begin(), order.end(), 0);
@@ -203,10 +216,124 @@ ModelCloud::ModelCloud(const CatalogModel& model, const SamplingOptions& o, uint
   }
 
   kd_ = std::make_unique<PointIndex>(&points_);
-  BuildCoverageGrid();
 }
 
 ModelCloud::~ModelCloud() = default;
+
+namespace {
+
+constexpr char kCacheMagic[8] = {'F', 'H', 'M', 'C', 'L', 'D', '0', '1'};
+
+template <class T>
+void Put(std::ostream& out, const T& v) {
+  out.write(reinterpret_cast<const char*>(&v), sizeof(T));
+}
+template <class T>
+void PutVec(std::ostream& out, const std::vector<T>& v) {
+  Put(out, static_cast<uint64_t>(v.size()));
+  out.write(reinterpret_cast<const char*>(v.data()), static_cast<std::streamsize>(v.size() * sizeof(T)));
+}
+template <class T>
+bool Get(std::istream& in, T* v) {
+  return static_cast<bool>(in.read(reinterpret_cast<char*>(v), sizeof(T)));
+}
+// Refuses counts beyond what is left of the file (a corrupt count must not allocate gigabytes).
+template <class T>
+bool GetVec(std::istream& in, uint64_t left, std::vector<T>* v) {
+  uint64_t n = 0;
+  if (!Get(in, &n) || n > left / sizeof(T)) return false;
+  v->resize(n);
+  return static_cast<bool>(in.read(reinterpret_cast<char*>(v->data()), static_cast<std::streamsize>(n * sizeof(T))));
+}
+
+}  // namespace
+
+uint64_t ModelCloud::CacheKey(const CatalogModel& model, const SamplingOptions& o, uint64_t seed) {
+  uint64_t h = Fnv1a(kCacheMagic, sizeof(kCacheMagic));
+  h = Fnv1a(model.id, h);
+  const double opts[5] = {o.density_per_m2, double(o.min_points), double(o.max_points), double(o.inlier_distance),
+                          double(o.min_horizontal_normal)};
+  h = Fnv1a(opts, sizeof(opts), h);
+  h = Fnv1a(&seed, sizeof(seed), h);
+  for (const auto& v : model.mesh.vertices) h = Fnv1a(v.data(), 3 * sizeof(float), h);
+  for (const auto& f : model.mesh.triangles) h = Fnv1a(f.data(), 3 * sizeof(int), h);
+  return h;
+}
+
+void ModelCloud::Save(const std::string& path, uint64_t key) const {
+  namespace fs = std::filesystem;
+  std::ostringstream tag;
+  tag << ".tmp." << ::getpid() << "." << std::hash<std::thread::id>()(std::this_thread::get_id()) << "." << this;
+  const fs::path tmp = path + tag.str();
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) throw StageError("cannot write " + tmp.string());
+    out.write(kCacheMagic, sizeof(kCacheMagic));
+    Put(out, key);
+    PutVec(out, points_);
+    PutVec(out, normals_);
+    Put(out, bounds_.min());
+    Put(out, bounds_.max());
+    Put(out, area_);
+    Put(out, outer_area_);
+    Put(out, density_);
+    Put(out, spacing_);
+    Put(out, inlier_);
+    Put(out, min_h_);
+    Put(out, grid_min_);
+    Put(out, inv_cell_);
+    for (int d = 0; d < 3; ++d) Put(out, dims_[d]);
+    for (int d = 0; d < 3; ++d) Put(out, bdims_[d]);
+    PutVec(out, blocks_);
+    PutVec(out, cells_);
+    out.write(kCacheMagic, sizeof(kCacheMagic));
+    out.close();
+    if (!out) {
+      std::error_code ec;
+      fs::remove(tmp, ec);
+      throw StageError("cannot write " + tmp.string());
+    }
+  }
+  std::error_code ec;
+  fs::rename(tmp, path, ec);
+  if (ec) {
+    fs::remove(tmp, ec);
+    throw StageError("cannot rename " + tmp.string() + " to " + path);
+  }
+}
+
+std::unique_ptr<ModelCloud> ModelCloud::Load(const std::string& path, uint64_t key, const std::string& id) {
+  std::error_code ec;
+  const uint64_t size = std::filesystem::file_size(path, ec);
+  if (ec) return nullptr;
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return nullptr;
+  char magic[sizeof(kCacheMagic)];
+  uint64_t got = 0;
+  if (!in.read(magic, sizeof(magic)) || std::memcmp(magic, kCacheMagic, sizeof(magic)) != 0 || !Get(in, &got) ||
+      got != key)
+    return nullptr;
+  std::unique_ptr<ModelCloud> m(new ModelCloud());
+  m->id_ = id;
+  Eigen::Vector3f lo, hi;
+  bool ok = GetVec(in, size, &m->points_) && GetVec(in, size, &m->normals_) && Get(in, &lo) && Get(in, &hi) &&
+            Get(in, &m->area_) && Get(in, &m->outer_area_) && Get(in, &m->density_) && Get(in, &m->spacing_) &&
+            Get(in, &m->inlier_) && Get(in, &m->min_h_) && Get(in, &m->grid_min_) && Get(in, &m->inv_cell_);
+  for (int d = 0; ok && d < 3; ++d) ok = Get(in, &m->dims_[d]);
+  for (int d = 0; ok && d < 3; ++d) ok = Get(in, &m->bdims_[d]);
+  ok = ok && GetVec(in, size, &m->blocks_) && GetVec(in, size, &m->cells_);
+  ok = ok && in.read(magic, sizeof(magic)) && std::memcmp(magic, kCacheMagic, sizeof(magic)) == 0;
+  // Consistency, so that Covered() can never index out of its arrays.
+  ok = ok && !m->points_.empty() && m->normals_.size() == m->points_.size() && m->cells_.size() % 128 == 0;
+  for (int d = 0; ok && d < 3; ++d) ok = m->dims_[d] > 0 && m->bdims_[d] == (m->dims_[d] + 7) / 8;
+  ok = ok && m->blocks_.size() == size_t(m->bdims_[0]) * m->bdims_[1] * m->bdims_[2];
+  const int32_t nblocks = static_cast<int32_t>(m->cells_.size() / 128);
+  for (size_t i = 0; ok && i < m->blocks_.size(); ++i) ok = m->blocks_[i] < nblocks;
+  if (!ok) return nullptr;
+  m->bounds_ = Eigen::AlignedBox3f(lo, hi);
+  m->BuildIndices();
+  return m;
+}
 
 void ModelCloud::HeightBand(float z, float tol, bool informative, std::vector<int>* out) const {
   const std::vector<float>& zs = informative ? z_info_ : z_flat_;

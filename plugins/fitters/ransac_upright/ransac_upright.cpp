@@ -21,9 +21,12 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
+#include <atomic>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <limits>
 #include <map>
 #include <mutex>
@@ -41,6 +44,21 @@ namespace {
 
 using namespace ransac_upright;
 
+// "off" -> none; "auto" -> $FURNIHOST_CACHE_DIR, else $XDG_CACHE_HOME/furnihost, else
+// $HOME/.cache/furnihost (none when all are unset), each + /model_clouds; else the folder given.
+std::string CloudCacheDir(const std::string& v) {
+  if (v == "off" || v.empty()) return {};
+  if (v != "auto") return v;
+  auto env = [](const char* name) {
+    const char* e = std::getenv(name);
+    return std::string(e && *e ? e : "");
+  };
+  std::string base = env("FURNIHOST_CACHE_DIR");
+  if (base.empty() && !env("XDG_CACHE_HOME").empty()) base = env("XDG_CACHE_HOME") + "/furnihost";
+  if (base.empty() && !env("HOME").empty()) base = env("HOME") + "/.cache/furnihost";
+  return base.empty() ? base : base + "/model_clouds";
+}
+
 struct RansacUprightOptions {
   SamplingOptions sampling;
   RansacOptions ransac;
@@ -54,6 +72,7 @@ struct RansacUprightOptions {
   std::string floor = "fixed";  // "fixed" (ransac.floor_z), or from the scans: "auto" (level) or "plane"
   float part_inside_fraction = 0.8f;
   bool crop_parts = true;
+  std::string cloud_cache;  // folder of sampled model clouds; empty = none
 
   static RansacUprightOptions FromJson(const nlohmann::json& p) {
     RansacUprightOptions o;
@@ -62,6 +81,7 @@ struct RansacUprightOptions {
     o.sampling.max_points = p.at("max_model_points").get<int>();
     o.sampling.inlier_distance = p.at("inlier_distance_m").get<float>();
     o.sampling.min_horizontal_normal = p.at("min_horizontal_normal").get<float>();
+    o.cloud_cache = CloudCacheDir(p.at("cloud_cache").get<std::string>());
     RansacOptions& r = o.ransac;
     r.floor_z = p.at("floor_z").get<float>();
     o.floor = p.at("floor").get<std::string>();
@@ -174,6 +194,10 @@ class RansacUprightFitter : public Fitter {
         .Number("max_shift_m", 0.0, 0, 10,
                 "poses that move the centre farther than this [m] from the voter's centre are not tried (the voter's "
                 "centre error; keeps a fit from sliding onto a neighbouring object); 0 = no limit (paper)")
+        .String("cloud_cache", "auto",
+                "folder where sampled model clouds are kept between runs (they cost ~75 % of a single-scan "
+                "detection); 'auto': $FURNIHOST_CACHE_DIR, else $XDG_CACHE_HOME/furnihost, else ~/.cache/furnihost "
+                "(+ /model_clouds); 'off': sample every run. Keyed by mesh, sampling parameters and format")
         .Number("min_point_height_m", 0.02, 0, 1,
                 "part points less than this above floor_z are not fitted (floor points; no model explains them) [m]")
         .Number("reach_margin_m", 0.3, 0, 10,
@@ -482,10 +506,37 @@ class RansacUprightFitter : public Fitter {
         else missing.push_back(i);
       }
     }
+    std::atomic<int> loaded{0};
     tbb::parallel_for(size_t(0), missing.size(), [&](size_t k) {
       const CatalogModel& m = *models[missing[k]];
-      out[missing[k]] = std::make_shared<const ModelCloud>(m, o_.sampling, Fnv1a(m.id));
+      const uint64_t seed = Fnv1a(m.id);
+      if (o_.cloud_cache.empty()) {
+        out[missing[k]] = std::make_shared<const ModelCloud>(m, o_.sampling, seed);
+        return;
+      }
+      const uint64_t key = ModelCloud::CacheKey(m, o_.sampling, seed);
+      char name[32];
+      std::snprintf(name, sizeof(name), "%016llx.fhmc", static_cast<unsigned long long>(key));
+      const std::string path = o_.cloud_cache + "/" + name;
+      if (auto c = ModelCloud::Load(path, key, m.id)) {
+        out[missing[k]] = std::move(c);
+        ++loaded;
+        return;
+      }
+      auto c = std::make_shared<const ModelCloud>(m, o_.sampling, seed);
+      try {
+        std::filesystem::create_directories(o_.cloud_cache);
+        c->Save(path, key);
+      } catch (const std::exception& e) {
+        if (!cache_warned_.exchange(true))
+          spdlog::warn("fitters.ransac_upright: model clouds not cached ({}); set cloud_cache to a writable folder "
+                       "or 'off'", e.what());
+      }
+      out[missing[k]] = std::move(c);
     });
+    if (!missing.empty() && !o_.cloud_cache.empty())
+      spdlog::debug("fitters.ransac_upright: {} model clouds from {}, {} sampled", loaded.load(), o_.cloud_cache,
+                    missing.size() - loaded.load());
     std::lock_guard<std::mutex> lock(mu_);
     for (size_t i : missing) clouds_.emplace(keys[i], out[i]);
     return out;
@@ -524,6 +575,7 @@ class RansacUprightFitter : public Fitter {
   };
 
   const RansacUprightOptions o_;
+  std::atomic<bool> cache_warned_{false};
   std::mutex mu_;  // guards the two caches below
   std::map<std::string, std::shared_ptr<const ModelCloud>> clouds_;
   std::vector<GridEntry> grids_;

@@ -5,10 +5,14 @@
 // meet).
 #include <gtest/gtest.h>
 
+#include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <random>
 
 #include "model_cloud.hpp"
 #include "synthetic_scene.hpp"
+#include "test_support.hpp"
 
 namespace {
 
@@ -50,6 +54,73 @@ TEST(ModelCloud, CoverageGridAgreesWithTheKdTree) {
     ExpectGridIsExact(chair, inlier, 3);
     ExpectGridIsExact(table, inlier, 4);
   }
+}
+
+// The disk cache gives back the sampled cloud bit for bit (points, normals, figures and the
+// coverage grid's answers) under its key, and nothing under another key or from a damaged file.
+TEST(ModelCloud, CacheRoundTripAndDamagedFiles) {
+  namespace fs = std::filesystem;
+  const CatalogModel chair = Model("chair_b", "chair", Chair(0.56f, 0.50f, 0.40f, 0.62f, 0.05f).mesh);
+  SamplingOptions so;
+  const ModelCloud c(chair, so, 5);
+  const uint64_t key = ModelCloud::CacheKey(chair, so, 5);
+  const std::string dir = furnihost::testing::TempDir("model_cloud_cache");
+  const std::string path = dir + "/chair.fhmc";
+  c.Save(path, key);
+  auto l = ModelCloud::Load(path, key, chair.id);
+  ASSERT_TRUE(l);
+  EXPECT_EQ(l->Id(), chair.id);
+  ASSERT_EQ(l->Cloud().size(), c.Cloud().size());
+  for (size_t i = 0; i < c.Cloud().size(); ++i) {
+    ASSERT_EQ(l->Cloud()[i], c.Cloud()[i]);
+    ASSERT_EQ(l->Normals()[i], c.Normals()[i]);
+  }
+  EXPECT_EQ(l->Bounds().min(), c.Bounds().min());
+  EXPECT_EQ(l->Bounds().max(), c.Bounds().max());
+  EXPECT_EQ(l->Area(), c.Area());
+  EXPECT_EQ(l->OuterArea(), c.OuterArea());
+  EXPECT_EQ(l->Spacing(), c.Spacing());
+  EXPECT_EQ(l->InlierDistance(), c.InlierDistance());
+  EXPECT_EQ(l->GridBytes(), c.GridBytes());
+  std::vector<int> a, b;
+  c.HeightBand(0.4f, 0.01f, false, &a);
+  l->HeightBand(0.4f, 0.01f, false, &b);
+  EXPECT_EQ(a, b);
+  std::mt19937_64 rng(9);
+  std::uniform_real_distribution<float> u(-0.1f, 0.1f);
+  int differ = 0;
+  for (size_t i = 0; i < c.Cloud().size(); i += 7) {
+    const Eigen::Vector3f q = c.Cloud()[i] + Eigen::Vector3f(u(rng), u(rng), u(rng));
+    differ += c.Covered(q) != l->Covered(q);
+    float d1 = 0, d2 = 0;
+    differ += c.Nearest(q, &d1) != l->Nearest(q, &d2) || d1 != d2;
+  }
+  EXPECT_EQ(differ, 0);
+
+  // Another key (other mesh, options or seed) finds nothing.
+  EXPECT_FALSE(ModelCloud::Load(path, key + 1, chair.id));
+  SamplingOptions denser = so;
+  denser.density_per_m2 *= 2;
+  EXPECT_NE(ModelCloud::CacheKey(chair, denser, 5), key);
+  EXPECT_NE(ModelCloud::CacheKey(chair, so, 6), key);
+  const CatalogModel other = Model("chair_b", "chair", Chair(0.56f, 0.50f, 0.41f, 0.62f, 0.05f).mesh);
+  EXPECT_NE(ModelCloud::CacheKey(other, so, 5), key);
+  EXPECT_FALSE(ModelCloud::Load(dir + "/missing.fhmc", key, chair.id));
+
+  // Truncated at several places, and a corrupt point count: null, never a crash.
+  const auto size = fs::file_size(path);
+  std::string bytes(size, '\0');
+  std::ifstream(path, std::ios::binary).read(bytes.data(), static_cast<std::streamsize>(size));
+  for (size_t cut : {size_t(4), size_t(20), size / 2, size - 1}) {
+    std::ofstream(dir + "/cut.fhmc", std::ios::binary | std::ios::trunc).write(bytes.data(), static_cast<std::streamsize>(cut));
+    EXPECT_FALSE(ModelCloud::Load(dir + "/cut.fhmc", key, chair.id)) << "cut at " << cut;
+  }
+  std::string bad = bytes;
+  const uint64_t huge = ~0ull;
+  std::memcpy(bad.data() + 16, &huge, sizeof(huge));  // the point count follows magic and key
+  std::ofstream(dir + "/bad.fhmc", std::ios::binary | std::ios::trunc).write(bad.data(), static_cast<std::streamsize>(bad.size()));
+  EXPECT_FALSE(ModelCloud::Load(dir + "/bad.fhmc", key, chair.id));
+  fs::remove_all(dir);
 }
 
 }  // namespace

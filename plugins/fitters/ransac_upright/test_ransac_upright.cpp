@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <random>
 
 #include "furnihost/stage.hpp"
@@ -257,6 +258,41 @@ TEST(RansacUpright, MaxShiftKeepsTheFitNearTheVotersCentre) {
   EXPECT_TRUE(loose[0].verified.value_or(false)) << loose[0].rejection;
 
   EXPECT_THROW(MakeFitter({{"max_shift_m", -0.1}}), std::exception);
+}
+
+// cloud_cache: the first fitter samples the class's models and writes one file per model; a
+// new fitter (a new run) reads them and fits exactly as the sampling one did; 'off' writes
+// nothing; an unwritable folder only warns.
+TEST(RansacUpright, ModelCloudsAreCachedBetweenRuns) {
+  namespace fs = std::filesystem;
+  const Catalog cat = FurnitureCatalog();
+  Scenes sc;
+  std::vector<int> parts;
+  const int s = sc.Add(ScanOf(cat.Get("chair_a"), Upright(1.8f, 0.9f, 2.2f), 1), 0, &parts);
+  const Detection h = Hypothesis(sc, "chair", s, parts);
+  const std::string dir = furnihost::testing::TempDir("cloud_cache") + "/clouds";
+  auto files = [&] {
+    size_t n = 0;
+    if (fs::exists(dir))
+      for (const auto& e : fs::directory_iterator(dir)) n += e.path().extension() == ".fhmc";
+    return n;
+  };
+  const auto off = MakeFitter({{"cloud_cache", "off"}})->Fit({h}, sc.Ctx(cat));
+  EXPECT_EQ(files(), 0u);
+  const auto first = MakeFitter({{"cloud_cache", dir}})->Fit({h}, sc.Ctx(cat));
+  EXPECT_EQ(files(), 2u);  // chair_a and chair_b; the table is not of the class
+  const auto again = MakeFitter({{"cloud_cache", dir}})->Fit({h}, sc.Ctx(cat));
+  ASSERT_EQ(first.size(), 1u);
+  ASSERT_EQ(again.size(), 1u);
+  for (const auto* d : {&first[0], &again[0]}) {
+    EXPECT_EQ(d->model, off[0].model);
+    EXPECT_EQ(d->center, off[0].center);
+    EXPECT_EQ(d->yaw, off[0].yaw);
+    EXPECT_EQ(d->coverage, off[0].coverage);
+  }
+  const auto unwritable = MakeFitter({{"cloud_cache", "/proc/furnihost_no_such_dir"}})->Fit({h}, sc.Ctx(cat));
+  EXPECT_EQ(unwritable[0].center, off[0].center);
+  fs::remove_all(fs::path(dir).parent_path());
 }
 
 TEST(RansacUpright, RecoversTablePoseUpToItsSymmetry) {
