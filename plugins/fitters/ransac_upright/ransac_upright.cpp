@@ -12,8 +12,9 @@
 // is refined by upright ICP steps (refine_iterations, point-to-plane by default).
 //
 // Model clouds are sampled once per stage object (Pipeline keeps its stages for every scan of
-// a run), not cached in the model file: Pipeline does not call Fitter::Prepare, and sampling
-// (0.05-0.3 s per model) costs about what parsing stored clouds would.
+// a run) and kept between runs in a disk cache of their own (cloud_cache; ModelCloud::Save /
+// Load), not in the model file: Pipeline does not call Fitter::Prepare, and the clouds depend
+// on fitter parameters that are not part of the model file's key.
 //
 // Frames: detections and fitted poses in the world frame (Scan::pose maps scan -> world);
 // occupancy grids in each scan's own frame. Assumption: objects stand on the floor z = floor_z.
@@ -223,8 +224,8 @@ class RansacUprightFitter : public Fitter {
 
   explicit RansacUprightFitter(const nlohmann::json& p) : o_(RansacUprightOptions::FromJson(p)) {}
 
-  // Samples every catalog model once (in parallel). Nothing is returned for the model file:
-  // resampling (0.05-0.3 s per model) is about as fast as parsing stored clouds would be.
+  // Samples (or loads from cloud_cache) every catalog model once, in parallel. Nothing is
+  // returned for the model file (see the file comment).
   // (Fit samples the models it needs on first use when no host calls Prepare.)
   nlohmann::json Prepare(const std::vector<const CatalogModel*>& catalog, const nlohmann::json&) override {
     tbb::this_task_arena::isolate([&] { Clouds(catalog); });
