@@ -136,6 +136,20 @@ PoseError ErrorOf(const Detection& d, const CatalogModel& m, const Eigen::Isomet
   return {(d.center - c).norm(), AngleDiff(d.yaw, yaw, period)};
 }
 
+// The same fit, bit for bit (seeds, threads and caches must not change it).
+void ExpectSameFit(const Detection& a, const Detection& b) {
+  EXPECT_EQ(a.model, b.model);
+  EXPECT_EQ(a.yaw, b.yaw);
+  EXPECT_EQ(a.center, b.center);
+  EXPECT_EQ(a.coverage, b.coverage);
+  EXPECT_EQ(a.rms, b.rms);
+  EXPECT_EQ(a.free_space_ratio, b.free_space_ratio);
+  EXPECT_EQ(a.iterations, b.iterations);
+  EXPECT_EQ(a.verified, b.verified);
+  EXPECT_EQ(a.rejection, b.rejection);
+  EXPECT_TRUE(a.model_pose.matrix() == b.model_pose.matrix());
+}
+
 TEST(RansacUpright, RecoversChairPoseAndModel) {
   const Catalog cat = FurnitureCatalog();
   Scenes sc;
@@ -284,12 +298,8 @@ TEST(RansacUpright, ModelCloudsAreCachedBetweenRuns) {
   const auto again = MakeFitter({{"cloud_cache", dir}})->Fit({h}, sc.Ctx(cat));
   ASSERT_EQ(first.size(), 1u);
   ASSERT_EQ(again.size(), 1u);
-  for (const auto* d : {&first[0], &again[0]}) {
-    EXPECT_EQ(d->model, off[0].model);
-    EXPECT_EQ(d->center, off[0].center);
-    EXPECT_EQ(d->yaw, off[0].yaw);
-    EXPECT_EQ(d->coverage, off[0].coverage);
-  }
+  ExpectSameFit(first[0], off[0]);
+  ExpectSameFit(again[0], off[0]);
   const auto unwritable = MakeFitter({{"cloud_cache", "/proc/furnihost_no_such_dir"}})->Fit({h}, sc.Ctx(cat));
   EXPECT_EQ(unwritable[0].center, off[0].center);
   fs::remove_all(fs::path(dir).parent_path());
@@ -449,17 +459,8 @@ TEST(RansacUpright, DeterministicForASeedWhateverTheThreads) {
   ASSERT_EQ(a.size(), b.size());
   for (size_t i = 0; i < a.size(); ++i) {
     SCOPED_TRACE("detection " + std::to_string(i));
-    EXPECT_EQ(a[i].model, b[i].model);
-    EXPECT_EQ(a[i].yaw, b[i].yaw);
-    EXPECT_EQ(a[i].center, b[i].center);
-    EXPECT_EQ(a[i].coverage, b[i].coverage);
-    EXPECT_EQ(a[i].rms, b[i].rms);
-    EXPECT_EQ(a[i].free_space_ratio, b[i].free_space_ratio);
-    EXPECT_EQ(a[i].iterations, b[i].iterations);
-    EXPECT_EQ(a[i].verified, b[i].verified);
-    EXPECT_EQ(a[i].rejection, b[i].rejection);
+    ExpectSameFit(a[i], b[i]);
     EXPECT_EQ(a[i].notes, b[i].notes);
-    EXPECT_TRUE(a[i].model_pose.matrix() == b[i].model_pose.matrix());
   }
   EXPECT_TRUE(a[0].verified.value_or(false)) << a[0].rejection;
   EXPECT_TRUE(a[1].verified.value_or(false)) << a[1].rejection;
@@ -485,13 +486,8 @@ TEST(RansacUpright, AHypothesisFitsTheSameWhateverElseIsInTheList) {
   ASSERT_EQ(both.size(), 2u);
   ASSERT_EQ(reversed.size(), 2u);
   ASSERT_EQ(alone.size(), 1u);
-  for (const Detection* d : {&reversed[0], &alone[0]}) {
-    EXPECT_EQ(d->model, both[1].model);
-    EXPECT_EQ(d->yaw, both[1].yaw);
-    EXPECT_EQ(d->center, both[1].center);
-    EXPECT_EQ(d->iterations, both[1].iterations);
-    EXPECT_EQ(d->coverage, both[1].coverage);
-  }
+  ExpectSameFit(reversed[0], both[1]);
+  ExpectSameFit(alone[0], both[1]);
   EXPECT_EQ(reversed[1].yaw, both[0].yaw);
   EXPECT_EQ(reversed[1].iterations, both[0].iterations);
   EXPECT_TRUE(both[1].verified.value_or(false)) << both[1].rejection;
