@@ -136,6 +136,13 @@ PoseError ErrorOf(const Detection& d, const CatalogModel& m, const Eigen::Isomet
   return {(d.center - c).norm(), AngleDiff(d.yaw, yaw, period)};
 }
 
+// The chair most tests fit: chair_a at kChairPose, scanned from kSensor (scan seed 1); returns
+// its scene index and fills its parts.
+const Eigen::Isometry3f kChairPose = Upright(1.8f, 0.9f, 2.2f);
+int AddChair(const Catalog& cat, Scenes* sc, std::vector<int>* parts) {
+  return sc->Add(ScanOf(cat.Get("chair_a"), kChairPose, 1), 0, parts);
+}
+
 // The same fit, bit for bit (seeds, threads and caches must not change it).
 void ExpectSameFit(const Detection& a, const Detection& b) {
   EXPECT_EQ(a.model, b.model);
@@ -154,8 +161,8 @@ TEST(RansacUpright, RecoversChairPoseAndModel) {
   const Catalog cat = FurnitureCatalog();
   Scenes sc;
   std::vector<int> parts;
-  const Eigen::Isometry3f truth = Upright(1.8f, 0.9f, 2.2f);
-  const int s = sc.Add(ScanOf(cat.Get("chair_a"), truth, 1), 0, &parts);
+  const Eigen::Isometry3f truth = kChairPose;
+  const int s = AddChair(cat, &sc, &parts);
   ASSERT_GT(sc.scans[0]->scan.points.size(), 1500u);
   auto fitter = MakeFitter();
   const auto out = fitter->Fit({Hypothesis(sc, "chair", s, parts)}, sc.Ctx(cat));
@@ -216,8 +223,8 @@ TEST(RansacUpright, BackgroundPartsInTheSupportAreLeftOut) {
   const Catalog cat = FurnitureCatalog();
   Scenes sc;
   std::vector<int> parts;
-  const Eigen::Isometry3f truth = Upright(1.8f, 0.9f, 2.2f);
-  const int s = sc.Add(ScanOf(cat.Get("chair_a"), truth, 1), 0, &parts);
+  const Eigen::Isometry3f truth = kChairPose;
+  const int s = AddChair(cat, &sc, &parts);
   const int background = static_cast<int>(sc.segs[s]->parts.size()) - 1;  // PartsOf puts the rest last
   ASSERT_EQ(std::find(parts.begin(), parts.end(), background), parts.end());
   Detection h = Hypothesis(sc, "chair", s, parts);
@@ -250,8 +257,8 @@ TEST(RansacUpright, MaxShiftKeepsTheFitNearTheVotersCentre) {
   const Catalog cat = FurnitureCatalog();
   Scenes sc;
   std::vector<int> parts;
-  const Eigen::Isometry3f truth = Upright(1.8f, 0.9f, 2.2f);
-  const int s = sc.Add(ScanOf(cat.Get("chair_a"), truth, 1), 0, &parts);
+  const Eigen::Isometry3f truth = kChairPose;
+  const int s = AddChair(cat, &sc, &parts);
   Detection h = Hypothesis(sc, "chair", s, parts);
   const Eigen::Vector3f true_centre = truth * BoundsOf(cat.Get("chair_a").mesh).center();
   h.center = true_centre + Eigen::Vector3f(0.3f, 0.f, 0.f);
@@ -282,7 +289,7 @@ TEST(RansacUpright, ModelCloudsAreCachedBetweenRuns) {
   const Catalog cat = FurnitureCatalog();
   Scenes sc;
   std::vector<int> parts;
-  const int s = sc.Add(ScanOf(cat.Get("chair_a"), Upright(1.8f, 0.9f, 2.2f), 1), 0, &parts);
+  const int s = AddChair(cat, &sc, &parts);
   const Detection h = Hypothesis(sc, "chair", s, parts);
   const std::string dir = furnihost::testing::TempDir("cloud_cache") + "/clouds";
   auto files = [&] {
