@@ -325,6 +325,9 @@ std::unique_ptr<ModelCloud> ModelCloud::Load(const std::string& path, uint64_t k
   ok = ok && in.read(magic, sizeof(magic)) && std::memcmp(magic, kCacheMagic, sizeof(magic)) == 0;
   // Consistency, so that Covered() can never index out of its arrays.
   ok = ok && !m->points_.empty() && m->normals_.size() == m->points_.size() && m->cells_.size() % 128 == 0;
+  ok = ok && std::isfinite(m->inv_cell_) && m->inv_cell_ > 0.f && m->grid_min_.allFinite() && m->inlier_ > 0.f &&
+       std::isfinite(m->inlier_) && lo.allFinite() && hi.allFinite();
+  for (size_t i = 0; ok && i < m->points_.size(); ++i) ok = m->points_[i].allFinite() && m->normals_[i].allFinite();
   for (int d = 0; ok && d < 3; ++d) ok = m->dims_[d] > 0 && m->bdims_[d] == (m->dims_[d] + 7) / 8;
   ok = ok && m->blocks_.size() == size_t(m->bdims_[0]) * m->bdims_[1] * m->bdims_[2];
   const int32_t nblocks = static_cast<int32_t>(m->cells_.size() / 128);

@@ -8,6 +8,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <random>
 
 #include "model_cloud.hpp"
@@ -120,6 +121,11 @@ TEST(ModelCloud, CacheRoundTripAndDamagedFiles) {
   std::memcpy(bad.data() + 16, &huge, sizeof(huge));  // the point count follows magic and key
   std::ofstream(dir + "/bad.fhmc", std::ios::binary | std::ios::trunc).write(bad.data(), static_cast<std::streamsize>(bad.size()));
   EXPECT_FALSE(ModelCloud::Load(dir + "/bad.fhmc", key, chair.id));
+  bad = bytes;  // a NaN in the first point
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  std::memcpy(bad.data() + 24, &nan, sizeof(nan));
+  std::ofstream(dir + "/nan.fhmc", std::ios::binary | std::ios::trunc).write(bad.data(), static_cast<std::streamsize>(bad.size()));
+  EXPECT_FALSE(ModelCloud::Load(dir + "/nan.fhmc", key, chair.id));
   fs::remove_all(dir);
 }
 
