@@ -6,6 +6,7 @@
 #include <array>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 #include <fstream>
 
 #include "furnihost/io.hpp"
@@ -129,4 +130,43 @@ TEST(Cli, DetectWithoutVoterWritesPartsAndSaysSo) {
   EXPECT_EQ(j["points"], 2);
   EXPECT_TRUE(j["detections"].empty());
   EXPECT_FALSE(j["missing_stages"].empty());
+}
+
+// Every shipped graph config (configs/*.json; names starting with '_' are local experiments)
+// passes `furnihost validate` against the plugins built here, so a renamed or retired
+// parameter cannot leave a config behind. Configs naming a plugin this build lacks (the
+// sanitizer pass builds a few plugins only) are skipped, and said so.
+TEST(Cli, EveryShippedConfigValidates) {
+  const fs::path configs = fs::path(furnihost::testing::SourceDir()) / "configs";
+  const auto reg = furnihost::testing::MakeRegistry();
+  // The stage types of a config after its `extends` chain (RFC 7386 merge patches).
+  std::function<nlohmann::json(const fs::path&)> resolve = [&](const fs::path& p) {
+    nlohmann::json j = furnihost::ReadJson(p.string());
+    if (j.contains("extends")) {
+      nlohmann::json base = resolve(p.parent_path() / j.at("extends").get<std::string>());
+      base.merge_patch(j);
+      return base;
+    }
+    return j;
+  };
+  int validated = 0;
+  std::vector<std::string> skipped;
+  for (const auto& e : fs::directory_iterator(configs)) {
+    const std::string name = e.path().filename().string();
+    if (e.path().extension() != ".json" || name[0] == '_') continue;
+    std::string missing;
+    for (const auto& [tag, st] : resolve(e.path()).at("stages").items())
+      if (st.is_object() && st.contains("type") && !reg->Find(st.at("type").get<std::string>()))
+        missing = st.at("type").get<std::string>();
+    if (!missing.empty()) {
+      skipped.push_back(name + " (" + missing + ")");
+      continue;
+    }
+    const auto r = Furnihost("validate --graph " + e.path().string());
+    EXPECT_EQ(r.code, 0) << name << ": " << r.err;
+    ++validated;
+  }
+  for (const auto& s : skipped) std::printf("[ configs ] skipped %s: plugin not built\n", s.c_str());
+  std::printf("[ configs ] %d validated, %zu skipped\n", validated, skipped.size());
+  EXPECT_GE(validated + skipped.size(), 10u);  // the folder was found and read
 }
