@@ -155,7 +155,8 @@ TEST(Cli, EveryShippedConfigValidates) {
     const std::string name = e.path().filename().string();
     if (e.path().extension() != ".json" || name[0] == '_') continue;
     std::string missing;
-    for (const auto& [tag, st] : resolve(e.path()).at("stages").items())
+    const nlohmann::json graph = resolve(e.path());  // named: a temporary would die before the loop body
+    for (const auto& [tag, st] : graph.at("stages").items())
       if (st.is_object() && st.contains("type") && !reg->Find(st.at("type").get<std::string>()))
         missing = st.at("type").get<std::string>();
     if (!missing.empty()) {
