@@ -255,8 +255,10 @@ uint64_t ModelCloud::CacheKey(const CatalogModel& model, const SamplingOptions& 
                           double(o.min_horizontal_normal)};
   h = Fnv1a(opts, sizeof(opts), h);
   h = Fnv1a(&seed, sizeof(seed), h);
-  for (const auto& v : model.mesh.vertices) h = Fnv1a(v.data(), 3 * sizeof(float), h);
-  for (const auto& f : model.mesh.triangles) h = Fnv1a(f.data(), 3 * sizeof(int), h);
+  // Eigen's 3-vectors are packed (12 bytes each), so the arrays hash as one run of bytes.
+  static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float) && sizeof(Eigen::Vector3i) == 3 * sizeof(int));
+  h = Fnv1a(model.mesh.vertices.data(), model.mesh.vertices.size() * sizeof(Eigen::Vector3f), h);
+  h = Fnv1a(model.mesh.triangles.data(), model.mesh.triangles.size() * sizeof(Eigen::Vector3i), h);
   return h;
 }
 

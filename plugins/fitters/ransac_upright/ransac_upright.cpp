@@ -133,8 +133,7 @@ std::string Fixed2(double v) {
 // the same whatever else the voter found (an A/B change of one class's threshold leaves the
 // other classes' fits alone; with list-index seeds it re-drew all of them).
 uint64_t HypothesisSeed(uint64_t run_seed, const Detection& d) {
-  const std::string centre(reinterpret_cast<const char*>(d.center.data()), sizeof(float) * 3);
-  return SplitMix(run_seed ^ SplitMix(Fnv1a(centre, Fnv1a(d.cls))));
+  return SplitMix(run_seed ^ SplitMix(Fnv1a(d.center.data(), sizeof(float) * 3, Fnv1a(d.cls))));
 }
 
 // Identifies a scan's grid in the cache: the pointer alone could be reused by a later scan.
@@ -508,6 +507,10 @@ class RansacUprightFitter : public Fitter {
       }
     }
     std::atomic<int> loaded{0};
+    if (!missing.empty() && !o_.cloud_cache.empty()) {
+      std::error_code ec;  // a failure shows as the first Save's error below
+      std::filesystem::create_directories(o_.cloud_cache, ec);
+    }
     tbb::parallel_for(size_t(0), missing.size(), [&](size_t k) {
       const CatalogModel& m = *models[missing[k]];
       const uint64_t seed = Fnv1a(m.id);
@@ -526,7 +529,6 @@ class RansacUprightFitter : public Fitter {
       }
       auto c = std::make_shared<const ModelCloud>(m, o_.sampling, seed);
       try {
-        std::filesystem::create_directories(o_.cloud_cache);
         c->Save(path, key);
       } catch (const std::exception& e) {
         if (!cache_warned_.exchange(true))
