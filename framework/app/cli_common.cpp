@@ -68,4 +68,52 @@ std::vector<double> ParseNumbers(const std::string& text, size_t count, const st
   return v;
 }
 
+void FrameCli::Add(CLI::App& app) {
+  app.add_option("--up", up,
+                 "which axis of the scan's coordinates points up: +z (default), -y (a camera's optical frame: x right, "
+                 "y down, z forward), +y, ..., or auto (the normal of the dominant plane with the scene above it)");
+  app.add_option("--transform", transform,
+                 "scan -> z-up frame as 16 numbers (4x4, row-major) or x,y,z,roll,pitch,yaw (metres, radians; as a ROS "
+                 "static transform); instead of --up");
+  app.add_option("--shift", shift,
+                 "global shift x,y,z subtracted from the coordinates at read time (default: automatic for files 10 km "
+                 "or more from the origin); outputs are written back in the file's coordinates");
+  app.add_option("--ground", ground,
+                 "the floor: auto (default of the graph), level, plane, height_map, or a number: a fixed floor height "
+                 "[m] in the z-up frame");
+}
+
+FrameOptions FrameCli::Frame() const {
+  FrameOptions f;
+  f.up = up;
+  if (up != "auto") UpAxisRotation(up, "--up");  // validates
+  if (!transform.empty()) {
+    if (up != "+z") throw InputError("--transform: give either --up or --transform, not both");
+    f.transform = ParseTransform(transform, "--transform");
+  }
+  if (!shift.empty()) {
+    const auto v = ParseNumbers(shift, 3, "--shift");
+    f.shift.shift = Eigen::Vector3d(v[0], v[1], v[2]);
+  }
+  return f;
+}
+
+void FrameCli::ApplyGround(GraphConfig& g) const {
+  if (ground.empty()) return;
+  GroundOptions o = g.ground;
+  char* end = nullptr;
+  const double z = std::strtod(ground.c_str(), &end);
+  if (end != ground.c_str() && *end == '\0') {
+    if (!std::isfinite(z) || std::abs(z) > 1e4)
+      throw InputError("--ground: a fixed floor height must be finite and within 10 km, got '" + ground + "'");
+    o.kind = "fixed";
+    o.fixed_z = static_cast<float>(z);
+  } else {
+    o.kind = ground;
+  }
+  o.Check("--ground: ");
+  g.ground = o;
+  g.resolved["ground"] = ToJson(o);
+}
+
 }  // namespace furnihost::app

@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include "furnihost/config.hpp"
+#include "furnihost/frame.hpp"
 #include "furnihost/registry.hpp"
 #include "furnihost/stage.hpp"
 
@@ -23,6 +25,16 @@ struct CommonOptions {
   void Apply() const;
   std::unique_ptr<Registry> MakeRegistry() const;
   RunContext Context(uint64_t graph_seed) const;
+};
+
+// Scan frame and ground options of detect (--up, --transform, --shift, --ground).
+struct FrameCli {
+  std::string up = "+z", transform, shift, ground;
+  void Add(CLI::App& app);
+  // The parsed frame; InputError naming the option on a bad value.
+  FrameOptions Frame() const;
+  // --ground KIND or a number (a fixed floor height in the working frame) into the graph.
+  void ApplyGround(GraphConfig& g) const;
 };
 
 // Parses `args` (program name and subcommand word excluded). Returns std::nullopt to go on,

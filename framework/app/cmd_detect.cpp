@@ -25,6 +25,8 @@ namespace furnihost::app {
 
 namespace {
 
+// The segmentation, a random colour per part, in the scan's file frame (it overlays the
+// user's scan in CloudCompare / RViz).
 void WriteParts(const std::string& path, const Scan& scan, const Segmentation& seg, uint64_t seed) {
   std::mt19937_64 rng(seed);
   std::uniform_int_distribution<int> c(40, 255);
@@ -33,27 +35,30 @@ void WriteParts(const std::string& path, const Scan& scan, const Segmentation& s
   for (const auto& part : seg.parts) {
     const std::array<uint8_t, 3> col{static_cast<uint8_t>(c(rng)), static_cast<uint8_t>(c(rng)), static_cast<uint8_t>(c(rng))};
     for (int i : part.indices) {
-      pts.push_back(scan.pose * scan.points[i]);
+      pts.push_back(scan.points[i]);
       cols.push_back(col);
     }
   }
-  WritePly(path, pts, &cols);
+  WritePlyInFrame(path, pts, scan.frame, &cols);
 }
 
-void WriteFitted(const std::string& path, const std::vector<Detection>& dets, const Catalog& catalog) {
+// The verified CAD models, coloured by class, in the file frame of `scan` (the first scan of
+// a fused group: detections are in its world frame).
+void WriteFitted(const std::string& path, const std::vector<Detection>& dets, const Catalog& catalog, const Scan& scan) {
   Points pts;
   std::vector<std::array<uint8_t, 3>> cols;
+  const Eigen::Isometry3f to_scan = scan.pose.inverse();
   for (size_t i = 0; i < dets.size(); ++i) {
     const auto& d = dets[i];
     if (d.model.empty() || !d.verified.value_or(false)) continue;
     const CatalogModel* m = catalog.Find(d.model);
     if (!m) continue;
     for (const auto& p : SampleSurface(m->mesh, 4000.f, i)) {
-      pts.push_back(d.model_pose * p);
+      pts.push_back(to_scan * (d.model_pose * p));
       cols.push_back(ClassColor(d.cls));
     }
   }
-  WritePly(path, pts, &cols);
+  WritePlyInFrame(path, pts, scan.frame, &cols);
 }
 
 // What a rejection is grouped by: the reason without the measured value, so "coverage 0.12 <
@@ -161,11 +166,13 @@ int RunDetect(const std::vector<std::string>& args) {
   std::string graph, out, origin_text;
   std::vector<std::string> scans, poses;
   bool fuse = false, save_parts = false, retrain = false, strict = false;
+  FrameCli frame_cli;
   common.Add(app);
   app.add_option("--graph,-g", graph, "graph config (JSON), e.g. configs/paper.json")->required();
   app.add_option("scans", scans, "scan files (.pcd, .ply, .xyz)")->required();
   app.add_option("--out,-o", out, "output folder (default furnihost-out/<scan stem>/)");
-  app.add_option("--origin", origin_text, "sensor origin x,y,z for scans without VIEWPOINT");
+  app.add_option("--origin", origin_text, "sensor origin x,y,z (in the file's coordinates) for scans without VIEWPOINT");
+  frame_cli.Add(app);
   app.add_option("--pose", poses, "pose x,y,z,yaw_deg of each scan in the common frame (once per scan, with --fuse)")
       ->allow_extra_args(false);
   app.add_flag("--fuse", fuse, "vote with all scans in one common space (multi-view fusion, paper Sect. VII-C)");
@@ -175,7 +182,9 @@ int RunDetect(const std::vector<std::string>& args) {
   if (auto rc = Parse(app, args)) return *rc;
   common.Apply();
   auto reg = common.MakeRegistry();
+  const FrameOptions frame = frame_cli.Frame();  // bad values exit 2 before the graph loads
   GraphConfig g = LoadGraph(graph, *reg);
+  frame_cli.ApplyGround(g);
   RunContext ctx = common.Context(g.seed);
   if (!poses.empty() && poses.size() != scans.size())
     throw InputError("--pose: given " + std::to_string(poses.size()) + " times for " + std::to_string(scans.size()) + " scans");
@@ -193,6 +202,7 @@ int RunDetect(const std::vector<std::string>& args) {
     Pipeline::SceneInput in;
     in.path = scans[i];
     in.origin = origin;
+    in.frame = frame;
     if (!poses.empty()) {
       auto p = ParseNumbers(poses[i], 4, "--pose");
       in.pose = UprightPose(p[0], p[1], p[2], static_cast<float>(p[3] * M_PI / 180.0));
@@ -247,8 +257,16 @@ int RunDetect(const std::vector<std::string>& args) {
     j["stages_run"] = nlohmann::json::array();
     for (const auto& [tag, ms] : r.timings_ms) j["stages_run"].push_back(tag);
     if (!missing.empty()) j["missing_stages"] = missing;
+    // Geometry is written in the (first) scan's file frame; the frames and grounds say how.
+    const Scan* frame_scan = r.scans.empty() ? nullptr : &r.scans.front();
+    j["frames"] = nlohmann::json::array();
+    j["ground"] = nlohmann::json::array();
+    for (const auto& s : r.scans) {
+      j["frames"].push_back(ToJson(s.frame));
+      j["ground"].push_back(s.ground ? ToJson(*s.ground) : nlohmann::json(nullptr));
+    }
     j["detections"] = nlohmann::json::array();
-    for (const auto& d : r.detections) j["detections"].push_back(DetectionToJson(d));
+    for (const auto& d : r.detections) j["detections"].push_back(DetectionToJson(d, frame_scan));
     j["timings_ms"] = nlohmann::json::object();
     for (const auto& [tag, ms] : r.timings_ms) j["timings_ms"][tag] = ms;
     j["timings_ms"]["total"] = total.Ms();
@@ -260,7 +278,7 @@ int RunDetect(const std::vector<std::string>& args) {
       WriteBirdsEye((fs::path(dir) / "votes").string(), sp, r.votes, r.detections);
     }
 #endif
-    if (r.fitted) WriteFitted((fs::path(dir) / "fitted.ply").string(), r.detections, *catalog);
+    if (r.fitted && frame_scan) WriteFitted((fs::path(dir) / "fitted.ply").string(), r.detections, *catalog, *frame_scan);
 
     std::cout << stem << ": " << j["points"] << " points, " << j["parts"] << " parts";
     if (!r.voted) std::cout << "; no voter ran, so no detections";

@@ -164,6 +164,21 @@ struct RunInput {
   int jobs;  // 0 = auto
 };
 
+// Ground-truth boxes (file frame) in a scan's working frame: centres mapped, sizes the extents
+// of the mapped box (exact for axis turns such as an optical frame's), yaw about the new up.
+std::vector<GroundTruthObject> ToWorking(std::vector<GroundTruthObject> truth, const ScanFrame& f) {
+  const Eigen::Matrix3f r = f.to_working.linear().cast<float>();
+  for (auto& g : truth) {
+    g.center = (f.to_working * (g.center.cast<double>() - f.shift)).cast<float>();
+    g.size = (r.cwiseAbs() * g.size).eval();
+    if (g.yaw) {
+      const Eigen::Vector3f d = r * Eigen::Vector3f(std::cos(*g.yaw), std::sin(*g.yaw), 0.f);
+      g.yaw = std::atan2(d.y(), d.x());
+    }
+  }
+  return truth;
+}
+
 RunFigures RunOne(Loaded& cfg, const Registry& reg, const RunContext& ctx, const RunInput& in) {
   const auto& scenes = in.dataset->scenes;
   const size_t n = scenes.size();
@@ -171,6 +186,7 @@ RunFigures RunOne(Loaded& cfg, const Registry& reg, const RunContext& ctx, const
   std::vector<Pipeline::Result> results(n);
   std::vector<SceneRecord> records(n);
   std::vector<std::vector<Eigen::Vector3f>> voter_centres(n);  // before a fitter moved them
+  std::vector<std::optional<std::vector<GroundTruthObject>>> truth_working(n);
   std::vector<std::unique_ptr<Pipeline>> pipelines;
   pipelines.push_back(std::make_unique<Pipeline>(cfg.graph, reg));
   Progress progress("eval " + cfg.name + " seed " + std::to_string(ctx.seed), n);
@@ -181,6 +197,7 @@ RunFigures RunOne(Loaded& cfg, const Registry& reg, const RunContext& ctx, const
     Pipeline::SceneInput si;
     si.path = scenes[i].scan;
     si.origin = scenes[i].origin;
+    si.frame = scenes[i].frame;
     Stopwatch sw;
     Pipeline::Result r;
     // Name the scene: the stage's message alone does not say which of many scans failed.
@@ -197,6 +214,8 @@ RunFigures RunOne(Loaded& cfg, const Registry& reg, const RunContext& ctx, const
     records[i].timings_ms = r.timings_ms;
     // Keep only what the evaluation needs: scans and features of every scene would add up.
     for (const auto& h : r.votes.hypotheses) voter_centres[i].push_back(h.center);
+    // Ground truth is in the file's frame: into the working frame of the detections.
+    if (!r.scans.empty() && !r.scans.front().frame.IsIdentity()) truth_working[i] = ToWorking((*in.truth)[i], r.scans.front().frame);
     Pipeline::Result keep;
     keep.detections = std::move(r.detections);
     keep.fitted = r.fitted;
@@ -254,7 +273,7 @@ RunFigures RunOne(Loaded& cfg, const Registry& reg, const RunContext& ctx, const
   std::vector<SceneEval> evals(n);
   for (size_t i = 0; i < n; ++i) {
     evals[i].detections = std::move(results[i].detections);
-    evals[i].truth = (*in.truth)[i];
+    evals[i].truth = truth_working[i] ? *truth_working[i] : (*in.truth)[i];
     evals[i].fitted = results[i].fitted;
     evals[i].name = fs::path(scenes[i].scan).stem().string();
     evals[i].voter_centres = std::move(voter_centres[i]);
@@ -306,13 +325,16 @@ std::vector<std::string> IgnoredNotes(const std::vector<ConfigSummary>& configs)
 std::vector<std::string> WritePlots(const std::string& dir, const std::vector<ConfigSummary>& configs,
                                     const std::vector<std::string>& classes) {
   std::vector<std::string> files;
+  // The paper's rule (pr_<class>) and the ScanNet rule, box IoU >= 0.25 (pr25_<class>).
+  for (const bool iou : {false, true})
   for (const auto& cls : classes) {
     std::vector<PlotSeries> series;
+    auto curve = [&](const ClassMetrics& cm) -> const std::vector<PrPoint>& { return iou ? cm.curve25 : cm.curve; };
     for (size_t c = 0; c < configs.size(); ++c) {
       std::vector<double> aps;
       for (const auto& r : configs[c].runs)
         for (const auto& cm : r.metrics.classes)
-          if (cm.cls == cls) aps.push_back(cm.ap);
+          if (cm.cls == cls) aps.push_back(iou ? cm.ap25 : cm.ap);
       const MeanStd ap = MeanAndStd(aps);
       for (size_t k = 0; k < configs[c].runs.size(); ++k) {
         PlotSeries s;
@@ -320,17 +342,19 @@ std::vector<std::string> WritePlots(const std::string& dir, const std::vector<Co
         s.alpha = k == 0 ? 1.0 : 0.35;
         if (k == 0) {
           char buf[64];
-          std::snprintf(buf, sizeof(buf), " (AP %.3f)", ap.mean);
+          std::snprintf(buf, sizeof(buf), iou ? " (AP25 %.3f)" : " (AP %.3f)", ap.mean);
           s.label = std::string(1, static_cast<char>('A' + c % 26)) + ": " + configs[c].name + (ap.n ? buf : " (AP n/a)");
         }
         for (const auto& cm : configs[c].runs[k].metrics.classes)
           if (cm.cls == cls)
-            for (const auto& p : cm.curve) s.points.push_back({1.0 - p.precision, p.recall});
+            for (const auto& p : curve(cm)) s.points.push_back({1.0 - p.precision, p.recall});
         series.push_back(std::move(s));
       }
     }
-    const std::string stem = "pr_" + FileSafe(cls);
-    WritePrPlot((fs::path(dir) / stem).string(), cls + ": recall vs 1 - precision", series);
+    const std::string stem = (iou ? "pr25_" : "pr_") + FileSafe(cls);
+    WritePrPlot((fs::path(dir) / stem).string(),
+                cls + (iou ? ": recall vs 1 - precision, box IoU >= 0.25" : ": recall vs 1 - precision, paper rule"),
+                series);
     files.push_back(stem + ".png");
   }
   return files;
@@ -358,6 +382,9 @@ int RunEval(const std::vector<std::string>& args) {
       ->check(CLI::Range(1, 1000));
   app.add_option("--width", width_text, "ground-truth width for the match radius: max or min of the box's x/y size (default max)")
       ->check(CLI::IsMember({"max", "min"}));
+  FrameCli ground_cli;
+  app.add_option("--ground", ground_cli.ground,
+                 "override every graph's ground: auto, level, plane, height_map, or a fixed floor height [m]");
   app.add_option("--jobs,-j", jobs, "scenes processed in parallel (0 = as cores and memory allow)")->check(CLI::Range(0, 1024));
   app.add_flag("--retrain", retrain, "retrain each graph's model even if its cache is valid");
   app.add_flag("--strict", strict, "invalid catalog entries are fatal instead of skipped");
@@ -373,7 +400,10 @@ int RunEval(const std::vector<std::string>& args) {
   const std::string hash = HashDataset(dataset);
   const std::vector<std::string> config_names = Names(graphs, names);
   std::vector<Loaded> configs;
-  for (size_t i = 0; i < graphs.size(); ++i) configs.push_back({config_names[i], LoadGraph(graphs[i], *reg), {}, {}});
+  for (size_t i = 0; i < graphs.size(); ++i) {
+    configs.push_back({config_names[i], LoadGraph(graphs[i], *reg), {}, {}});
+    ground_cli.ApplyGround(configs.back().graph);
+  }
   spdlog::info("eval: {} configs x {} seeds on {} ({} scenes, {})", configs.size(), seeds, dataset_path,
                dataset.scenes.size(), hash);
 

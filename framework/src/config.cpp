@@ -16,7 +16,8 @@ namespace furnihost {
 namespace {
 
 const std::vector<std::string> kTopKeys = {"extends", "description", "comment", "seed", "threads",
-                                           "catalog", "model_cache", "training", "stages", "limits"};
+                                           "catalog", "model_cache", "training", "stages", "limits",
+                                           "ground"};
 const std::vector<std::string> kStageKeys = {"type", "inputs", "params", "comment"};
 const std::vector<std::string> kTrainingKeys = {"sensor", "comment"};
 const std::vector<std::string> kLimitKeys = {"max_points", "max_grid_cells", "comment"};
@@ -139,6 +140,9 @@ GraphConfig ValidateGraph(const std::string& path, const nlohmann::json& config,
     if (config.contains(key) && !config[key].is_string())
       throw InputError(w + "/" + key + ": expected a string, got " + Shown(config[key]));
   }
+  // Before anything runs (a typo in the ground's kind must not surface after training).
+  g.ground = GroundOptionsFromJson(config.value("ground", nlohmann::json()), w + "/ground");
+  resolved["ground"] = ToJson(g.ground);
   if (config.contains("catalog")) g.catalog = config["catalog"].get<std::string>();
   if (config.contains("model_cache")) g.model_cache = config["model_cache"].get<std::string>();
   if (config.contains("limits")) {

@@ -317,7 +317,7 @@ Dataset LoadDataset(const std::string& path) {
   if (!sc.is_array() || sc.empty()) Bad(path, "/scenes", "expected a non-empty list of {\"scan\", \"gt\"}");
   for (size_t i = 0; i < sc.size(); ++i) {
     const std::string ptr = "/scenes/" + std::to_string(i);
-    CheckKeys(sc[i], {"scan", "gt", "origin"}, path, ptr);
+    CheckKeys(sc[i], {"scan", "gt", "origin", "up", "transform", "shift"}, path, ptr);
     if (!sc[i].contains("scan")) Bad(path, ptr + "/scan", "missing (path of the scan file)");
     if (!sc[i].contains("gt")) Bad(path, ptr + "/gt", "missing (path of the *.gt.json file)");
     DatasetScene s;
@@ -329,6 +329,25 @@ Dataset LoadDataset(const std::string& path) {
           !std::all_of(o.begin(), o.end(), [](const json& v) { return v.is_number() && std::isfinite(v.get<double>()); }))
         Bad(path, ptr + "/origin", "expected [x, y, z] (3 finite numbers, metres), got " + o.dump());
       s.origin = Eigen::Vector3f(o[0].get<float>(), o[1].get<float>(), o[2].get<float>());
+    }
+    {
+      if (sc[i].contains("up")) {
+        if (!sc[i]["up"].is_string()) Bad(path, ptr + "/up", "expected an axis such as \"-y\"");
+        s.frame.up = sc[i]["up"].get<std::string>();
+        if (s.frame.up != "auto") UpAxisRotation(s.frame.up, path + ":" + ptr + "/up");
+      }
+      if (sc[i].contains("transform")) {
+        if (!sc[i]["transform"].is_string()) Bad(path, ptr + "/transform", "expected a string of 16 or 6 numbers");
+        if (sc[i].contains("up")) Bad(path, ptr + "/transform", "give either up or transform, not both");
+        s.frame.transform = ParseTransform(sc[i]["transform"].get<std::string>(), path + ":" + ptr + "/transform");
+      }
+    }
+    if (sc[i].contains("shift")) {
+      const json& o = sc[i]["shift"];
+      if (!o.is_array() || o.size() != 3 ||
+          !std::all_of(o.begin(), o.end(), [](const json& v) { return v.is_number() && std::isfinite(v.get<double>()); }))
+        Bad(path, ptr + "/shift", "expected [x, y, z] (3 finite numbers), got " + o.dump());
+      s.frame.shift.shift = Eigen::Vector3d(o[0].get<double>(), o[1].get<double>(), o[2].get<double>());
     }
     d.scenes.push_back(s);
   }
@@ -424,6 +443,66 @@ SceneMatch MatchScene(const std::vector<Detection>& dets, const std::vector<Grou
   return m;
 }
 
+float BoxIou(const Eigen::AlignedBox3f& a, const Eigen::AlignedBox3f& b) {
+  if (a.isEmpty() || b.isEmpty()) return 0.f;
+  const Eigen::AlignedBox3f i = a.intersection(b);
+  if (i.isEmpty()) return 0.f;
+  const double vi = double(i.volume()), va = double(a.volume()), vb = double(b.volume());
+  const double u = va + vb - vi;
+  return u > 0 ? float(vi / u) : 0.f;
+}
+
+Eigen::AlignedBox3f GroundTruthBox(const GroundTruthObject& g) {
+  return Eigen::AlignedBox3f(g.center - 0.5f * g.size, g.center + 0.5f * g.size);
+}
+
+Eigen::AlignedBox3f DetectionBox(const Detection& d) { return d.box ? d.box->Aabb() : Eigen::AlignedBox3f(); }
+
+SceneMatch MatchSceneIou(const std::vector<Detection>& dets, const std::vector<GroundTruthObject>& truth,
+                         const ClassMap& classes, float threshold) {
+  SceneMatch m;
+  m.det_to_gt.assign(dets.size(), SceneMatch::kUnmatched);
+  m.gt_to_det.assign(truth.size(), SceneMatch::kUnmatched);
+  m.det_class.resize(dets.size());
+  m.gt_class.resize(truth.size());
+  std::vector<Eigen::AlignedBox3f> gt_box(truth.size());
+  for (size_t g = 0; g < truth.size(); ++g) {
+    auto c = classes.Map(truth[g].cls);
+    if (c) m.gt_class[g] = *c;
+    else m.gt_to_det[g] = SceneMatch::kIgnored;
+    gt_box[g] = GroundTruthBox(truth[g]);
+  }
+  std::vector<size_t> order;
+  for (size_t i = 0; i < dets.size(); ++i) {
+    auto c = classes.Map(dets[i].cls);
+    if (c) {
+      m.det_class[i] = *c;
+      order.push_back(i);
+    } else {
+      m.det_to_gt[i] = SceneMatch::kIgnored;
+    }
+  }
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return dets[a].score > dets[b].score; });
+  for (size_t i : order) {
+    const Eigen::AlignedBox3f box = DetectionBox(dets[i]);
+    int best = -1;
+    float best_iou = -1.f;
+    for (size_t g = 0; g < truth.size(); ++g) {
+      if (m.gt_class[g] != m.det_class[i] || m.gt_to_det[g] == SceneMatch::kIgnored) continue;
+      const float iou = BoxIou(box, gt_box[g]);
+      if (iou > best_iou) {
+        best_iou = iou;
+        best = static_cast<int>(g);
+      }
+    }
+    if (best >= 0 && best_iou >= threshold && m.gt_to_det[best] == SceneMatch::kUnmatched) {
+      m.det_to_gt[i] = best;
+      m.gt_to_det[best] = static_cast<int>(i);
+    }
+  }
+  return m;
+}
+
 // ---- metrics -----------------------------------------------------------------------------
 
 double AveragePrecision(const std::vector<double>& recall, const std::vector<double>& precision) {
@@ -459,7 +538,7 @@ ErrorStats Summarise(std::vector<double> v) {
 EvalMetrics Evaluate(const std::vector<SceneEval>& scenes, const ClassMap& classes, WidthConvention width) {
   EvalMetrics out;
   std::map<std::string, int> gt_count;
-  std::map<std::string, std::vector<Scored>> scored;
+  std::map<std::string, std::vector<Scored>> scored, scored25, scored50;
   std::map<std::string, std::pair<int, int>> hyp_counts, ver_counts;
   std::map<std::string, ErrorAccumulator> hyp_err, ver_err;
   std::map<std::string, VerificationFigures> ver_fig;
@@ -477,6 +556,12 @@ EvalMetrics Evaluate(const std::vector<SceneEval>& scenes, const ClassMap& class
         continue;
       }
       scored[m.det_class[i]].push_back({se.detections[i].score, s, i, m.det_to_gt[i] >= 0});
+    }
+    for (auto [threshold, target] : {std::pair{0.25f, &scored25}, std::pair{0.5f, &scored50}}) {
+      const SceneMatch mi = MatchSceneIou(se.detections, se.truth, classes, threshold);
+      for (size_t i = 0; i < se.detections.size(); ++i)
+        if (mi.det_to_gt[i] != SceneMatch::kIgnored)
+          (*target)[mi.det_class[i]].push_back({se.detections[i].score, s, i, mi.det_to_gt[i] >= 0});
     }
     Accumulate(se.detections, se.truth, m, se.fitted, hyp_counts, hyp_err);
     // Rejected detections leave the set, so the remaining ones are matched on their own: a
@@ -546,14 +631,10 @@ EvalMetrics Evaluate(const std::vector<SceneEval>& scenes, const ClassMap& class
 
   int tp_h = 0, fp_h = 0, tp_v = 0, fp_v = 0, gt_all = 0;
   ErrorAccumulator all_h, all_v;
-  double ap_sum = 0;
+  double ap_sum = 0, ap25_sum = 0, ap50_sum = 0;
   int ap_n = 0;
-  for (const std::string& c : classes.classes) {
-    ClassMetrics cm;
-    cm.cls = c;
-    cm.gt = gt_count[c];
-    auto& sd = scored[c];
-    cm.detections = static_cast<int>(sd.size());
+  // The precision-recall curve of scored detections (one point per distinct score) and its AP.
+  auto curve_of = [](std::vector<Scored>& sd, int gt, std::vector<PrPoint>& curve) {
     std::sort(sd.begin(), sd.end(), [](const Scored& a, const Scored& b) {
       if (a.score != b.score) return a.score > b.score;
       return a.scene != b.scene ? a.scene < b.scene : a.index < b.index;
@@ -563,16 +644,30 @@ EvalMetrics Evaluate(const std::vector<SceneEval>& scenes, const ClassMap& class
       (sd[i].tp ? tp : fp)++;
       // Detections with equal scores cannot be separated by a threshold: one point per score.
       if (i + 1 < sd.size() && sd[i + 1].score == sd[i].score) continue;
-      cm.curve.push_back({sd[i].score, tp, fp, SafeDiv(tp, tp + fp), SafeDiv(tp, cm.gt)});
+      curve.push_back({sd[i].score, tp, fp, SafeDiv(tp, tp + fp), SafeDiv(tp, gt)});
     }
+    std::vector<double> r, p;
+    for (const auto& pt : curve) {
+      r.push_back(pt.recall);
+      p.push_back(pt.precision);
+    }
+    return AveragePrecision(r, p);
+  };
+  for (const std::string& c : classes.classes) {
+    ClassMetrics cm;
+    cm.cls = c;
+    cm.gt = gt_count[c];
+    cm.detections = static_cast<int>(scored[c].size());
+    const double ap = curve_of(scored[c], cm.gt, cm.curve);
+    const double ap25 = curve_of(scored25[c], cm.gt, cm.curve25);
+    const double ap50 = curve_of(scored50[c], cm.gt, cm.curve50);
     if (cm.gt > 0) {
-      std::vector<double> r, p;
-      for (const auto& pt : cm.curve) {
-        r.push_back(pt.recall);
-        p.push_back(pt.precision);
-      }
-      cm.ap = AveragePrecision(r, p);
-      ap_sum += cm.ap;
+      cm.ap = ap;
+      cm.ap25 = ap25;
+      cm.ap50 = ap50;
+      ap_sum += ap;
+      ap25_sum += ap25;
+      ap50_sum += ap50;
       ++ap_n;
     }
     const auto h = hyp_counts[c];
@@ -600,6 +695,8 @@ EvalMetrics Evaluate(const std::vector<SceneEval>& scenes, const ClassMap& class
     out.classes.push_back(std::move(cm));
   }
   out.map = ap_n ? ap_sum / ap_n : NAN;
+  out.map25 = ap_n ? ap25_sum / ap_n : NAN;
+  out.map50 = ap_n ? ap50_sum / ap_n : NAN;
   out.hypotheses = MakePoint(tp_h, fp_h, gt_all, all_h);
   if (out.fitted) out.verified = MakePoint(tp_v, fp_v, gt_all, all_v);
   FinishRates(&out.verification);
@@ -607,6 +704,30 @@ EvalMetrics Evaluate(const std::vector<SceneEval>& scenes, const ClassMap& class
 }
 
 // ---- serialisation ---------------------------------------------------------------------
+
+namespace {
+// Compact rows: [score, tp, fp, precision, recall].
+json CurveJson(const std::vector<PrPoint>& c) {
+  json out = json::array();
+  for (const auto& p : c) out.push_back({p.score, p.tp, p.fp, Num(p.precision), Num(p.recall)});
+  return out;
+}
+std::vector<PrPoint> CurveFromJson(const json& rows) {
+  std::vector<PrPoint> out;
+  if (!rows.is_array()) return out;
+  for (const auto& r : rows) {
+    if (!r.is_array() || r.size() != 5) continue;
+    PrPoint p;
+    p.score = r[0].is_number() ? r[0].get<float>() : NAN;
+    p.tp = r[1].is_number() ? r[1].get<int>() : 0;
+    p.fp = r[2].is_number() ? r[2].get<int>() : 0;
+    p.precision = r[3].is_number() ? r[3].get<double>() : NAN;
+    p.recall = r[4].is_number() ? r[4].get<double>() : NAN;
+    out.push_back(p);
+  }
+  return out;
+}
+}  // namespace
 
 json ToJson(const EvalMetrics& m) {
   json classes = json::array();
@@ -618,16 +739,22 @@ json ToJson(const EvalMetrics& m) {
                        {"gt", c.gt},
                        {"detections", c.detections},
                        {"ap", Num(c.ap)},
+                       {"ap25", Num(c.ap25)},
+                       {"ap50", Num(c.ap50)},
                        {"hypotheses", ToJson(c.hypotheses)},
                        {"verified", c.verified ? ToJson(*c.verified) : json(nullptr)},
                        {"verification", c.verification ? ToJson(*c.verification) : json(nullptr)},
                        {"pr_curve_columns", {"score", "tp", "fp", "precision", "recall"}},
-                       {"pr_curve", curve}});
+                       {"pr_curve", curve},
+                       {"pr_curve_iou25", CurveJson(c.curve25)},
+                       {"pr_curve_iou50", CurveJson(c.curve50)}});
   }
   json objects = json::array();
   for (const auto& r : m.objects) objects.push_back(ToJson(r));
   return {{"classes", classes},
           {"map", Num(m.map)},
+          {"map25", Num(m.map25)},
+          {"map50", Num(m.map50)},
           {"fitted", m.fitted},
           {"all",
            {{"hypotheses", ToJson(m.hypotheses)},
@@ -651,6 +778,12 @@ EvalMetrics EvalMetricsFromJson(const json& j, const std::string& where) {
     cm.gt = static_cast<int>(GetNum(c, "gt", w));
     cm.detections = static_cast<int>(GetNum(c, "detections", w));
     cm.ap = GetNum(c, "ap", w);
+    // Run records written before the IoU rule have no ap25 / ap50: NaN, not an error.
+    auto opt_num = [&](const char* k) { return c.contains(k) && c[k].is_number() ? c[k].get<double>() : NAN; };
+    cm.ap25 = opt_num("ap25");
+    cm.ap50 = opt_num("ap50");
+    if (c.contains("pr_curve_iou25")) cm.curve25 = CurveFromJson(c["pr_curve_iou25"]);
+    if (c.contains("pr_curve_iou50")) cm.curve50 = CurveFromJson(c["pr_curve_iou50"]);
     if (!c.contains("hypotheses")) throw InputError(w + "/hypotheses: missing");
     cm.hypotheses = OperatingPointFromJson(c["hypotheses"], w + "/hypotheses");
     if (c.contains("verified") && !c["verified"].is_null())
@@ -670,6 +803,8 @@ EvalMetrics EvalMetricsFromJson(const json& j, const std::string& where) {
     m.classes.push_back(std::move(cm));
   }
   m.map = GetNum(j, "map", where);
+  m.map25 = j.contains("map25") && j["map25"].is_number() ? j["map25"].get<double>() : NAN;
+  m.map50 = j.contains("map50") && j["map50"].is_number() ? j["map50"].get<double>() : NAN;
   m.fitted = j.value("fitted", false);
   if (j.contains("all") && j["all"].is_object()) {
     if (j["all"].contains("hypotheses")) m.hypotheses = OperatingPointFromJson(j["all"]["hypotheses"], where + "/all/hypotheses");
@@ -757,11 +892,15 @@ std::map<std::string, double> FlatFigures(const RunFigures& r) {
     f[c.cls + "/gt"] = c.gt;
     f[c.cls + "/detections"] = c.detections;
     f[c.cls + "/ap"] = c.ap;
+    f[c.cls + "/ap25"] = c.ap25;
+    f[c.cls + "/ap50"] = c.ap50;
     AddPointFigures(f, c.cls + "/hypotheses", c.hypotheses);
     if (c.verified) AddPointFigures(f, c.cls + "/verified", *c.verified);
     if (c.verification) AddVerificationFigures(f, c.cls, *c.verification);
   }
   f["all/map"] = r.metrics.map;
+  f["all/map25"] = r.metrics.map25;
+  f["all/map50"] = r.metrics.map50;
   AddPointFigures(f, "all/hypotheses", r.metrics.hypotheses);
   if (r.metrics.fitted) {
     AddPointFigures(f, "all/verified", r.metrics.verified);
@@ -869,6 +1008,10 @@ std::string RenderReport(const std::vector<ConfigSummary>& configs, const Report
        "convention **"
     << ToString(info.width) << "**: radius = " << ToString(info.width)
     << "(size x, size y) / 2; greedy by descending score, each ground-truth object matches at most one detection\n";
+  o << "- AP25 / AP50 (ScanNet / VoteNet rule, what published detectors report; AP is the paper's rule above): a "
+       "detection is a true positive "
+       "when the 3D IoU of its axis-aligned box with the ground-truth box of its class that it overlaps most is >= 0.25 "
+       "/ >= 0.5 and that object is not taken by a higher-scored detection\n";
   o << "- AP: all-point interpolated (VOC 2010+) area under the precision envelope of the score-threshold sweep; "
        "\"hypotheses\" = every detection the pipeline output (the voter's own threshold), \"verified\" = "
        "detections with verified != false (only when a fitter ran); \"true / false hypotheses\" = the voter's "
@@ -954,7 +1097,10 @@ std::string RenderReport(const std::vector<ConfigSummary>& configs, const Report
       o << "### " << cls << "\n\nno ground-truth objects and no detections in any config\n\n";
       continue;
     }
-    std::vector<Row> rows = {{"AP", cls + "/ap", 3, false}, {"detections", cls + "/detections", -1, false}};
+    std::vector<Row> rows = {{"AP25", cls + "/ap25", 3, true},
+                             {"AP50", cls + "/ap50", 3, true},
+                             {"AP", cls + "/ap", 3, false},
+                             {"detections", cls + "/detections", -1, false}};
     for (const auto& which : {"hypotheses", "verified"}) {
       auto pr = PointRows(cls, which);
       rows.insert(rows.end(), pr.begin(), pr.end());
@@ -963,7 +1109,9 @@ std::string RenderReport(const std::vector<ConfigSummary>& configs, const Report
     rows.insert(rows.end(), vr.begin(), vr.end());
     table(cls + " (" + std::to_string(std::max(gt, 0)) + (gt == 1 ? " ground-truth object)" : " ground-truth objects)"), rows);
   }
-  std::vector<Row> all = {{"mAP (mean AP over classes with ground truth)", "all/map", 3, false}};
+  std::vector<Row> all = {{"mAP25", "all/map25", 3, true},
+                          {"mAP50", "all/map50", 3, true},
+                          {"mAP (mean AP over classes with ground truth)", "all/map", 3, false}};
   for (const auto& which : {"hypotheses", "verified"}) {
     auto pr = PointRows("all", which);
     all.insert(all.end(), pr.begin(), pr.end());

@@ -44,21 +44,43 @@ void CheckCap(const std::string& path, size_t n, size_t max_points) {
 // Scans are in metres in a local frame. Farther points are dropped like NaNs: they are no
 // furniture, and grid keys (voxels, vote cells) computed from them would overflow.
 constexpr float kMaxCoordinate = 1e6f;
+// A file whose first finite point lies this far from the origin [m] is shifted automatically
+// (as CloudCompare offers): no room scan in a local frame reaches 10 km.
+constexpr double kAutoShiftFrom = 1e4;
+// ... and no farther than this: ECEF and every map projection stay below 1e8 m; beyond is
+// garbage (1e30 from a broken driver), dropped as far points, never a shift.
+constexpr double kAutoShiftUpTo = 1e8;
+// The shift for a first point `d`: each far coordinate rounded down to 100 m, so the local
+// coordinates keep their decimals and the shift reads well in a log.
+Eigen::Vector3d AutoShift(const Eigen::Vector3d& d) {
+  Eigen::Vector3d s = Eigen::Vector3d::Zero();
+  for (int k = 0; k < 3; ++k)
+    if (std::abs(d[k]) >= kAutoShiftFrom) s[k] = std::floor(d[k] / 100.0) * 100.0;
+  return s;
+}
 
-// What the readers drop besides keeping ReadStats.
+// What the readers drop besides keeping ReadStats, and the global shift (in double, before
+// anything is rounded to float): files in georeferenced coordinates (UTM: x ~ 7e5, y ~ 5e6)
+// would lose centimetres to float rounding, and grid keys computed from them would overflow.
 struct Tally {
   ReadStats stats;
-  size_t far = 0;  // finite points beyond kMaxCoordinate
-  // True when `v` is kept; counts it otherwise.
-  bool Keep(const Eigen::Vector3f& v) {
-    if (!v.allFinite()) {
+  size_t far = 0;  // finite points beyond kMaxCoordinate after the shift
+  std::optional<Eigen::Vector3d> shift;  // subtracted from every point; set by the first far point when automatic
+  bool auto_shift = true;
+  // True when `d` is kept (then `v` holds it, shifted); counts it otherwise.
+  bool Keep(const Eigen::Vector3d& d, Eigen::Vector3f& v) {
+    if (!d.allFinite()) {
       ++stats.non_finite;
       return false;
     }
-    if (v.cwiseAbs().maxCoeff() > kMaxCoordinate) {
+    if (!shift && auto_shift && d.cwiseAbs().maxCoeff() >= kAutoShiftFrom && d.cwiseAbs().maxCoeff() <= kAutoShiftUpTo)
+      shift = AutoShift(d);
+    const Eigen::Vector3d local = shift ? Eigen::Vector3d(d - *shift) : d;
+    if (local.cwiseAbs().maxCoeff() > kMaxCoordinate) {
       ++far;
       return false;
     }
+    v = local.cast<float>();
     return true;
   }
 };
@@ -183,24 +205,28 @@ Scan ReadPcd(const std::string& path, Tally& tally, size_t max_points) {
   stats.read = n;
   for (size_t i = 0; i < n; ++i) {
     const uint8_t* p = blob.data.data() + i * blob.point_step;
-    Eigen::Vector3f v;
+    Eigen::Vector3d d;
     for (int k = 0; k < 3; ++k) {
       const bool dbl = off[k] & (1 << 30);
       const size_t o = off[k] & ~(1 << 30);
       if (o + (dbl ? 8 : 4) > blob.point_step) throw InputError(path + ": PCD field offsets exceed the point size");
       if (dbl) {
-        double d;
-        std::memcpy(&d, p + o, 8);
-        v[k] = static_cast<float>(d);
+        std::memcpy(&d[k], p + o, 8);
       } else {
-        std::memcpy(&v[k], p + o, 4);
+        float f;
+        std::memcpy(&f, p + o, 4);
+        d[k] = f;
       }
     }
-    if (!tally.Keep(v)) continue;
+    Eigen::Vector3f v;
+    if (!tally.Keep(d, v)) continue;
     scan.points.push_back(v);
   }
   const bool default_view = origin.head<3>().isZero() && orientation.coeffs().isApprox(Eigen::Quaternionf::Identity().coeffs());
-  if (!default_view && origin.head<3>().allFinite()) scan.origin = origin.head<3>();
+  if (!default_view && origin.head<3>().allFinite()) {
+    const Eigen::Vector3d o = origin.head<3>().cast<double>() - tally.shift.value_or(Eigen::Vector3d::Zero());
+    scan.origin = o.cast<float>();
+  }
   return scan;
 }
 
@@ -304,8 +330,8 @@ Scan ReadPly(const std::string& path, Tally& tally, size_t max_points) {
   stats.read = n_vertex;
   std::vector<double> vals(props.size());
   auto keep = [&](size_t) {
-    Eigen::Vector3f v(vals[ix], vals[iy], vals[iz]);
-    if (!tally.Keep(v)) return;
+    Eigen::Vector3f v;
+    if (!tally.Keep(Eigen::Vector3d(vals[ix], vals[iy], vals[iz]), v)) return;
     scan.points.push_back(v);
     if (colour)
       scan.colors.push_back({static_cast<uint8_t>(std::clamp(vals[ir], 0.0, 255.0)),
@@ -378,17 +404,17 @@ Scan ReadXyz(const std::string& path, Tally& tally, size_t max_points) {
     for (auto& c : line)
       if (c == ',' || c == ';') c = ' ';
     const char* s = line.c_str();
-    float v[3];
+    double v[3];
     for (int k = 0; k < 3; ++k) {
       char* end = nullptr;
-      v[k] = std::strtof(s, &end);
+      v[k] = std::strtod(s, &end);
       if (end == s) throw InputError(path + ":" + std::to_string(lineno) + ": expected x y z, got '" + line.substr(0, 40) + "'");
       s = end;
     }
     ++stats.read;
     CheckCap(path, stats.read, max_points);
-    Eigen::Vector3f p(v[0], v[1], v[2]);
-    if (!tally.Keep(p)) continue;
+    Eigen::Vector3f p;
+    if (!tally.Keep(Eigen::Vector3d(v[0], v[1], v[2]), p)) continue;
     scan.points.push_back(p);
   }
   return scan;
@@ -396,9 +422,11 @@ Scan ReadXyz(const std::string& path, Tally& tally, size_t max_points) {
 
 }  // namespace
 
-Scan ReadScan(const std::string& path, ReadStats* stats_out, size_t max_points) {
+Scan ReadScan(const std::string& path, ReadStats* stats_out, size_t max_points, const ShiftOption& shift) {
   RequireRegularFile(path, "scan file");
   Tally tally;
+  tally.shift = shift.shift;
+  tally.auto_shift = shift.automatic;
   const ReadStats& stats = tally.stats;
   const std::string ext = Lower(fs::path(path).extension().string());
   Scan scan;
@@ -408,8 +436,13 @@ Scan ReadScan(const std::string& path, ReadStats* stats_out, size_t max_points) 
   else throw InputError(path + ": unknown scan format '" + ext + "' (expected .pcd, .ply, .xyz or .txt)");
   if (scan.points.empty() && tally.far)
     throw InputError(path + ": holds no points within " + std::to_string(static_cast<int>(kMaxCoordinate)) +
-                     " m of the origin (" + std::to_string(tally.far) +
-                     " farther; scans must be in metres in a local frame)");
+                     " m of the " + (tally.shift ? "shifted origin" : "origin") + " (" + std::to_string(tally.far) +
+                     " farther; give the global shift with --shift x,y,z)");
+  scan.frame.shift = tally.shift.value_or(Eigen::Vector3d::Zero());
+  if (tally.shift && !shift.shift)
+    spdlog::info("{}: coordinates far from the origin: global shift ({:.1f}, {:.1f}, {:.1f}) subtracted (outputs are "
+                 "written back in the file's coordinates)", path, scan.frame.shift.x(), scan.frame.shift.y(),
+                 scan.frame.shift.z());
   if (scan.points.empty()) throw InputError(path + ": holds no finite points");
   if (stats.non_finite) spdlog::info("{}: dropped {} NaN/inf points of {}", path, stats.non_finite, stats.read);
   if (tally.far)
@@ -486,6 +519,36 @@ void WritePly(const std::string& path, const Points& points, const std::vector<s
     for (size_t i = 0; i < points.size(); ++i) {
       const char* p = reinterpret_cast<const char*>(points[i].data());
       buf.insert(buf.end(), p, p + 12);
+      if (rgb) buf.insert(buf.end(), (*colors)[i].begin(), (*colors)[i].end());
+    }
+    out.write(buf.data(), buf.size());
+    Finish(out, tmp);
+  });
+}
+
+void WritePlyInFrame(const std::string& path, const Points& working, const ScanFrame& frame,
+                     const std::vector<std::array<uint8_t, 3>>* colors) {
+  if (frame.IsIdentity()) return WritePly(path, working, colors);
+  if (frame.shift.isZero()) {
+    const Eigen::Isometry3f back = frame.to_working.inverse().cast<float>();
+    Points p(working.size());
+    for (size_t i = 0; i < working.size(); ++i) p[i] = back * working[i];
+    return WritePly(path, p, colors);
+  }
+  const bool rgb = colors && colors->size() == working.size();
+  AtomicWrite(path, [&](const std::string& tmp) {
+    auto out = OpenOut(tmp, true);
+    out << "ply\nformat binary_little_endian 1.0\ncomment written by furnihost (global shift " << std::fixed
+        << frame.shift.x() << " " << frame.shift.y() << " " << frame.shift.z() << " added back)\nelement vertex "
+        << working.size() << "\nproperty double x\nproperty double y\nproperty double z\n";
+    if (rgb) out << "property uchar red\nproperty uchar green\nproperty uchar blue\n";
+    out << "end_header\n";
+    std::vector<char> buf;
+    buf.reserve(working.size() * 27);
+    for (size_t i = 0; i < working.size(); ++i) {
+      const Eigen::Vector3d q = frame.ToFile(working[i]);
+      const char* p = reinterpret_cast<const char*>(q.data());
+      buf.insert(buf.end(), p, p + 24);
       if (rgb) buf.insert(buf.end(), (*colors)[i].begin(), (*colors)[i].end());
     }
     out.write(buf.data(), buf.size());

@@ -7,6 +7,7 @@
 #include <set>
 #include <sstream>
 
+#include "furnihost/ground.hpp"
 #include "furnihost/io.hpp"
 #include "furnihost/log.hpp"
 
@@ -270,9 +271,24 @@ Pipeline::Result Pipeline::Detect(const std::vector<SceneInput>& scenes, const T
     SensorRequest req;
     req.path = sc.path;
     req.origin = sc.origin;
+    req.shift = sc.frame.shift;
     Stopwatch sw;
     auto got = Call(*input_cfg_, [&] { return input_->Acquire(req, ctx); });
     timed(input_cfg_->tag, sw.Ms());
+    // The working frame (z up) and the ground, once per scan, before any stage sees it.
+    Stopwatch sg;
+    for (auto& s : got) {
+      ToWorkingFrame(s, sc.frame);
+      if (!s.ground || graph_.ground.kind == "fixed") s.ground = EstimateGround(s.points, graph_.ground);
+      const GroundModel& g = *s.ground;
+      spdlog::info("{}: ground {} ({}): z = {:.4f} x + {:.4f} y + {:.3f} m{}", s.source, ToString(g.kind), g.source,
+                   g.plane.a, g.plane.b, g.plane.c,
+                   g.kind == GroundKind::HeightMap
+                       ? fmt::format(", {}x{} cells of {:.2f} m, {:.1f} m2 of floor seen", g.width, g.height, g.cell,
+                                     g.observed_area_m2)
+                       : std::string());
+    }
+    timed("ground", sg.Ms());
     // Sensors that declare max_points refuse before reading; this catches the others.
     if (const size_t cap = MaxPoints(graph_))
       for (const auto& s : got)
@@ -322,12 +338,27 @@ Pipeline::Result Pipeline::Detect(const std::vector<SceneInput>& scenes, const T
   r.votes = Call(*voter_cfg_, [&] { return voter_->Vote(parts, ctx); });
   timed(voter_cfg_->tag, sv.Ms());
   r.voted = true;
+  if (catalog && sized_catalog_ != catalog) {
+    class_size_ = TypicalClassSizes(*catalog);
+    sized_catalog_ = catalog;
+  }
   for (const auto& h : r.votes.hypotheses) {
     Detection d;
     d.cls = h.cls;
     d.center = h.center;
     d.score = h.score;
     d.support = h.support;
+    if (h.box) {
+      d.box = h.box;
+      d.box_source = "voter";
+    } else if (auto it = class_size_.find(h.cls); it != class_size_.end() && !r.scans.empty()) {
+      OrientedBox b;
+      b.size = it->second;
+      const float g = r.scans.front().GroundZ(h.center.x(), h.center.y());
+      b.center = Eigen::Vector3f(h.center.x(), h.center.y(), g + 0.5f * b.size.z());
+      d.box = b;
+      d.box_source = "class_size";
+    }
     r.detections.push_back(d);
   }
   if (fitters_.empty() || !catalog) return r;
@@ -370,9 +401,35 @@ TrainedModel EnsureModel(Pipeline& p, const Catalog& catalog, const RunContext& 
   return m;
 }
 
-nlohmann::json DetectionToJson(const Detection& d) {
+std::map<std::string, Eigen::Vector3f> TypicalClassSizes(const Catalog& catalog) {
+  std::map<std::string, std::vector<Eigen::Vector3f>> by_class;
+  for (const auto& m : catalog.models) by_class[m.cls].push_back(m.size);
+  std::map<std::string, Eigen::Vector3f> out;
+  for (auto& [cls, sizes] : by_class) {
+    Eigen::Vector3f med;
+    for (int k = 0; k < 3; ++k) {
+      std::vector<float> v;
+      for (const auto& s : sizes) v.push_back(s[k]);
+      std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+      med[k] = v[v.size() / 2];
+    }
+    out[cls] = med;
+  }
+  return out;
+}
+
+namespace {
+nlohmann::json Vec(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
+}  // namespace
+
+nlohmann::json DetectionToJson(const Detection& d, const Scan* scan) {
+  const ScanFrame frame = scan ? scan->frame : ScanFrame{};
+  // World (fused) frame -> the scan's working frame -> its file's frame.
+  const Eigen::Isometry3f to_scan = scan ? scan->pose.inverse() : Eigen::Isometry3f::Identity();
+  auto P = [&](const Eigen::Vector3f& w) { return Vec(frame.ToFile(to_scan * w)); };
+  auto D = [&](const Eigen::Vector3f& w) { return Vec(frame.DirectionToFile(to_scan.linear() * w)); };
   nlohmann::json j = {{"class", d.cls},
-                      {"center", {d.center.x(), d.center.y(), d.center.z()}},
+                      {"center", P(d.center)},
                       {"yaw", d.yaw},
                       {"yaw_deg", d.yaw * 180.0 / M_PI},
                       {"score", d.score},
@@ -384,6 +441,25 @@ nlohmann::json DetectionToJson(const Detection& d) {
   if (d.iterations) j["iterations"] = d.iterations;
   if (!d.rejection.empty()) j["rejection"] = d.rejection;
   if (!d.notes.empty()) j["notes"] = d.notes;
+  if (scan && scan->ground) j["height_above_ground"] = scan->HeightAboveGround(d.center);
+  if (d.box) {
+    const OrientedBox& b = *d.box;
+    nlohmann::json corners = nlohmann::json::array();
+    Eigen::AlignedBox3d aabb;
+    for (const auto& c : b.Corners()) {
+      corners.push_back(P(c));
+      aabb.extend(frame.ToFile(to_scan * c));
+    }
+    const Eigen::Vector3f ax(std::cos(b.yaw), std::sin(b.yaw), 0.f), ay(-std::sin(b.yaw), std::cos(b.yaw), 0.f);
+    j["box"] = {{"source", d.box_source},
+                {"center", P(b.center)},
+                {"size", {b.size.x(), b.size.y(), b.size.z()}},
+                {"yaw", b.yaw},
+                {"axes", {D(ax), D(ay), D(Eigen::Vector3f::UnitZ())}},
+                {"corners", corners},
+                {"aabb", {{"min", Vec(aabb.min())}, {"max", Vec(aabb.max())}}}};
+    if (scan && scan->ground) j["box"]["bottom_above_ground"] = scan->HeightAboveGround(b.center) - 0.5f * b.size.z();
+  }
   nlohmann::json sup = nlohmann::json::array();
   for (const auto& s : d.support) sup.push_back({{"scene", s.scene}, {"part", s.part}, {"weight", s.weight}});
   j["supporting_parts"] = sup;

@@ -211,44 +211,6 @@ TEST(Geometry, VoxelDownsampleAndSampling) {
   EXPECT_EQ(SampleSurface(m, 100, 7), SampleSurface(m, 100, 7));
 }
 
-// A room whose reconstruction drifted: the floor rises 0.3 m over 5 m (3.4 degrees), with a
-// table top (0.75 m) and a large level box top (0.4 m) on it, and 1 cm noise. The level
-// estimate picks one slice of it; the plane follows it within a centimetre everywhere. A level
-// floor gives a level plane, and points posed by the scan's pose count where the pose puts them.
-TEST(Geometry, FloorPlaneFollowsATiltedFloor) {
-  std::mt19937 rng(3);
-  std::uniform_real_distribution<float> u(0.f, 1.f);
-  std::normal_distribution<float> noise(0.f, 0.01f);
-  auto room = [&](float slope, float z0) {
-    Scan s;
-    for (int i = 0; i < 30000; ++i) {
-      const float x = 5.f * u(rng), y = 4.f * u(rng);
-      s.points.emplace_back(x, y, z0 + slope * x + noise(rng));
-    }
-    for (int i = 0; i < 6000; ++i) s.points.emplace_back(1.f + u(rng), 1.f + u(rng), 0.75f + slope * 1.5f + z0);
-    for (int i = 0; i < 9000; ++i) s.points.emplace_back(3.f + 1.5f * u(rng), 2.f + 1.5f * u(rng), 0.4f + z0 + 0.3f);
-    for (int i = 0; i < 8000; ++i) s.points.emplace_back(0.f, 4.f * u(rng), 2.5f * u(rng));  // a wall
-    return s;
-  };
-  const Scan tilted = room(0.06f, -0.1f);
-  const FloorPlane f = EstimateFloorPlane({&tilted});
-  for (float x : {0.f, 2.5f, 5.f})
-    for (float y : {0.f, 4.f}) EXPECT_NEAR(f.HeightAt(x, y), -0.1f + 0.06f * x, 0.01f) << x << ", " << y;
-  const float level = EstimateFloorZ({&tilted});
-  EXPECT_GT(std::max(std::abs(level + 0.1f), std::abs(level - 0.2f)), 0.1f);  // wrong at one end
-  EXPECT_EQ(EstimateFloorPlane({&tilted}).c, f.c);                              // deterministic
-
-  Scan flat = room(0.f, 0.f);
-  flat.pose = Eigen::Translation3f(0.f, 0.f, -0.6f) * Eigen::Isometry3f::Identity();
-  const FloorPlane g = EstimateFloorPlane({&flat});
-  EXPECT_NEAR(g.HeightAt(0.f, 0.f), -0.6f, 0.005f);
-  EXPECT_NEAR(g.HeightAt(5.f, 4.f), -0.6f, 0.005f);
-  EXPECT_NEAR(g.Above(Eigen::Vector3f(1.f, 1.f, 0.15f)), 0.75f, 0.005f);
-  const FloorPlane none = EstimateFloorPlane({});
-  EXPECT_EQ(none.a, 0.f);
-  EXPECT_EQ(none.c, 0.f);
-}
-
 // Turn symmetries of simple shapes in a catalog model's frame (bottom centre at the origin):
 // a 1.2 x 0.6 box turns onto itself by half turns, a square box by quarter turns, a 48-sided
 // prism by any turn, and a box with a back panel (a chair's seat and back) by none.

@@ -8,6 +8,8 @@
 //     "catalog": "../data/catalog/catalog.json",  // relative to the file that sets it
 //     "model_cache": "../furnihost-out/models/paper.fhm",
 //     "training": {"sensor": "simulate"},       // tag of the sensor stage that scans the catalog
+//     "ground": {"kind": "auto"},               // each scan's floor: auto | level | plane | height_map |
+//                                               //   fixed (+ "z_m"); "cell_m", "step_m", "min_area_m2"
 //     "stages": {                               // an object keyed by tag (not an array) so a
 //       "input":   {"type": "sensors.scan_file"},//   merge patch can change one stage's params
 //       "segment": {"type": "segmenters.region_growing", "inputs": ["input"], "params": {...}},
@@ -19,6 +21,7 @@
 #include <string>
 #include <vector>
 
+#include "furnihost/ground.hpp"
 #include "furnihost/registry.hpp"
 
 namespace furnihost {
@@ -41,6 +44,7 @@ struct FURNIHOST_API GraphConfig {
   std::string catalog;     // absolute or empty
   std::string model_cache; // absolute or empty
   std::string training_sensor;  // tag, or empty
+  GroundOptions ground;         // how the pipeline gets each scan's ground ("ground" key)
   std::vector<StageConfig> stages;  // in execution (topological) order
 
   const StageConfig* Find(const std::string& tag) const;

@@ -8,7 +8,8 @@
 //
 // Dataset manifest (D.json), paths relative to the manifest:
 //   {"description"?: "...",
-//    "scenes": [{"scan": "a.ply", "gt": "a.gt.json", "origin"?: [x, y, z]}, ...],
+//    "scenes": [{"scan": "a.ply", "gt": "a.gt.json", "origin"?: [x, y, z],
+//                "up"?: "-y", "transform"?: "16 or 6 numbers", "shift"?: [x, y, z]}, ...],
 //    "class_map"?: {"desk": "table", "sofa": null},   // null = not evaluated
 //    "classes": ["chair", "table", "cabinet"]}
 // The class map is applied to ground truth AND detections; a class that is neither in
@@ -24,6 +25,7 @@
 #include <utility>
 #include <vector>
 
+#include "furnihost/frame.hpp"
 #include "furnihost/types.hpp"
 
 namespace furnihost {
@@ -33,6 +35,7 @@ struct DatasetScene {
   std::string scan;  // absolute path
   std::string gt;    // absolute path of the *.gt.json
   std::optional<Eigen::Vector3f> origin;  // sensor origin for scans without one [m]
+  FrameOptions frame;                     // "up", "transform", "shift" of the scene (file frame -> z up)
 };
 
 struct ClassMap {
@@ -88,6 +91,18 @@ struct SceneMatch {
 FURNIHOST_API SceneMatch MatchScene(const std::vector<Detection>& detections,
                                     const std::vector<GroundTruthObject>& truth,
                                     const ClassMap& classes, WidthConvention width);
+
+// The ScanNet / VoteNet rule: 3D IoU of axis-aligned boxes. A detection's box is the AABB of
+// Detection::box (none: IoU 0); a gt object's is centre +- size / 2.
+FURNIHOST_API float BoxIou(const Eigen::AlignedBox3f& a, const Eigen::AlignedBox3f& b);
+FURNIHOST_API Eigen::AlignedBox3f GroundTruthBox(const GroundTruthObject& gt);
+FURNIHOST_API Eigen::AlignedBox3f DetectionBox(const Detection& d);  // empty box without Detection::box
+// VoteNet's eval_det_cls: detections by descending score; each takes the gt object of its
+// (mapped) class with the largest IoU; a TP when that IoU >= `threshold` and the object is not
+// taken yet, else a FP. Same SceneMatch layout as MatchScene.
+FURNIHOST_API SceneMatch MatchSceneIou(const std::vector<Detection>& detections,
+                                       const std::vector<GroundTruthObject>& truth, const ClassMap& classes,
+                                       float threshold);
 
 // ---- metrics -----------------------------------------------------------------------------
 struct PrPoint {
@@ -156,6 +171,9 @@ struct ClassMetrics {
   int detections = 0;  // evaluated detections (all scores)
   std::vector<PrPoint> curve;  // one point per distinct score, descending score
   double ap = NAN;             // NaN when the class has no gt object
+  // The same detections matched by box IoU >= 0.25 / >= 0.5 (ScanNet's AP25 / AP50).
+  std::vector<PrPoint> curve25, curve50;
+  double ap25 = NAN, ap50 = NAN;
   // "hypotheses": everything the pipeline output (the voter already applied its threshold).
   OperatingPoint hypotheses;
   // "verified": only detections with verified != false, matched again on their own; present
@@ -167,6 +185,7 @@ struct ClassMetrics {
 struct EvalMetrics {
   std::vector<ClassMetrics> classes;  // in ClassMap::classes order
   double map = NAN;                   // mean AP over classes with gt objects
+  double map25 = NAN, map50 = NAN;    // mean AP25 / AP50 over classes with gt objects
   OperatingPoint hypotheses, verified;  // micro totals over the classes (verified: fitted only)
   bool fitted = false;
   std::map<std::string, int> ignored_gt, ignored_detections;  // original class -> count

@@ -16,32 +16,6 @@ FURNIHOST_API Points VoxelDownsample(const Points& points, float voxel, std::vec
 // Isometry for an upright pose: translation (x, y, z), rotation yaw [rad] about +z.
 FURNIHOST_API Eigen::Isometry3f UprightPose(float x, float y, float z, float yaw);
 
-// World z of the floor under the scans (each mapped by its pose), assumed level: the mean
-// height of the densest 2 cm slice among the lowest 30 % of the points (a floor is the largest
-// horizontal surface at the bottom of a room). 0 when there are no finite points. At most
-// ~200k points per scan are looked at.
-FURNIHOST_API float EstimateFloorZ(const std::vector<const Scan*>& scans);
-
-// A floor plane z = a x + b y + c in the world frame.
-struct FloorPlane {
-  float a = 0.f, b = 0.f, c = 0.f;
-  float HeightAt(float x, float y) const { return a * x + b * y + c; }
-  // Height of p above the plane, measured along z.
-  float Above(const Eigen::Vector3f& p) const { return p.z() - HeightAt(p.x(), p.y()); }
-};
-
-// The floor under the scans as a plane tilted at most 10 degrees: reconstructions drift (a
-// ScanNet dev room's floor spans 0.35 m of height; a level estimate there is 0.25 m off on
-// average, this plane 6 mm). RANSAC (fixed seed, deterministic) over the lowest 30 % of the
-// points for the plane with the most points within 2 cm, the level plane of EstimateFloorZ
-// competing, then least squares over the points within 2 cm of it. z = 0 when there are no
-// finite points.
-FURNIHOST_API FloorPlane EstimateFloorPlane(const std::vector<const Scan*>& scans);
-
-// The floor a stage's `floor` parameter names: "fixed" = level at `fixed_z`, "plane" =
-// EstimateFloorPlane, anything else ("auto") = level at EstimateFloorZ.
-FURNIHOST_API FloorPlane FloorByMode(const std::string& mode, const std::vector<const Scan*>& scans, float fixed_z);
-
 }  // namespace furnihost
 
 namespace furnihost {

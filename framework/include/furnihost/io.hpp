@@ -21,14 +21,21 @@ struct ReadStats {
 // (x y z [more columns]). Non-finite points are dropped and counted.
 // `max_points` refuses larger scans with an InputError (0 = no cap).
 // Throws InputError "<path>: <what is wrong>".
+// Coordinates are read in double and the global shift (ShiftOption) subtracted before they
+// are rounded to float.
 FURNIHOST_API Scan ReadScan(const std::string& path, ReadStats* stats = nullptr,
-                            size_t max_points = 0);
+                            size_t max_points = 0, const ShiftOption& shift = {});
 
 // Writers. PCD is binary with VIEWPOINT from scan.origin; PLY is binary little endian with
 // optional per-point colours.
 FURNIHOST_API void WritePcd(const std::string& path, const Scan& scan);
 FURNIHOST_API void WritePly(const std::string& path, const Points& points,
                             const std::vector<std::array<uint8_t, 3>>* colors = nullptr);
+// Points of a scan's working frame written back in its file's frame (ScanFrame::ToFile):
+// float coordinates, or double ones when the frame has a global shift (float would round
+// georeferenced coordinates to decimetres), so the output overlays the user's own scan.
+FURNIHOST_API void WritePlyInFrame(const std::string& path, const Points& working, const ScanFrame& frame,
+                                   const std::vector<std::array<uint8_t, 3>>* colors = nullptr);
 FURNIHOST_API void WriteXyz(const std::string& path, const Points& points);
 // Chooses the writer from the extension (.pcd, .ply, .xyz/.txt).
 FURNIHOST_API void WriteScan(const std::string& path, const Scan& scan);

@@ -9,6 +9,7 @@
 
 #include "furnihost/catalog.hpp"
 #include "furnihost/config.hpp"
+#include "furnihost/frame.hpp"
 #include "furnihost/normaliser.hpp"
 #include "furnihost/registry.hpp"
 #include "furnihost/stage.hpp"
@@ -53,8 +54,9 @@ class FURNIHOST_API Pipeline {
 
   struct SceneInput {
     std::string path;
-    std::optional<Eigen::Vector3f> origin;
+    std::optional<Eigen::Vector3f> origin;  // in the file's frame
     Eigen::Isometry3f pose = Eigen::Isometry3f::Identity();
+    FrameOptions frame;                      // up axis / transform / global shift
   };
   struct Result {
     std::vector<Scan> scans;
@@ -86,14 +88,23 @@ class FURNIHOST_API Pipeline {
   std::shared_ptr<Voter> voter_;
   std::vector<std::shared_ptr<Fitter>> fitters_;
   std::string loaded_model_id_;
+  // Typical box size [w, d, h] of each class (the median of its catalog models), for the boxes
+  // of detections no fitter gave a model.
+  std::map<std::string, Eigen::Vector3f> class_size_;
+  const Catalog* sized_catalog_ = nullptr;
 };
+
+// The median extents of each class's models in the catalog.
+FURNIHOST_API std::map<std::string, Eigen::Vector3f> TypicalClassSizes(const Catalog& catalog);
 
 // Resolves the model for a graph: loads the cache when compatible, otherwise trains and
 // writes it (atomically). `force` retrains.
 FURNIHOST_API TrainedModel EnsureModel(Pipeline& pipeline, const Catalog& catalog,
                                        const RunContext& ctx, bool force = false);
 
-// Detection JSON as written to detections.json.
-FURNIHOST_API nlohmann::json DetectionToJson(const Detection& d);
+// Detection JSON as written to detections.json. With a scan, geometry (centre, box, model
+// pose) is written in the scan's file frame (ScanFrame) and the height above its ground is
+// added; without, in the working frame.
+FURNIHOST_API nlohmann::json DetectionToJson(const Detection& d, const Scan* scan = nullptr);
 
 }  // namespace furnihost

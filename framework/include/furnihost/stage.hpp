@@ -45,7 +45,8 @@ struct SensorRequest {
   Mesh extra;
   std::vector<Eigen::Isometry3f> poses;  // sensor -> world; x forward, z up. Empty = the
                                          // sensor's default pattern (e.g. 16 training views)
-  std::optional<Eigen::Vector3f> origin;  // for file sensors: origin given on the CLI
+  std::optional<Eigen::Vector3f> origin;  // for file sensors: origin given on the CLI (file frame)
+  ShiftOption shift;                      // for file sensors: global shift (ReadScan)
 };
 
 class FURNIHOST_API Sensor : public Stage {

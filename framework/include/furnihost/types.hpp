@@ -1,9 +1,11 @@
-// Shared data types of every stage. Frames and units: metres, z up, floor at z = 0 for rooms.
+// Shared data types of every stage. Frames and units: metres, z up (the scan's working frame,
+// see ScanFrame); heights are measured above the scan's ground (Scan::ground), never above z = 0.
 // Point sets are std::vector<Eigen::Vector3f> (N points, 12 bytes each, no alignment needs).
 #pragma once
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <map>
 #include <optional>
@@ -11,6 +13,7 @@
 #include <vector>
 
 #include "furnihost/error.hpp"
+#include "furnihost/ground.hpp"
 
 namespace furnihost {
 
@@ -45,13 +48,56 @@ struct GroundTruthObject {
   std::optional<int> yaw_symmetry;
 };
 
-// A point cloud as acquired by a sensor, in the scan frame.
+// Global shift: coordinates are read in double and `shift` is subtracted before they are
+// rounded to float (Scan::frame.shift records it). Unset + `automatic`: a file whose first
+// finite point lies 10 km or more from the origin (georeferenced: UTM, national grids) is
+// shifted by that point rounded down to 100 m per far axis; the shift is logged.
+struct ShiftOption {
+  std::optional<Eigen::Vector3d> shift;
+  bool automatic = true;
+};
+
+// How a scan's working frame (metres, z up: what every stage sees) relates to the
+// coordinates of its file: working = to_working * (file - shift). The shift is subtracted in
+// double at read time (georeferenced files); to_working turns the user's axes (a camera's
+// optical frame: x right, y down, z forward; --up, --transform) so that z points up.
+struct ScanFrame {
+  Eigen::Vector3d shift = Eigen::Vector3d::Zero();
+  Eigen::Isometry3d to_working = Eigen::Isometry3d::Identity();
+  std::string up = "+z";   // how to_working was chosen: an axis, "transform" or "auto: <axis>"
+  bool IsIdentity() const { return shift.isZero() && to_working.matrix().isIdentity(); }
+  Eigen::Vector3d ToFile(const Eigen::Vector3f& working) const {
+    return to_working.inverse() * working.cast<double>() + shift;
+  }
+  // A direction (unit vector) of the working frame in the file's axes.
+  Eigen::Vector3d DirectionToFile(const Eigen::Vector3f& d) const {
+    return to_working.linear().transpose() * d.cast<double>();
+  }
+};
+
+// A point cloud as acquired by a sensor, in the scan's working frame.
 // `pose` maps scan coordinates to the common (world) frame used for multi-view fusion.
 struct Scan {
   std::string source;                 // file path or a description of the simulation
   Points points;
   std::optional<Eigen::Vector3f> origin;  // sensor origin in the scan frame, when known
   Eigen::Isometry3f pose = Eigen::Isometry3f::Identity();
+  ScanFrame frame;                        // the file's frame (identity for simulated scans)
+  // The floor under the scan in its working frame: set by simulated sensors ("known"), else
+  // by the pipeline once per scan before any stage sees the scan.
+  std::optional<GroundModel> ground;
+  // Height of a world-frame point above this scan's ground (poses are upright: yaw and
+  // translation). Without a ground: the world z.
+  float HeightAboveGround(const Eigen::Vector3f& world) const {
+    if (!ground) return world.z();
+    return ground->Above(pose.inverse() * world);
+  }
+  // World z of this scan's ground under the world point (x, y).
+  float GroundZ(float x, float y) const {
+    if (!ground) return 0.f;
+    const Eigen::Vector3f s = pose.inverse() * Eigen::Vector3f(x, y, 0.f);
+    return ground->HeightAt(s.x(), s.y()) + pose.translation().z();
+  }
   std::vector<GroundTruthObject> truth;   // filled by simulated sensors
   // Extra per-point integer attributes read from files (e.g. "label", "instance"); may be empty.
   std::map<std::string, std::vector<int32_t>> attributes;
@@ -119,11 +165,36 @@ struct VoteGrid {
   std::vector<float> values;
 };
 
+// An upright box in the working frame: centre, size (l along the yaw direction, w across it,
+// h up) [m] and yaw [rad] about +z.
+struct OrientedBox {
+  Eigen::Vector3f center = Eigen::Vector3f::Zero();
+  Eigen::Vector3f size = Eigen::Vector3f::Zero();
+  float yaw = 0.f;
+  // Corners: bottom four counter-clockwise from (-l/2, -w/2), then the top four above them.
+  std::array<Eigen::Vector3f, 8> Corners() const {
+    std::array<Eigen::Vector3f, 8> c;
+    const float co = std::cos(yaw), si = std::sin(yaw);
+    const float sx[4] = {-1, 1, 1, -1}, sy[4] = {-1, -1, 1, 1};
+    for (int k = 0; k < 8; ++k) {
+      const float x = 0.5f * size.x() * sx[k % 4], y = 0.5f * size.y() * sy[k % 4];
+      c[k] = center + Eigen::Vector3f(co * x - si * y, si * x + co * y, (k < 4 ? -0.5f : 0.5f) * size.z());
+    }
+    return c;
+  }
+  Eigen::AlignedBox3f Aabb() const {
+    Eigen::AlignedBox3f b;
+    for (const auto& c : Corners()) b.extend(c);
+    return b;
+  }
+};
+
 struct Hypothesis {
   std::string cls;
   Eigen::Vector3f center = Eigen::Vector3f::Zero();  // world frame; z is the mean vote height
   float score = 0.f;
   std::vector<Support> support;
+  std::optional<OrientedBox> box;  // when the voter knows the object's extent (e.g. from a proposal)
 };
 
 struct VoteResult {
@@ -150,6 +221,10 @@ struct Detection {
   std::vector<std::string> notes;
   std::vector<Support> support;
   Eigen::Isometry3f model_pose = Eigen::Isometry3f::Identity();  // model -> world
+  // The object's box (world frame): from the fitted CAD model ("model"), else the class's
+  // typical catalog size standing on the ground at the centre ("class_size"), or a stage's own.
+  std::optional<OrientedBox> box;
+  std::string box_source;
 };
 
 }  // namespace furnihost

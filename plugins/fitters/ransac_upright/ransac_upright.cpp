@@ -17,7 +17,8 @@
 // on fitter parameters that are not part of the model file's key.
 //
 // Frames: detections and fitted poses in the world frame (Scan::pose maps scan -> world);
-// occupancy grids in each scan's own frame. Assumption: objects stand on the floor z = floor_z.
+// occupancy grids in each scan's own frame. Assumption: objects stand on the scan's ground
+// (Scan::ground, level under each object).
 #include <octomap/OcTree.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
@@ -70,7 +71,6 @@ struct RansacUprightOptions {
   int grid_cache_size = 4;
   float min_point_height = 0.02f;
   float reach_margin = 0.3f;
-  std::string floor = "fixed";  // "fixed" (ransac.floor_z), or from the scans: "auto" (level) or "plane"
   float part_inside_fraction = 0.8f;
   bool crop_parts = true;
   std::string cloud_cache;  // folder of sampled model clouds; empty = none
@@ -84,8 +84,6 @@ struct RansacUprightOptions {
     o.sampling.min_horizontal_normal = p.at("min_horizontal_normal").get<float>();
     o.cloud_cache = CloudCacheDir(p.at("cloud_cache").get<std::string>());
     RansacOptions& r = o.ransac;
-    r.floor_z = p.at("floor_z").get<float>();
-    o.floor = p.at("floor").get<std::string>();
     r.height_tolerance = p.at("height_tolerance_m").get<float>();
     r.correspondence_fraction = p.at("correspondence_fraction").get<float>();
     r.max_correspondences = p.at("max_correspondences").get<int>();
@@ -167,11 +165,6 @@ class RansacUprightFitter : public Fitter {
         .Int("min_model_points", 5000, 100, 1e6, "small models are sampled denser up to this count")
         .Int("max_model_points", 40000, 100, 1e6,
              "large models are sampled sparser down to this count (40k keeps big cabinets near 2 cm spacing)")
-        .Number("floor_z", 0.0, -10, 10, "world height [m] of the floor every model stands on (upright assumption)")
-        .Enum("floor", "fixed", {"fixed", "auto", "plane"},
-              "'fixed': the floor is at floor_z; for scans whose floor is not at z = 0, estimated from the scans as "
-              "the voter does: 'auto' level, at the densest 2 cm z-slice among the lowest 30 % of the points; "
-              "'plane' a plane (tilt <= 10 deg) fitted to them, each model standing at its height under the hypothesis")
         .Number("height_tolerance_m", 0.01, 0.001, 0.2,
                 "candidate correspondences: model points within this height [m] of the sampled scan point")
         .Number("correspondence_fraction", 0.5, 0.01, 1, "share of the candidate correspondences tried per sample (paper: ~50 %)")
@@ -242,16 +235,14 @@ class RansacUprightFitter : public Fitter {
 
  private:
   void FitAll(std::vector<Detection>* dets, const FitContext& ctx) {
-    // The floor each detection's models stand on: fixed, or estimated once for all of them.
-    std::vector<const Scan*> all;
-    if (o_.floor != "fixed")
-      for (const SceneParts& sp : ctx.scenes) all.push_back(sp.scan);
-    const FloorPlane floor = FloorByMode(o_.floor, all, o_.ransac.floor_z);
-    spdlog::debug("ransac_upright: floor z = {:.4f} x + {:.4f} y + {:.3f} m ({})", floor.a, floor.b, floor.c,
-                  o_.floor);
+    // Each model stands on the ground under its hypothesis (the first scan's, in the world frame).
+    const Scan* ground_scan = nullptr;
+    for (const SceneParts& sp : ctx.scenes)
+      if (sp.scan && !ground_scan) ground_scan = sp.scan;
     std::vector<RansacOptions> ro(dets->size(), o_.ransac);
     for (size_t d = 0; d < dets->size(); ++d) {
-      ro[d].floor_z = floor.HeightAt((*dets)[d].center.x(), (*dets)[d].center.y());
+      const Eigen::Vector3f& c = (*dets)[d].center;
+      ro[d].floor_z = ground_scan ? ground_scan->GroundZ(c.x(), c.y()) : 0.f;
       ro[d].prior_xy = (*dets)[d].center.head<2>();
     }
     // Models per class, in catalog order; sampled once per stage object.
@@ -336,6 +327,8 @@ class RansacUprightFitter : public Fitter {
       det.yaw = f.yaw;
       det.coverage = f.coverage;
       det.rms = f.rms;
+      det.box = OrientedBox{det.center, m.Bounds().sizes(), f.yaw};
+      det.box_source = "model";
       if (f.coverage < o_.min_coverage) {
         Reject(&det, "coverage " + Fixed2(f.coverage) + " < " + Fixed2(o_.min_coverage));
         continue;

@@ -184,10 +184,12 @@ TEST(RansacUpright, RecoversChairPoseAndModel) {
   EXPECT_LT((d.model_pose * BoundsOf(cat.Get("chair_a").mesh).center() - d.center).norm(), 1e-4f);
 }
 
-// A scan whose floor is 0.6 m below z = 0 (a robot's sensor frame, say): with the floor fixed
-// at 0 every model stands 0.6 m too high and nothing fits; floor = auto estimates it from the
-// scan (the room's floor is in view) and fits as if told floor_z = -0.6; so does floor = plane.
-TEST(RansacUpright, FloorAutoFindsAFloorBelowZero) {
+// A scan whose floor is 0.6 m below z = 0 (a robot's sensor frame, say): the models stand on
+// the scan's ground (Scan::ground, in the scan's frame, here posed 0.6 m down), never on z = 0.
+// A ground put at world z = 0 leaves every model 0.6 m too high and nothing fits; the ground
+// the pipeline estimates from the scan (the room's floor is in view) fits the chair, as a level
+// ground fixed at the true height does.
+TEST(RansacUpright, ModelsStandOnTheScansGround) {
   const Catalog cat = FurnitureCatalog();
   Scenes sc;
   std::vector<int> parts;
@@ -197,23 +199,31 @@ TEST(RansacUpright, FloorAutoFindsAFloorBelowZero) {
   sim.scan.pose = down * sim.scan.pose;
   const int s = sc.Add(std::move(sim), 0, &parts);
   const Detection h = Hypothesis(sc, "chair", s, parts);
-  EXPECT_NEAR(EstimateFloorZ({&sc.scans[0]->scan}), -0.6f, 0.005f);
+  Scan& scan = sc.scans[0]->scan;
+  const GroundModel estimated = EstimateGround(scan.points, GroundOptions{});
+  EXPECT_NEAR(scan.pose.translation().z() + estimated.HeightAt(1.8f, 0.9f), -0.6f, 0.005f);
+  scan.ground = GroundModel::Level(0.6f, "fixed");  // world z = 0
   const auto at_zero = MakeFitter()->Fit({h}, sc.Ctx(cat));
   ASSERT_EQ(at_zero.size(), 1u);
   EXPECT_FALSE(at_zero[0].verified.value_or(true));
   // One RANSAC draw each (the sampling path changes with any change of the floor height, so
   // the two fits differ by sampling; the statistical accuracy bound is AccuracyOverRandomPlacements').
-  for (const auto& p : {nlohmann::json{{"floor_z", -0.6}}, nlohmann::json{{"floor", "auto"}},
-                        nlohmann::json{{"floor", "plane"}}}) {
-    const auto out = MakeFitter(p)->Fit({h}, sc.Ctx(cat));
+  for (const GroundModel& g : {estimated, GroundModel::Level(0.f, "fixed")}) {
+    scan.ground = g;
+    const auto out = MakeFitter()->Fit({h}, sc.Ctx(cat));
     ASSERT_EQ(out.size(), 1u);
     const Detection& d = out[0];
-    EXPECT_TRUE(d.verified.value_or(false)) << p.dump() << ": " << d.rejection;
-    EXPECT_EQ(d.model, "chair_a") << p.dump();
+    EXPECT_TRUE(d.verified.value_or(false)) << ToString(g.kind) << ": " << d.rejection;
+    EXPECT_EQ(d.model, "chair_a");
     const Eigen::Vector3f c = down * truth * BoundsOf(cat.Get("chair_a").mesh).center();
-    EXPECT_NEAR(d.center.z(), c.z(), 0.005f) << p.dump();  // stands on the floor
-    EXPECT_LT((d.center - c).head<2>().norm(), 2 * kCentreTol) << p.dump();
-    EXPECT_LT(ErrorOf(d, cat.Get("chair_a"), down * truth).yaw, kYawTol) << p.dump();
+    EXPECT_NEAR(d.center.z(), c.z(), 0.006f);  // stands on the floor
+    EXPECT_LT((d.center - c).head<2>().norm(), 2 * kCentreTol);
+    EXPECT_LT(ErrorOf(d, cat.Get("chair_a"), down * truth).yaw, kYawTol);
+    // The box is the fitted model's: its bottom on the ground, its size the model's.
+    ASSERT_TRUE(d.box.has_value());
+    EXPECT_EQ(d.box_source, "model");
+    EXPECT_NEAR(d.box->center.z() - 0.5f * d.box->size.z(), -0.6f, 0.006f);
+    EXPECT_TRUE(d.box->size.isApprox(BoundsOf(cat.Get("chair_a").mesh).sizes(), 1e-4f));
   }
 }
 

@@ -26,9 +26,12 @@ class ScanFile : public Sensor {
 
   std::vector<Scan> Acquire(const SensorRequest& req, const RunContext&) override {
     if (req.path.empty()) throw InputError("sensors.scan_file reads files: no path given");
-    Scan scan = ReadScan(req.path, nullptr, max_points_);
-    if (req.origin) scan.origin = req.origin;  // the command line wins over the file
-    else if (!scan.origin && origin_) scan.origin = origin_;
+    Scan scan = ReadScan(req.path, nullptr, max_points_, req.shift);
+    // Origins are given in the file's coordinates: shifted like its points. The command line
+    // wins over the file.
+    auto shifted = [&](const Eigen::Vector3f& o) { return Eigen::Vector3f((o.cast<double>() - scan.frame.shift).cast<float>()); };
+    if (req.origin) scan.origin = shifted(*req.origin);
+    else if (!scan.origin && origin_) scan.origin = shifted(*origin_);
     if (voxel_ > 0) {
       std::vector<int> kept;
       const size_t before = scan.points.size();

@@ -399,6 +399,9 @@ class SimulatedLaser : public Sensor {
       src << "sensors.simulated_laser " << opt_.pattern << " view " << v + 1 << "/" << poses.size();
       s.source = src.str();
       s.truth = truth;
+      // Models stand on z = 0 (catalog models' bottom centre is their origin; scene files put
+      // the floor there): the ground is known, not estimated.
+      s.ground = GroundModel::Level(0.f, "known");
       scans.push_back(std::move(s));
     }
     return scans;

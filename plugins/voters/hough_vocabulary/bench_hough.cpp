@@ -129,7 +129,7 @@ void BM_Train(benchmark::State& state, const char* type) {
   state.counters["parts"] = static_cast<double>(Training().size() * kPartTypes);
 }
 
-// `gated`: with scannet.json's height gate (and its floor estimate over the scan's points).
+// `gated`: with scannet.json's height gate (heights above the scan's z: it has no ground model).
 void BM_Vote(benchmark::State& state, const char* type, bool gated) {
   if (!Reg().Find(type)) return state.SkipWithError((std::string(type) + " not built").c_str());
   auto voter = MakeVoter(type, gated ? nlohmann::json{{"height_tolerance_m", 0.15}} : nlohmann::json::object());
@@ -150,24 +150,27 @@ void BM_Vote(benchmark::State& state, const char* type, bool gated) {
                                                  benchmark::Counter::kIsIterationInvariantRate);
 }
 
-// The voter's floor estimates over a room scan (the room's parts, a floor, a wall): level (floor: auto) against
-// the tilted plane (floor: plane), whose RANSAC adds to each gated vote.
-void BM_Floor(benchmark::State& state, bool plane) {
+// The pipeline's ground estimates over a room scan (the room's parts, a floor, a wall), each
+// kind: what every scan pays once before the stages run.
+void BM_Ground(benchmark::State& state, const char* kind) {
   Room room = MakeRoom(1500);
   std::mt19937_64 rng(23);
   for (int i = 0; i < 30000; ++i)  // a floor (1 cm noise) and a wall, as a room scan has
     room.scan.points.emplace_back(10.f * U(rng), 8.f * U(rng), 0.01f * (U(rng) - 0.5f));
   for (int i = 0; i < 10000; ++i) room.scan.points.emplace_back(0.f, 8.f * U(rng), 2.5f * U(rng));
+  GroundOptions o;
+  o.kind = kind;
   float z = 0.f;
   for (auto _ : state) {
-    z = plane ? EstimateFloorPlane({&room.scan}).c : EstimateFloorZ({&room.scan});
+    z = EstimateGround(room.scan.points, o).HeightAt(5.f, 4.f);
     benchmark::DoNotOptimize(z);
   }
   state.counters["points"] = static_cast<double>(room.scan.points.size());
 }
 
-BENCHMARK_CAPTURE(BM_Floor, level, false)->Unit(benchmark::kMillisecond);
-BENCHMARK_CAPTURE(BM_Floor, plane, true)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Ground, level, "level")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Ground, plane, "plane")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Ground, height_map, "height_map")->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Train, hough_k40, "voters.hough_vocabulary")->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Train, nearest_neighbor, "voters.nearest_neighbor")->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Vote, hough, "voters.hough_vocabulary", false)

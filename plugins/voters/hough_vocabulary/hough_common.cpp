@@ -149,7 +149,7 @@ TrainingParts CollectTrainingParts(const std::vector<TrainingView>& views) {
       }
       for (Eigen::Index j = 0; j < F.cols(); ++j) rows.push_back(F(i, j));
       out.d.push_back(to_view * (v.object_centroid - v.segmentation.parts[i].centroid));
-      out.height.push_back(v.segmentation.parts[i].centroid.z());
+      out.height.push_back(v.scan.HeightAboveGround(v.scan.pose * v.segmentation.parts[i].centroid));
       out.cls.push_back(c);
       out.model.push_back(m);
       out.view.push_back(v.view);
@@ -439,11 +439,6 @@ void SelectionOptions::Declare(ParamSchema& s) {
               "a shape-model element votes only when the part's height above the floor is within this "
               "of its training part's height (objects stand on the floor, Sect. VI-B) [m] (0 = off, paper)")
       .DetectionOnly()
-      .Enum("floor", "auto", {"auto", "plane", "fixed"},
-            "scene floor for height_tolerance_m and the column check: 'auto' = level, at the densest 2 cm z-slice "
-            "among the lowest 30 % of the points; 'plane' = a plane (tilt <= 10 deg) fitted to them (RANSAC, "
-            "2 cm), for drifted reconstructions; 'fixed' = z = floor_z_m").DetectionOnly()
-      .Number("floor_z_m", 0.0, -1e4, 1e4, "world z of the floor when floor is 'fixed' [m]").DetectionOnly()
       .Number("cell", 0.05, 0.005, 1.0, "vote grid cell size on the floor plane [m]").DetectionOnly()
       .Number("smoothing", 0.08, 0.0, 1.0,
               "Gaussian sigma smoothing the vote density before the maxima search [m] (0 = none)").DetectionOnly()
@@ -484,8 +479,6 @@ SelectionOptions SelectionOptions::FromParams(const nlohmann::json& p) {
   o.max_distance = p.at("max_distance").get<float>();
   o.max_out_of_range = p.at("max_out_of_range").get<float>();
   o.height_tolerance = p.at("height_tolerance_m").get<float>();
-  o.floor = p.at("floor").get<std::string>();
-  o.floor_z = p.at("floor_z_m").get<float>();
   o.cell = p.at("cell").get<float>();
   o.smoothing = p.at("smoothing").get<float>();
   o.window_scale = p.at("window_scale").get<float>();
@@ -728,13 +721,13 @@ struct Activation {
 // taken above the floor.
 class ColumnIndex {
  public:
-  ColumnIndex(const std::vector<SceneParts>& scenes, const FloorPlane& floor, float cell) {
+  ColumnIndex(const std::vector<SceneParts>& scenes, float cell) {
     for (const auto& sc : scenes) {
       if (!sc.scan) continue;
       for (const auto& p : sc.scan->points) {
         const Eigen::Vector3f w = sc.scan->pose * p;
         if (!w.allFinite()) continue;
-        pts_.emplace_back(w.x(), w.y(), floor.Above(w));
+        pts_.emplace_back(w.x(), w.y(), sc.scan->ground ? sc.scan->ground->Above(p) : w.z());
       }
     }
     if (pts_.empty()) return;
@@ -882,11 +875,6 @@ std::vector<Hypothesis> SelectClass(const VoteSet& votes, size_t vb, size_t ve,
 
 }  // namespace
 
-FloorPlane SceneFloor(const std::vector<SceneParts>& scenes, const SelectionOptions& opt) {
-  std::vector<const Scan*> scans;
-  for (const auto& sc : scenes) scans.push_back(sc.scan);
-  return FloorByMode(opt.floor, scans, opt.floor_z);
-}
 
 VoteResult VoteAndSelect(const Codebook& book, const WordIndex& index,
                          const std::vector<SceneParts>& scenes, const SelectionOptions& opt) {
@@ -975,11 +963,11 @@ VoteResult VoteAndSelect(const Codebook& book, const WordIndex& index,
   // part's height above the floor (objects stand on the floor).
   const bool gate = opt.height_tolerance > 0.f && !book.element_height.empty();
   const bool column = opt.column_radius > 0.f;
-  const FloorPlane floor = gate || column ? SceneFloor(scenes, opt) : FloorPlane{};
-  if (gate || column)
-    spdlog::debug("voter: floor z = {:.4f} x + {:.4f} y + {:.3f} m ({})", floor.a, floor.b, floor.c, opt.floor);
-  std::vector<float> part_height(gate ? parts.size() : 0);  // above the floor, once per part
-  for (size_t i = 0; i < part_height.size(); ++i) part_height[i] = floor.Above(parts[i].world);
+  std::vector<float> part_height(gate ? parts.size() : 0);  // above the scan's ground, once per part
+  for (size_t i = 0; i < part_height.size(); ++i) {
+    const Scan* sc = scenes[parts[i].scene].scan;
+    part_height[i] = sc ? sc->HeightAboveGround(parts[i].world) : parts[i].world.z();
+  }
   auto height_ok = [&](int part, int e) {
     return !gate || std::abs(part_height[part] - book.element_height[e]) <= opt.height_tolerance;
   };
@@ -1067,7 +1055,7 @@ VoteResult VoteAndSelect(const Codebook& book, const WordIndex& index,
   }
 
   std::unique_ptr<ColumnIndex> columns;
-  if (column) columns = std::make_unique<ColumnIndex>(scenes, floor, opt.column_radius);
+  if (column) columns = std::make_unique<ColumnIndex>(scenes, opt.column_radius);
   size_t column_dropped = 0;
   for (int c = 0; c < C; ++c) {
     if (!active[c]) continue;

@@ -127,10 +127,7 @@ struct SelectionOptions {
   float max_out_of_range = 0.f; // parts whose raw features exceed the training range by more
                                 // than this (in ranges, FeatureMatrix::excess) do not vote (0 = off)
   float height_tolerance = 0.f; // element votes only when |part height - training part height|
-                                // <= this [m] (0 = off); heights above the scene floor
-  std::string floor = "auto";   // scene floor: "auto" (level, the points' densest low z-slice),
-                                // "plane" (a plane fitted to the points) or "fixed" (z = floor_z)
-  float floor_z = 0.f;          // world z of the floor when floor is "fixed" [m]
+                                // <= this [m] (0 = off); heights above the scan's ground (Scan::ground)
   bool unit_weight = false;     // NN baseline: weight 1 per vote instead of eq. 4/5
   bool inverse_distance = false;// NN baseline: weight 1 / (1 + feature distance)
   float cell = 0.05f;           // grid cell [m]
@@ -180,9 +177,6 @@ class WordIndex {
   std::unique_ptr<Impl> impl_;
 };
 
-// The floor under the scenes as `opt.floor` says (furnihost::EstimateFloorPlane or
-// EstimateFloorZ over their scans, or z = opt.floor_z).
-FloorPlane SceneFloor(const std::vector<SceneParts>& scenes, const SelectionOptions& opt);
 
 // Votes with every scene part and selects hypotheses (Sect. VI-A, VI-B).
 VoteResult VoteAndSelect(const Codebook& book, const WordIndex& index,

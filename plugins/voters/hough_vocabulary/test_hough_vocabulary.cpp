@@ -276,7 +276,6 @@ TEST(HoughVocabulary, HeightGateDropsPartsAtTheWrongHeight) {
   json p = BaseParams();
   auto plain = MakeVoter(p);
   p["height_tolerance_m"] = 0.1;
-  p["floor"] = "fixed";
   auto gated = MakeVoter(p);
   plain->Train(TwoClassViews(), ctx);
   gated->Train(TwoClassViews(), ctx);
@@ -289,45 +288,50 @@ TEST(HoughVocabulary, HeightGateDropsPartsAtTheWrongHeight) {
   EXPECT_LT(Dist2D(kept[0]->center, on_floor), 0.05f);
 }
 
-// Height gate (0.1 m) with two floor modes: the chair standing at `truth` on the floor
-// z = floor_z(x) (a dense grid of points that belongs to no part, x from -1 m over nx cells of
-// 5 cm, y from -1 m over 60) is found at its place with floor mode `keeps` and gated out with
-// floor mode `drops`.
-void ExpectFloorModeDecides(const char* keeps, const char* drops, const Eigen::Vector3f& truth, int nx,
-                            const std::function<float(float)>& floor_z) {
+// Height gate (0.1 m) measured above the scan's ground (Scan::ground, which the pipeline
+// estimates once per scan): the chair standing at `truth` on the floor z = floor_z(x) (a dense
+// grid of points that belongs to no part, x from -1 m over nx cells of 5 cm, y from -1 m over
+// 60) is found at its place with the ground of kind `keeps` estimated from the scan, and gated
+// out with `drops` (a kind name, or "zero" for a level ground at z = 0).
+void ExpectGroundDecides(const char* keeps, const char* drops, const Eigen::Vector3f& truth, int nx,
+                         const std::function<float(float)>& floor_z) {
   RunContext ctx;
   json p = BaseParams();
   p["height_tolerance_m"] = 0.1;
-  p["floor"] = keeps;
-  auto kept = MakeVoter(p);
-  p["floor"] = drops;
-  auto dropped = MakeVoter(p);
-  kept->Train(TwoClassViews(), ctx);
-  dropped->Train(TwoClassViews(), ctx);
+  auto voter = MakeVoter(p);
+  voter->Train(TwoClassViews(), ctx);
   auto scene = MakeScene({{Chair(), truth, {}}}, Eigen::Isometry3f::Identity(), 0.02f, 6);
   for (int i = 0; i < nx; ++i)
     for (int j = 0; j < 60; ++j) {
       const float x = -1.f + 0.05f * i;
       scene.scan.points.emplace_back(x, -1.f + 0.05f * j, floor_z(x));
     }
-  const auto found = OfClass(kept->Vote({scene.Parts()}, ctx), "chair");
+  auto ground = [&](const std::string& kind) {
+    if (kind == "zero") return GroundModel::Level(0.f, "fixed");
+    GroundOptions o;
+    o.kind = kind;
+    return EstimateGround(scene.scan.points, o);
+  };
+  scene.scan.ground = ground(keeps);
+  const auto found = OfClass(voter->Vote({scene.Parts()}, ctx), "chair");
   ASSERT_EQ(found.size(), 1u) << keeps;
   EXPECT_LT(Dist2D(found[0]->center, truth), 0.05f) << keeps;
-  EXPECT_TRUE(OfClass(dropped->Vote({scene.Parts()}, ctx), "chair").empty()) << drops;
+  scene.scan.ground = ground(drops);
+  EXPECT_TRUE(OfClass(voter->Vote({scene.Parts()}, ctx), "chair").empty()) << drops;
 }
 
-TEST(HoughVocabulary, HeightGateEstimatesTheFloor) {
-  // The room's floor is at z = -0.3: the estimated floor keeps the chair standing on it, a
-  // floor fixed at z = 0 gates it out.
-  ExpectFloorModeDecides("auto", "fixed", {1.f, 1.f, 0.15f}, 60, [](float) { return -0.3f; });
+TEST(HoughVocabulary, HeightGateMeasuresAboveTheScansGround) {
+  // The room's floor is at z = -0.3: the estimated ground keeps the chair standing on it, a
+  // ground at z = 0 gates it out.
+  ExpectGroundDecides("auto", "zero", {1.f, 1.f, 0.15f}, 60, [](float) { return -0.3f; });
 }
 
-TEST(HoughVocabulary, HeightGateOnATiltedFloorPlane) {
+TEST(HoughVocabulary, HeightGateOnATiltedFloor) {
   // A drifted reconstruction: the floor rises 0.1 m per metre along x, and the chair stands on
-  // it at x = 4, 0.4 m above the floor's low end. floor = plane measures its parts' heights
-  // from the plane under them and keeps it; the level floor (the densest low slice) gates it out.
-  ExpectFloorModeDecides("plane", "auto", {4.f, 1.f, -0.1f + 0.4f + 0.45f}, 120,
-                         [](float x) { return -0.1f + 0.1f * x; });
+  // it at x = 4, 0.4 m above the floor's low end. A plane (or the height map) measures its
+  // parts' heights from the floor under them and keeps it; a level floor gates it out.
+  for (const char* keeps : {"plane", "height_map"})
+    ExpectGroundDecides(keeps, "level", {4.f, 1.f, -0.1f + 0.4f + 0.45f}, 120, [](float x) { return -0.1f + 0.1f * x; });
 }
 
 TEST(HoughVocabulary, PartsFarOutsideTheTrainingRangeDoNotVote) {
@@ -355,7 +359,6 @@ TEST(HoughVocabulary, ColumnCheckDropsHypothesesUnderStructureOrOverEmptyFloor) 
   // hypotheses whose column holds fewer object points than asked (each seat has 20).
   RunContext ctx;
   json p = BaseParams();
-  p["floor"] = "fixed";
   auto plain = MakeVoter(p);
   p["column_radius_m"] = 0.15;
   p["column_min_points"] = 10;

@@ -1,0 +1,440 @@
+#include "furnihost/ground.hpp"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <deque>
+#include <nlohmann/json.hpp>
+#include <random>
+
+namespace furnihost {
+
+const char* ToString(GroundKind k) {
+  switch (k) {
+    case GroundKind::Level: return "level";
+    case GroundKind::Plane: return "plane";
+    case GroundKind::HeightMap: return "height_map";
+  }
+  return "?";
+}
+
+float GroundModel::HeightAt(float x, float y) const {
+  if (kind != GroundKind::HeightMap || width <= 0 || height <= 0) return plane.HeightAt(x, y);
+  // Bilinear between cell centres, clamped to the border cells.
+  const float fx = std::clamp((x - origin.x()) / cell - 0.5f, 0.f, float(width - 1));
+  const float fy = std::clamp((y - origin.y()) / cell - 0.5f, 0.f, float(height - 1));
+  if (!std::isfinite(fx) || !std::isfinite(fy)) return plane.HeightAt(x, y);
+  const int x0 = std::min(int(fx), width - 1), y0 = std::min(int(fy), height - 1);
+  const int x1 = std::min(x0 + 1, width - 1), y1 = std::min(y0 + 1, height - 1);
+  const float tx = fx - float(x0), ty = fy - float(y0);
+  auto h = [&](int ix, int iy) { return heights[size_t(iy) * size_t(width) + size_t(ix)]; };
+  return (1 - ty) * ((1 - tx) * h(x0, y0) + tx * h(x1, y0)) + ty * ((1 - tx) * h(x0, y1) + tx * h(x1, y1));
+}
+
+GroundModel GroundModel::Level(float z, const std::string& source) {
+  GroundModel g;
+  g.kind = GroundKind::Level;
+  g.source = source;
+  g.plane = {0.f, 0.f, z};
+  return g;
+}
+
+GroundModel GroundModel::Tilted(const FloorPlane& plane, const std::string& source) {
+  GroundModel g;
+  g.kind = GroundKind::Plane;
+  g.source = source;
+  g.plane = plane;
+  return g;
+}
+
+// ---- options -------------------------------------------------------------------------------
+
+void GroundOptions::Check(const std::string& where) const {
+  static const char* kinds[] = {"auto", "level", "plane", "height_map", "fixed"};
+  if (std::find(std::begin(kinds), std::end(kinds), kind) == std::end(kinds))
+    throw InputError(where + "kind: '" + kind + "' is not one of auto, level, plane, height_map, fixed");
+  if (!std::isfinite(fixed_z) || std::abs(fixed_z) > 1e4f)
+    throw InputError(where + "z_m: expected a finite height within 10 km, got " + std::to_string(fixed_z));
+  if (!(cell >= 0.02f && cell <= 2.f)) throw InputError(where + "cell_m: expected a number in [0.02, 2]");
+  if (!(step > 0.f && step <= 1.f)) throw InputError(where + "step_m: expected a number in (0, 1]");
+  if (!(min_area >= 0.f && min_area <= 1e6f)) throw InputError(where + "min_area_m2: expected a number in [0, 1e6]");
+}
+
+GroundOptions GroundOptionsFromJson(const nlohmann::json& j, const std::string& where) {
+  GroundOptions o;
+  if (j.is_null()) return o;
+  if (!j.is_object()) throw InputError(where + ": expected an object {\"kind\": ...}");
+  for (auto it = j.begin(); it != j.end(); ++it) {
+    const std::string& k = it.key();
+    const std::string at = where + "/" + k;
+    if (k == "kind") {
+      if (!it->is_string()) throw InputError(at + ": expected a string");
+      o.kind = it->get<std::string>();
+    } else if (k == "z_m" || k == "cell_m" || k == "step_m" || k == "min_area_m2") {
+      if (!it->is_number()) throw InputError(at + ": expected a number");
+      const float v = it->get<float>();
+      (k == "z_m" ? o.fixed_z : k == "cell_m" ? o.cell : k == "step_m" ? o.step : o.min_area) = v;
+    } else {
+      throw InputError(at + ": unknown key (ground takes kind, z_m, cell_m, step_m, min_area_m2)");
+    }
+  }
+  o.Check(where + "/");
+  return o;
+}
+
+nlohmann::json ToJson(const GroundOptions& o) {
+  return {{"kind", o.kind}, {"z_m", o.fixed_z}, {"cell_m", o.cell}, {"step_m", o.step}, {"min_area_m2", o.min_area}};
+}
+
+// ---- level and plane ----------------------------------------------------------------------
+
+namespace {
+
+using Points = std::vector<Eigen::Vector3f>;
+
+// The finite points, at most ~200k (a stride sample is plenty for a histogram or a plane).
+Points FloorSample(const Points& pts) {
+  Points w;
+  const size_t step = std::max<size_t>(1, pts.size() / 200000);
+  w.reserve(pts.size() / step + 1);
+  for (size_t i = 0; i < pts.size(); i += step)
+    if (pts[i].allFinite() && pts[i].cwiseAbs().maxCoeff() < 1e7f) w.push_back(pts[i]);
+  return w;
+}
+
+// Height below which 30 % of the sample lies.
+float LowCut(const Points& w) {
+  std::vector<float> z(w.size());
+  for (size_t i = 0; i < w.size(); ++i) z[i] = w[i].z();
+  const size_t cut = std::min(z.size() - 1, z.size() * 3 / 10);
+  std::nth_element(z.begin(), z.begin() + cut, z.end());
+  return z[cut];
+}
+
+// Mean height of the densest 2 cm z-slice among the points at or below `hi`.
+float DensestSlice(const Points& w, float hi) {
+  float lo = hi;
+  for (const auto& p : w) lo = std::min(lo, p.z());
+  const float bin = 0.02f;
+  const int bins = std::min(100000, static_cast<int>((hi - lo) / bin) + 1);
+  std::vector<int> count(bins, 0);
+  std::vector<double> sum(bins, 0.0);
+  for (const auto& p : w) {
+    if (p.z() > hi) continue;
+    const int b = std::clamp(static_cast<int>((p.z() - lo) / bin), 0, bins - 1);
+    ++count[b];
+    sum[b] += p.z();
+  }
+  const int best = static_cast<int>(std::max_element(count.begin(), count.end()) - count.begin());
+  return static_cast<float>(sum[best] / std::max(1, count[best]));
+}
+
+}  // namespace
+
+float EstimateLevelZ(const Points& points) {
+  const Points w = FloorSample(points);
+  if (w.empty()) return 0.f;
+  return DensestSlice(w, LowCut(w));
+}
+
+FloorPlane EstimatePlane(const Points& points) {
+  FloorPlane level;
+  const Points w = FloorSample(points);
+  if (w.empty()) return level;
+  const float hi = LowCut(w);
+  level.c = DensestSlice(w, hi);
+  // RANSAC over (a stride sample of) the lowest 30 %: the plane, tilted at most 10 degrees,
+  // with the most points within 2 cm. The level plane through the densest slice competes too,
+  // so a plane is only tilted when that explains more of the floor.
+  const size_t n_low = static_cast<size_t>(std::count_if(w.begin(), w.end(), [&](const auto& p) { return p.z() <= hi; }));
+  const size_t stride = std::max<size_t>(1, n_low / 4000);
+  Points q;
+  size_t k = 0;
+  for (const auto& p : w)
+    if (p.z() <= hi && k++ % stride == 0) q.push_back(p);
+  const float band = 0.02f;
+  const float min_nz = std::cos(10.f * 3.14159265f / 180.f);
+  auto inliers = [&](const Eigen::Vector3f& n, float d) {
+    int c = 0;
+    for (const auto& p : q) c += std::abs(n.dot(p) - d) < band;
+    return c;
+  };
+  Eigen::Vector3f best_n = Eigen::Vector3f::UnitZ();
+  float best_d = level.c;
+  int best = inliers(best_n, best_d);
+  if (q.size() >= 3) {
+    std::mt19937 rng(0x9e3779b9u);  // fixed: the floor of a scan does not depend on the run's seed
+    for (int it = 0; it < 200; ++it) {
+      const Eigen::Vector3f& a = q[rng() % q.size()];
+      const Eigen::Vector3f& b = q[rng() % q.size()];
+      const Eigen::Vector3f& c = q[rng() % q.size()];
+      Eigen::Vector3f n = (b - a).cross(c - a);
+      const float len = n.norm();
+      if (!(len > 1e-6f)) continue;
+      n /= len;
+      if (n.z() < 0.f) n = -n;
+      if (n.z() < min_nz) continue;
+      const int k = inliers(n, n.dot(a));
+      if (k > best) {
+        best = k;
+        best_n = n;
+        best_d = n.dot(a);
+      }
+    }
+  }
+  // Least squares z = a x + b y + c over the points within the band, twice (the first pass
+  // only saw the lowest 30 %; the second takes the whole sample, the high side of a tilt).
+  FloorPlane plane{-best_n.x() / best_n.z(), -best_n.y() / best_n.z(), best_d / best_n.z()};
+  for (int pass = 0; pass < 2; ++pass) {
+    const Points& src = pass == 0 ? q : w;
+    Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d atb = Eigen::Vector3d::Zero();
+    int n = 0;
+    const double cos_t = 1.0 / std::sqrt(1.0 + double(plane.a) * plane.a + double(plane.b) * plane.b);
+    for (const auto& p : src) {
+      if (std::abs(plane.Above(p)) * cos_t >= band) continue;
+      const Eigen::Vector3d r(p.x(), p.y(), 1.0);
+      ata += r * r.transpose();
+      atb += r * double(p.z());
+      ++n;
+    }
+    if (n < 3) break;
+    const Eigen::Vector3d x = ata.ldlt().solve(atb);
+    if (!x.allFinite() || std::hypot(x[0], x[1]) > std::tan(10.0 * 3.14159265358979 / 180.0)) break;
+    plane = {static_cast<float>(x[0]), static_cast<float>(x[1]), static_cast<float>(x[2])};
+  }
+  return plane;
+}
+
+// ---- height map ---------------------------------------------------------------------------
+
+namespace {
+
+constexpr float kSlice = 0.02f;       // height slice of a floor cell [m]
+constexpr float kMaxDrop = 0.5f;      // floor parts looked for below the level estimate [m]
+constexpr float kMaxRise = 0.6f;      // ... and above it (warped reconstructions rise 0.4 m)
+constexpr int kMaxCells = 1 << 20;    // grid size cap (the cell grows for huge scans)
+
+// The height map of `w` (finite points) seeded at the level `z0`; nullopt when too little
+// floor is seen.
+std::optional<GroundModel> HeightMap(const Points& w, float z0, const GroundOptions& o) {
+  Eigen::Vector2f lo(INFINITY, INFINITY), hi(-INFINITY, -INFINITY);
+  for (const auto& p : w) {
+    lo = lo.cwiseMin(p.head<2>());
+    hi = hi.cwiseMax(p.head<2>());
+  }
+  float cell = o.cell;
+  const Eigen::Vector2f ext = hi - lo;
+  while (double(ext.x() / cell + 1) * double(ext.y() / cell + 1) > kMaxCells) cell *= 2.f;
+  const int W = int(ext.x() / cell) + 1, H = int(ext.y() / cell) + 1;
+  const size_t cells = size_t(W) * size_t(H);
+  // Band points bucketed by cell (counting sort), each cell's heights then sorted: linear in
+  // the points apart from the per-cell sorts of a few dozen values.
+  std::vector<uint32_t> start(cells + 1, 0);
+  std::vector<uint32_t> cell_of;
+  cell_of.reserve(w.size());
+  auto cell_index = [&](const Eigen::Vector3f& p) {
+    const int ix = std::min(W - 1, int((p.x() - lo.x()) / cell));
+    const int iy = std::min(H - 1, int((p.y() - lo.y()) / cell));
+    return uint32_t(size_t(iy) * size_t(W) + size_t(ix));
+  };
+  std::vector<float> band;
+  for (const auto& p : w) {
+    if (p.z() < z0 - kMaxDrop || p.z() > z0 + kMaxRise) continue;
+    const uint32_t c = cell_index(p);
+    cell_of.push_back(c);
+    band.push_back(p.z());
+    ++start[c + 1];
+  }
+  for (size_t c = 0; c < cells; ++c) start[c + 1] += start[c];
+  std::vector<float> z(band.size());
+  {
+    std::vector<uint32_t> fill(start.begin(), start.end() - 1);
+    for (size_t i = 0; i < band.size(); ++i) z[fill[cell_of[i]]++] = band[i];
+  }
+  // Per cell: the lowest 2 cm window with at least `need` points. `need` comes from the floor
+  // itself: the median count of the cells' densest window at the level estimate.
+  std::vector<float> level_count;
+  for (size_t c = 0; c < cells; ++c) {
+    auto b = z.begin() + start[c], e = z.begin() + start[c + 1];
+    std::sort(b, e);
+    const auto l = std::lower_bound(b, e, z0 - kSlice), u = std::upper_bound(b, e, z0 + kSlice);
+    if (u - l >= 3) level_count.push_back(float(u - l));
+  }
+  if (level_count.size() < 4) return std::nullopt;
+  std::nth_element(level_count.begin(), level_count.begin() + level_count.size() / 2, level_count.end());
+  const int need = std::max(3, int(0.25f * level_count[level_count.size() / 2]));
+  // The floor of a cell: the lowest window holding `need` points, moved up (by at most one
+  // slice) to the densest window there, so range noise below the floor does not bias it low.
+  std::vector<float> h(cells, NAN);
+  for (size_t c = 0; c < cells; ++c) {
+    const size_t b = start[c], e = start[c + 1];
+    for (size_t i = b, j = b; i < e; ++i) {
+      while (j < e && z[j] < z[i] + kSlice) ++j;
+      if (int(j - i) < need) continue;
+      size_t bi = i, bj = j;
+      for (size_t i2 = i + 1, j2 = j; i2 < e && z[i2] <= z[i] + kSlice; ++i2) {
+        while (j2 < e && z[j2] < z[i2] + kSlice) ++j2;
+        if (j2 - i2 > bj - bi) bi = i2, bj = j2;
+      }
+      double s = 0;
+      for (size_t k = bi; k < bj; ++k) s += z[k];
+      h[c] = float(s / double(bj - bi));
+      break;
+    }
+  }
+  // Flood fill from the cells at the level estimate, across steps of at most o.step (diagonal
+  // steps sqrt(2) x): follows a warped floor, stops at seats, table tops and beds.
+  std::vector<uint8_t> acc(cells, 0);
+  std::deque<uint32_t> queue;
+  for (size_t c = 0; c < cells; ++c)
+    if (std::abs(h[c] - z0) <= kSlice) {
+      acc[c] = 1;
+      queue.push_back(uint32_t(c));
+    }
+  const float step = o.step * cell / 0.15f;
+  while (!queue.empty()) {
+    const uint32_t c = queue.front();
+    queue.pop_front();
+    const int cx = int(c % uint32_t(W)), cy = int(c / uint32_t(W));
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx) {
+        const int nx = cx + dx, ny = cy + dy;
+        if ((!dx && !dy) || nx < 0 || ny < 0 || nx >= W || ny >= H) continue;
+        const size_t n = size_t(ny) * size_t(W) + size_t(nx);
+        if (acc[n] || !std::isfinite(h[n])) continue;
+        if (std::abs(h[n] - h[c]) > step * (dx && dy ? 1.4142f : 1.f)) continue;
+        acc[n] = 1;
+        queue.push_back(uint32_t(n));
+      }
+  }
+  size_t seen = 0;
+  for (uint8_t a : acc) seen += a;
+  const float area = float(seen) * cell * cell;
+  if (area < o.min_area || seen < 4) return std::nullopt;
+  GroundModel g;
+  g.kind = GroundKind::HeightMap;
+  g.source = "estimated";
+  g.origin = lo;
+  g.cell = cell;
+  g.width = W;
+  g.height = H;
+  g.observed = acc;
+  g.observed_area_m2 = area;
+  g.heights.assign(cells, NAN);
+  // Least-squares plane of the observed cells (reported, and the fallback of HeightAt).
+  Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d atb = Eigen::Vector3d::Zero();
+  for (size_t c = 0; c < cells; ++c) {
+    if (!acc[c]) continue;
+    g.heights[c] = h[c];
+    const Eigen::Vector3d r(lo.x() + (double(c % W) + 0.5) * cell, lo.y() + (double(c / W) + 0.5) * cell, 1.0);
+    ata += r * r.transpose();
+    atb += r * double(h[c]);
+  }
+  const Eigen::Vector3d x = ata.ldlt().solve(atb);
+  g.plane = x.allFinite() ? FloorPlane{float(x[0]), float(x[1]), float(x[2])} : FloorPlane{0.f, 0.f, z0};
+  // Hidden cells take the mean of their filled neighbours, in rings outwards from the seen
+  // floor (breadth first), so each cell is written once.
+  std::vector<uint8_t> known = acc;
+  queue.clear();
+  for (size_t c = 0; c < cells; ++c)
+    if (known[c]) queue.push_back(uint32_t(c));
+  std::vector<uint32_t> ring;
+  while (!queue.empty()) {
+    ring.clear();
+    for (uint32_t c : queue) {
+      const int cx = int(c % uint32_t(W)), cy = int(c / uint32_t(W));
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          const int nx = cx + dx, ny = cy + dy;
+          if (nx < 0 || ny < 0 || nx >= W || ny >= H) continue;
+          const size_t n = size_t(ny) * size_t(W) + size_t(nx);
+          if (known[n]) continue;
+          known[n] = 2;  // queued for this ring
+          ring.push_back(uint32_t(n));
+        }
+    }
+    for (uint32_t n : ring) {
+      const int cx = int(n % uint32_t(W)), cy = int(n / uint32_t(W));
+      double s = 0;
+      int k = 0;
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          const int nx = cx + dx, ny = cy + dy;
+          if (nx < 0 || ny < 0 || nx >= W || ny >= H) continue;
+          const size_t m = size_t(ny) * size_t(W) + size_t(nx);
+          if (known[m] == 1) {
+            s += g.heights[m];
+            ++k;
+          }
+        }
+      g.heights[n] = k ? float(s / k) : g.plane.HeightAt(lo.x() + (cx + 0.5f) * cell, lo.y() + (cy + 0.5f) * cell);
+    }
+    for (uint32_t n : ring) known[n] = 1;
+    queue.assign(ring.begin(), ring.end());
+  }
+  // The rings extrapolate from the nearest seen cell; relaxing the hidden cells towards the
+  // mean of their four neighbours (the seen ones held fixed) makes the fill follow a slope or a
+  // bend across a hidden patch (a sofa's footprint) instead of stepping in its middle. Sweeps
+  // are bounded: the result is a smooth surface near the seen floor either way.
+  std::vector<uint32_t> hidden;
+  for (size_t c = 0; c < cells; ++c)
+    if (!acc[c]) hidden.push_back(uint32_t(c));
+  for (int sweep = 0; sweep < 200 && !hidden.empty(); ++sweep) {
+    float change = 0.f;
+    for (uint32_t c : hidden) {
+      const int cx = int(c % uint32_t(W)), cy = int(c / uint32_t(W));
+      float sum = 0.f;
+      int k = 0;
+      if (cx > 0) sum += g.heights[c - 1], ++k;
+      if (cx + 1 < W) sum += g.heights[c + 1], ++k;
+      if (cy > 0) sum += g.heights[c - size_t(W)], ++k;
+      if (cy + 1 < H) sum += g.heights[c + size_t(W)], ++k;
+      if (!k) continue;
+      const float v = sum / float(k);
+      change = std::max(change, std::abs(v - g.heights[c]));
+      g.heights[c] = v;
+    }
+    if (change < 1e-4f) break;
+  }
+  return g;
+}
+
+}  // namespace
+
+GroundModel EstimateGround(const Points& points, const GroundOptions& o) {
+  if (o.kind == "fixed") return GroundModel::Level(o.fixed_z, "fixed");
+  Points w;
+  w.reserve(points.size());
+  for (const auto& p : points)
+    if (p.allFinite() && p.cwiseAbs().maxCoeff() < 1e7f) w.push_back(p);
+  if (w.empty()) return GroundModel::Level(0.f, "estimated");
+  const float z0 = EstimateLevelZ(w);
+  if (o.kind == "level") return GroundModel::Level(z0, "estimated");
+  if (o.kind == "plane") return GroundModel::Tilted(EstimatePlane(w), "estimated");
+  if (auto hm = HeightMap(w, z0, o)) return *hm;
+  // Too little floor for a map (a close-up view): a plane, which falls back to level itself.
+  return GroundModel::Tilted(EstimatePlane(w), "estimated");
+}
+
+nlohmann::json ToJson(const GroundModel& g) {
+  auto mm = [](double v) { return std::round(v * 1000.0) / 1000.0; };
+  nlohmann::json j = {{"kind", ToString(g.kind)},
+                      {"source", g.source},
+                      {"plane", {{"a", mm(g.plane.a)}, {"b", mm(g.plane.b)}, {"c", mm(g.plane.c)}}}};
+  if (g.kind == GroundKind::HeightMap) {
+    nlohmann::json h = nlohmann::json::array();
+    for (float v : g.heights) h.push_back(mm(v));
+    j["height_map"] = {{"origin", {mm(g.origin.x()), mm(g.origin.y())}},
+                       {"cell_m", g.cell},
+                       {"width", g.width},
+                       {"height", g.height},
+                       {"observed_area_m2", mm(g.observed_area_m2)},
+                       {"heights", h},
+                       {"observed", g.observed}};
+  }
+  return j;
+}
+
+}  // namespace furnihost
