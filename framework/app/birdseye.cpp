@@ -77,19 +77,11 @@ View MakeView(const std::vector<const Scan*>& scans, const VoteResult& votes,
       if (w.allFinite()) box.extend(w.head<2>().cast<double>());
     }
   }
-  for (const auto& h : votes.hypotheses) box.extend(h.center.head<2>().cast<double>());
-  for (const auto& d : detections) box.extend(d.center.head<2>().cast<double>());
-  // Visible density cells (see DrawGrid) are part of the picture too.
-  for (const auto& g : votes.grids) {
-    if (g.width <= 0 || g.height <= 0 || g.values.size() != static_cast<size_t>(g.width) * g.height) continue;
-    const float vmax = *std::max_element(g.values.begin(), g.values.end());
-    for (int iy = 0; iy < g.height; ++iy)
-      for (int ix = 0; ix < g.width; ++ix)
-        if (g.values[static_cast<size_t>(iy) * g.width + ix] > kVisible * vmax) {
-          const Eigen::Vector2f c = g.origin + g.cell * Eigen::Vector2f(ix, iy);
-          box.extend(c.cast<double>());
-          box.extend((c + Eigen::Vector2f::Constant(g.cell)).cast<double>());
-        }
+  // The picture is the scan: votes that fall outside it (parts voting for centres beyond a
+  // wall) are clipped, hypotheses and detections only widen it when there are no points.
+  if (box.isEmpty()) {
+    for (const auto& h : votes.hypotheses) box.extend(h.center.head<2>().cast<double>());
+    for (const auto& d : detections) box.extend(d.center.head<2>().cast<double>());
   }
   if (box.isEmpty()) box = Eigen::AlignedBox2d(Eigen::Vector2d(-0.5, -0.5), Eigen::Vector2d(0.5, 0.5));
   View v;
@@ -102,7 +94,10 @@ View MakeView(const std::vector<const Scan*>& scans, const VoteResult& votes,
   return v;
 }
 
-// Scan points as one grey raster (embedded as an image in the SVG, not 50k shapes).
+// Scan points as one raster (embedded as an image in the SVG, not 50k shapes), each pixel
+// shaded by the highest point above the ground that falls in it: the floor light blue-grey
+// (where the ground model saw it), objects from mid grey (low) to near black (2 m and up), so
+// furniture stands out from the floor it stands on.
 SurfacePtr PointsRaster(const std::vector<const Scan*>& scans, const View& v) {
   const int w = std::max(1, static_cast<int>(std::ceil(v.PlotWidth())));
   const int h = std::max(1, static_cast<int>(std::ceil(v.PlotHeight())));
@@ -110,6 +105,7 @@ SurfacePtr PointsRaster(const std::vector<const Scan*>& scans, const View& v) {
   cairo_surface_flush(img.get());
   unsigned char* data = cairo_image_surface_get_data(img.get());
   const int stride = cairo_image_surface_get_stride(img.get());
+  std::vector<float> top(static_cast<size_t>(w) * h, -INFINITY);
   for (const Scan* s : scans) {
     if (!s || !data) continue;
     for (const auto& p : s->points) {
@@ -118,9 +114,25 @@ SurfacePtr PointsRaster(const std::vector<const Scan*>& scans, const View& v) {
       const int x = static_cast<int>(std::floor(v.X(wp.x()) - v.margin));
       const int y = static_cast<int>(std::floor(v.Y(wp.y()) - v.margin));
       if (x < 0 || y < 0 || x >= w || y >= h) continue;
-      auto* px = reinterpret_cast<uint32_t*>(data + static_cast<size_t>(y) * stride) + x;
-      *px = 0xFFBEBEBEu;  // opaque light grey (premultiplied ARGB)
+      const float above = s->ground ? s->ground->Above(p) : wp.z();
+      float& t = top[static_cast<size_t>(y) * w + x];
+      t = std::max(t, above);
     }
+  }
+  if (data) {
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        const float t = top[static_cast<size_t>(y) * w + x];
+        if (!std::isfinite(t)) continue;
+        uint32_t rgb;
+        if (t < 0.05f) {
+          rgb = 0xC8D2DCu;  // floor
+        } else {
+          const int g = static_cast<int>(std::lround(150.0 - 120.0 * std::clamp(double(t) / 2.0, 0.0, 1.0)));
+          rgb = (uint32_t(g) << 16) | (uint32_t(g) << 8) | uint32_t(g);
+        }
+        reinterpret_cast<uint32_t*>(data + static_cast<size_t>(y) * stride)[x] = 0xFF000000u | rgb;
+      }
   }
   cairo_surface_mark_dirty(img.get());
   return img;
@@ -140,7 +152,7 @@ void DrawGrid(cairo_t* cr, const VoteGrid& g, Rgb c, const View& v) {
     for (int ix = 0; ix < g.width; ++ix) {
       const float value = g.values[static_cast<size_t>(iy) * g.width + ix];
       if (!(value > kVisible * vmax)) continue;
-      const double a = 0.75 * std::sqrt(value / vmax);
+      const double a = 0.45 * std::sqrt(value / vmax);
       auto ch = [&](double x) { return static_cast<uint32_t>(std::lround(255.0 * x * a)); };
       reinterpret_cast<uint32_t*>(data + static_cast<size_t>(iy) * stride)[ix] =
           (static_cast<uint32_t>(std::lround(255.0 * a)) << 24) | (ch(c.r) << 16) | (ch(c.g) << 8) | ch(c.b);
@@ -179,10 +191,6 @@ void Draw(cairo_t* cr, const std::vector<const Scan*>& scans, const VoteResult& 
   cairo_save(cr);
   cairo_rectangle(cr, v.margin, v.margin, v.PlotWidth(), v.PlotHeight());
   cairo_clip(cr);
-  SurfacePtr points = PointsRaster(scans, v);
-  cairo_set_source_surface(cr, points.get(), v.margin, v.margin);
-  cairo_paint(cr);
-
   std::vector<std::string> classes;
   auto note_class = [&](const std::string& c) {
     if (std::find(classes.begin(), classes.end(), c) == classes.end()) classes.push_back(c);
@@ -191,6 +199,10 @@ void Draw(cairo_t* cr, const std::vector<const Scan*>& scans, const VoteResult& 
     DrawGrid(cr, g, colours.Of(g.cls), v);
     note_class(g.cls);
   }
+  // The scan over the vote densities, so it stays readable where many classes voted.
+  SurfacePtr points = PointsRaster(scans, v);
+  cairo_set_source_surface(cr, points.get(), v.margin, v.margin);
+  cairo_paint(cr);
 
   float max_score = 0.f;
   for (const auto& h : votes.hypotheses) max_score = std::max(max_score, h.score);
@@ -220,10 +232,21 @@ void Draw(cairo_t* cr, const std::vector<const Scan*>& scans, const VoteResult& 
     cairo_set_dash(cr, dash, rejected ? 2 : 0, 0);
     cairo_stroke(cr);
     cairo_set_dash(cr, nullptr, 0, 0);
-    char label[32];
-    std::snprintf(label, sizeof label, "%.2f", d.score);
+    // The object's box footprint, and what it is: class, fitted model, score.
+    if (d.box && !rejected) {
+      const auto corners = d.box->Corners();
+      cairo_new_path(cr);
+      for (int k = 0; k < 4; ++k) cairo_line_to(cr, v.X(corners[k].x()), v.Y(corners[k].y()));
+      cairo_close_path(cr);
+      cairo_set_source_rgb(cr, c.r * 0.7, c.g * 0.7, c.b * 0.7);
+      cairo_set_line_width(cr, 2.0);
+      cairo_stroke(cr);
+    }
+    char score[32];
+    std::snprintf(score, sizeof score, " %.2f", d.score);
+    const std::string label = rejected ? std::string(score + 1) : d.cls + (d.model.empty() ? "" : " " + d.model) + score;
     cairo_set_source_rgb(cr, 0.1, 0.1, 0.1);
-    Text(cr, x + r + 2, y + 4, label, 10);
+    Text(cr, x + r + 2, y + 4, label, rejected ? 9 : 11);
   }
 
   cairo_restore(cr);
@@ -281,11 +304,25 @@ void Draw(cairo_t* cr, const std::vector<const Scan*>& scans, const VoteResult& 
   Text(cr, lx + 20, ly, "rejected");
   ly += 18;
   cairo_rectangle(cr, lx, ly - 10, 14, 12);
-  cairo_set_source_rgb(cr, 0.745, 0.745, 0.745);
+  cairo_set_source_rgb(cr, 0.784, 0.824, 0.863);
   cairo_fill(cr);
   cairo_set_source_rgb(cr, 0, 0, 0);
-  Text(cr, lx + 20, ly, "scan points");
+  Text(cr, lx + 20, ly, "floor (< 5 cm)");
   ly += 18;
+  for (const auto& [g, what] : {std::pair{0.55, "points, low"}, std::pair{0.15, "points, 2 m up"}}) {
+    cairo_rectangle(cr, lx, ly - 10, 14, 12);
+    cairo_set_source_rgb(cr, g, g, g);
+    cairo_fill(cr);
+    cairo_set_source_rgb(cr, 0, 0, 0);
+    Text(cr, lx + 20, ly, what);
+    ly += 18;
+  }
+  for (const Scan* s : scans)
+    if (s && s->ground) {
+      Text(cr, lx, ly + 4, std::string("ground: ") + ToString(s->ground->kind) + " (" + s->ground->source + ")", 10);
+      ly += 16;
+      break;
+    }
   Text(cr, lx, ly + 6, "circle area ~ score", 10);
 }
 

@@ -236,8 +236,9 @@ GraphConfig ValidateGraph(const std::string& path, const nlohmann::json& config,
     switch (k) {
       case StageKind::Sensor: return {};
       case StageKind::Segmenter: return {StageKind::Sensor};
+      case StageKind::Proposer: return {StageKind::Segmenter, StageKind::Sensor};
       case StageKind::Features: return {StageKind::Segmenter};
-      case StageKind::Voter: return {StageKind::Features};
+      case StageKind::Voter: return {StageKind::Features, StageKind::Proposer};
       case StageKind::Fitter: return {StageKind::Voter, StageKind::Fitter};
     }
     return {};
@@ -246,9 +247,27 @@ GraphConfig ValidateGraph(const std::string& path, const nlohmann::json& config,
     const std::string at = w + s.pointer + "/inputs";
     auto want = expected_input(s.kind);
     if (want.empty() && !s.inputs.empty()) throw InputError(at + ": a sensor takes no inputs");
-    if (!want.empty() && s.inputs.size() != 1)
-      throw InputError(at + ": a " + std::string(ToString(s.kind)) + " takes exactly one input (a " +
-                       ToString(want.front()) + (want.size() > 1 ? " or a fitter" : "") + " stage)");
+    // A voter takes its features and, optionally, the proposals it recognises.
+    const size_t most = s.kind == StageKind::Voter ? 2 : 1;
+    if (!want.empty() && (s.inputs.empty() || s.inputs.size() > most))
+      throw InputError(at + ": a " + std::string(ToString(s.kind)) + " takes " +
+                       (most > 1 ? "a features stage and optionally a proposer" :
+                        std::string("exactly one input (a ") + ToString(want.front()) +
+                            (want.size() > 1 ? std::string(" or a ") + ToString(want[1]) : std::string()) + " stage)"));
+    if (s.kind == StageKind::Voter) {
+      int features = 0, proposers = 0, unknown = 0;
+      for (const auto& in : s.inputs) {
+        auto it = by_tag.find(in);
+        if (it == by_tag.end()) {
+          ++unknown;  // named below
+          continue;
+        }
+        features += it->second.kind == StageKind::Features;
+        proposers += it->second.kind == StageKind::Proposer;
+      }
+      if (!unknown && (features != 1 || proposers > 1))
+        throw InputError(at + ": a voter takes one features stage and at most one proposer");
+    }
     for (size_t i = 0; i < s.inputs.size(); ++i) {
       auto in = by_tag.find(s.inputs[i]);
       if (in == by_tag.end()) {
@@ -303,7 +322,7 @@ GraphConfig ValidateGraph(const std::string& path, const nlohmann::json& config,
   }
 
   // The detection chain must be a single line: one of each kind up to the voter, then fitters.
-  for (StageKind k : {StageKind::Sensor, StageKind::Segmenter, StageKind::Features, StageKind::Voter}) {
+  for (StageKind k : {StageKind::Sensor, StageKind::Segmenter, StageKind::Proposer, StageKind::Features, StageKind::Voter}) {
     auto all = g.AllOfKind(k);
     if (all.size() > 1)
       throw InputError(w + "/stages: more than one " + std::string(ToString(k)) + " stage (" + all[0]->tag + ", " +

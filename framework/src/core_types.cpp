@@ -11,6 +11,7 @@ StageError::~StageError() = default;
 Stage::~Stage() = default;
 Sensor::~Sensor() = default;
 Segmenter::~Segmenter() = default;
+Proposer::~Proposer() = default;
 Features::~Features() = default;
 Voter::~Voter() = default;
 Fitter::~Fitter() = default;
@@ -25,6 +26,7 @@ const char* ToString(StageKind k) {
   switch (k) {
     case StageKind::Sensor: return "sensor";
     case StageKind::Segmenter: return "segmenter";
+    case StageKind::Proposer: return "proposer";
     case StageKind::Features: return "features";
     case StageKind::Voter: return "voter";
     case StageKind::Fitter: return "fitter";
@@ -38,6 +40,7 @@ std::optional<StageKind> KindFromTypeName(const std::string& type) {
   const std::string prefix = type.substr(0, dot);
   if (prefix == "sensors") return StageKind::Sensor;
   if (prefix == "segmenters") return StageKind::Segmenter;
+  if (prefix == "proposals") return StageKind::Proposer;
   if (prefix == "features") return StageKind::Features;
   if (prefix == "voters") return StageKind::Voter;
   if (prefix == "fitters") return StageKind::Fitter;

@@ -164,6 +164,7 @@ Pipeline::Pipeline(const GraphConfig& graph, const Registry& registry) : graph_(
   input_cfg_ = graph_.FirstOfKind(StageKind::Sensor);
   train_cfg_ = graph_.training_sensor.empty() ? nullptr : graph_.Find(graph_.training_sensor);
   seg_cfg_ = graph_.FirstOfKind(StageKind::Segmenter);
+  prop_cfg_ = graph_.FirstOfKind(StageKind::Proposer);
   feat_cfg_ = graph_.FirstOfKind(StageKind::Features);
   voter_cfg_ = graph_.FirstOfKind(StageKind::Voter);
   // Fitters in chain order (the graph's stages are topologically sorted).
@@ -172,6 +173,7 @@ Pipeline::Pipeline(const GraphConfig& graph, const Registry& registry) : graph_(
   if (input_cfg_) input_ = std::dynamic_pointer_cast<Sensor>(make(input_cfg_));
   if (train_cfg_) training_ = std::dynamic_pointer_cast<Sensor>(make(train_cfg_));
   if (seg_cfg_) segmenter_ = std::dynamic_pointer_cast<Segmenter>(make(seg_cfg_));
+  if (prop_cfg_) proposer_ = std::dynamic_pointer_cast<Proposer>(make(prop_cfg_));
   if (feat_cfg_) features_ = std::dynamic_pointer_cast<Features>(make(feat_cfg_));
   if (voter_cfg_) voter_ = std::dynamic_pointer_cast<Voter>(make(voter_cfg_));
   for (const auto* f : fitter_cfgs_) fitters_.push_back(std::dynamic_pointer_cast<Fitter>(make(f)));
@@ -308,6 +310,15 @@ Pipeline::Result Pipeline::Detect(const std::vector<SceneInput>& scenes, const T
     spdlog::info("{}: {} points -> {} parts ({} points discarded)", scan.source, scan.points.size(),
                  r.segmentations.back().parts.size(), r.segmentations.back().discarded_points);
   }
+  if (proposer_) {
+    for (size_t i = 0; i < r.scans.size(); ++i) {
+      Stopwatch sw;
+      r.proposals.push_back(Call(*prop_cfg_, [&] { return proposer_->Propose(r.scans[i], &r.segmentations[i], ctx); }));
+      timed(prop_cfg_->tag, sw.Ms());
+      spdlog::info("{}: {} proposals (spacing {:.3f} m)", r.scans[i].source, r.proposals.back().items.size(),
+                   r.proposals.back().spacing);
+    }
+  }
   if (!features_) return r;
   for (size_t i = 0; i < r.scans.size(); ++i) {
     Stopwatch sw;
@@ -333,7 +344,8 @@ Pipeline::Result Pipeline::Detect(const std::vector<SceneInput>& scenes, const T
     loaded_model_id_ = id;
   }
   std::vector<SceneParts> parts;
-  for (size_t i = 0; i < r.scans.size(); ++i) parts.push_back({&r.scans[i], &r.segmentations[i], &r.features[i]});
+  for (size_t i = 0; i < r.scans.size(); ++i)
+    parts.push_back({&r.scans[i], &r.segmentations[i], &r.features[i], i < r.proposals.size() ? &r.proposals[i] : nullptr});
   Stopwatch sv;
   r.votes = Call(*voter_cfg_, [&] { return voter_->Vote(parts, ctx); });
   timed(voter_cfg_->tag, sv.Ms());
@@ -348,6 +360,8 @@ Pipeline::Result Pipeline::Detect(const std::vector<SceneInput>& scenes, const T
     d.center = h.center;
     d.score = h.score;
     d.support = h.support;
+    d.proposal = h.proposal;
+    d.proposal_scene = h.scene;
     if (h.box) {
       d.box = h.box;
       d.box_source = "voter";

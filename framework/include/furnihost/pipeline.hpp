@@ -61,6 +61,7 @@ class FURNIHOST_API Pipeline {
   struct Result {
     std::vector<Scan> scans;
     std::vector<Segmentation> segmentations;
+    std::vector<Proposals> proposals;     // one per scan when the graph has a proposer
     std::vector<FeatureMatrix> features;  // normalised when a model was given
     size_t clamped_features = 0;
     VoteResult votes;
@@ -80,10 +81,11 @@ class FURNIHOST_API Pipeline {
  private:
   GraphConfig graph_;
   const StageConfig *input_cfg_ = nullptr, *train_cfg_ = nullptr, *seg_cfg_ = nullptr,
-                    *feat_cfg_ = nullptr, *voter_cfg_ = nullptr;
+                    *prop_cfg_ = nullptr, *feat_cfg_ = nullptr, *voter_cfg_ = nullptr;
   std::vector<const StageConfig*> fitter_cfgs_;
   std::shared_ptr<Sensor> input_, training_;
   std::shared_ptr<Segmenter> segmenter_;
+  std::shared_ptr<Proposer> proposer_;
   std::shared_ptr<Features> features_;
   std::shared_ptr<Voter> voter_;
   std::vector<std::shared_ptr<Fitter>> fitters_;

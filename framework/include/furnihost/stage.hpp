@@ -13,9 +13,10 @@
 
 namespace furnihost {
 
-enum class StageKind { Sensor, Segmenter, Features, Voter, Fitter };
+enum class StageKind { Sensor, Segmenter, Features, Voter, Fitter, Proposer };
 FURNIHOST_API const char* ToString(StageKind k);  // "sensor", ...
-FURNIHOST_API std::optional<StageKind> KindFromTypeName(const std::string& type);  // "segmenters.x" -> Segmenter
+FURNIHOST_API std::optional<StageKind> KindFromTypeName(const std::string& type);  // "segmenters.x" -> Segmenter,
+                                                                                   // "proposals.x" -> Proposer
 
 // Run-wide facts every stage may read.
 struct RunContext {
@@ -63,6 +64,19 @@ class FURNIHOST_API Segmenter : public Stage {
   ~Segmenter() override;
   StageKind Kind() const override { return StageKind::Segmenter; }
   virtual Segmentation Segment(const Scan& scan, const RunContext& ctx) = 0;
+};
+
+// ---- proposer --------------------------------------------------------------------------
+// Object proposals: clusters of scan points that may each be one piece of furniture (the
+// floor, walls and ceiling removed), with their boxes; the parts of the segmentation (when the
+// graph has a segmenter) that lie in each. Voters that recognise whole objects read them from
+// SceneParts::proposals.
+class FURNIHOST_API Proposer : public Stage {
+ public:
+  ~Proposer() override;
+  StageKind Kind() const override { return StageKind::Proposer; }
+  // `seg` may be null (a graph whose proposer takes the sensor directly).
+  virtual Proposals Propose(const Scan& scan, const Segmentation* seg, const RunContext& ctx) = 0;
 };
 
 // ---- features --------------------------------------------------------------------------

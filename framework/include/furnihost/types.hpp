@@ -119,6 +119,25 @@ struct Segmentation {
   int discarded_points = 0;  // points in parts that stayed too small
 };
 
+// One object proposal: scan points that may be one piece of furniture (working frame).
+struct Proposal {
+  std::vector<int> indices;   // into Scan::points
+  Eigen::AlignedBox3f box;    // of the points, its bottom lowered to the ground where the object
+                              // reaches within a few centimetres of it (floor contacts are not scanned)
+  float ground_z = 0.f;       // ground height under the box centre
+  std::vector<int> parts;     // segmentation parts with most of their points in the proposal
+  // Proposals of one cluster (several radii, cuts, splits) share a group: alternatives for
+  // the same points, of which a recogniser keeps the best per class.
+  int group = -1;
+  std::string how;            // how it was made, e.g. "r2.5" (radius 2.5 spacings), "split", "cut"
+};
+
+struct Proposals {
+  std::vector<Proposal> items;
+  float spacing = 0.f;              // the scan's median point spacing [m]
+  std::vector<uint8_t> removed;     // per scan point: 1 = wall / ceiling, 2 = floor (empty = none)
+};
+
 // Features of the parts of one segmentation: rows = parts, columns = feature dimensions.
 struct FeatureMatrix {
   Eigen::MatrixXf values;
@@ -134,6 +153,7 @@ struct SceneParts {
   const Scan* scan = nullptr;
   const Segmentation* segmentation = nullptr;
   const FeatureMatrix* features = nullptr;  // normalised to [0, 1]
+  const Proposals* proposals = nullptr;     // when the graph has a proposer
 };
 
 // A training view: one simulated scan of one catalog model, segmented and described.
@@ -195,6 +215,8 @@ struct Hypothesis {
   float score = 0.f;
   std::vector<Support> support;
   std::optional<OrientedBox> box;  // when the voter knows the object's extent (e.g. from a proposal)
+  int proposal = -1;               // index into the scene's Proposals::items, when made from one
+  int scene = 0;                   // which scene's proposal
 };
 
 struct VoteResult {
@@ -225,6 +247,7 @@ struct Detection {
   // typical catalog size standing on the ground at the centre ("class_size"), or a stage's own.
   std::optional<OrientedBox> box;
   std::string box_source;
+  int proposal = -1, proposal_scene = 0;  // the proposal it was made from (Hypothesis::proposal)
 };
 
 }  // namespace furnihost
