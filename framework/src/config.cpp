@@ -247,11 +247,11 @@ GraphConfig ValidateGraph(const std::string& path, const nlohmann::json& config,
     const std::string at = w + s.pointer + "/inputs";
     auto want = expected_input(s.kind);
     if (want.empty() && !s.inputs.empty()) throw InputError(at + ": a sensor takes no inputs");
-    // A voter takes its features and, optionally, the proposals it recognises.
+    // A voter takes part features, the proposals it recognises, or both.
     const size_t most = s.kind == StageKind::Voter ? 2 : 1;
     if (!want.empty() && (s.inputs.empty() || s.inputs.size() > most))
       throw InputError(at + ": a " + std::string(ToString(s.kind)) + " takes " +
-                       (most > 1 ? "a features stage and optionally a proposer" :
+                       (most > 1 ? "a features stage, a proposer, or one of each" :
                         std::string("exactly one input (a ") + ToString(want.front()) +
                             (want.size() > 1 ? std::string(" or a ") + ToString(want[1]) : std::string()) + " stage)"));
     if (s.kind == StageKind::Voter) {
@@ -265,8 +265,8 @@ GraphConfig ValidateGraph(const std::string& path, const nlohmann::json& config,
         features += it->second.kind == StageKind::Features;
         proposers += it->second.kind == StageKind::Proposer;
       }
-      if (!unknown && (features != 1 || proposers > 1))
-        throw InputError(at + ": a voter takes one features stage and at most one proposer");
+      if (!unknown && (features > 1 || proposers > 1))
+        throw InputError(at + ": a voter takes at most one features stage and at most one proposer");
     }
     for (size_t i = 0; i < s.inputs.size(); ++i) {
       auto in = by_tag.find(s.inputs[i]);

@@ -1,6 +1,7 @@
 #include "furnihost/geometry.hpp"
 
 #include <Eigen/Dense>
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <random>
@@ -53,6 +54,55 @@ Points VoxelDownsample(const Points& points, float voxel, std::vector<int>* kept
   Points out(sum.size());
   for (size_t s = 0; s < sum.size(); ++s) out[s] = (sum[s] / count[s]).cast<float>();
   if (kept) *kept = std::move(first);
+  return out;
+}
+
+VoxelNormals EstimateVoxelNormals(const Points& points, float voxel) {
+  VoxelNormals out;
+  std::unordered_map<uint64_t, int> slot;
+  slot.reserve(points.size() / 4 + 16);
+  std::vector<Eigen::Vector3d> sum;
+  std::vector<int> count;
+  out.voxel_of.resize(points.size());
+  for (size_t i = 0; i < points.size(); ++i) {
+    auto [it, fresh] = slot.try_emplace(VoxelKey(points[i], voxel), int(sum.size()));
+    if (fresh) {
+      sum.emplace_back(Eigen::Vector3d::Zero());
+      count.push_back(0);
+    }
+    sum[it->second] += points[i].cast<double>();
+    ++count[it->second];
+    out.voxel_of[i] = it->second;
+  }
+  const size_t n = sum.size();
+  out.centroids.resize(n);
+  for (size_t v = 0; v < n; ++v) out.centroids[v] = (sum[v] / count[v]).cast<float>();
+  out.normals.assign(n, Eigen::Vector3f::UnitZ());
+  out.flat.assign(n, 0);
+  for (size_t v = 0; v < n; ++v) {
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    int k = 0;
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          auto it = slot.find(VoxelKey(out.centroids[v], voxel, dx, dy, dz));
+          if (it == slot.end()) continue;
+          const Eigen::Vector3d p = out.centroids[size_t(it->second)].cast<double>();
+          mean += p;
+          cov += p * p.transpose();
+          ++k;
+        }
+    if (k < 5) continue;
+    mean /= k;
+    cov = cov / k - mean * mean.transpose();
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
+    const Eigen::Vector3d ev = es.eigenvalues();
+    const Eigen::Vector3d nrm = es.eigenvectors().col(0);
+    if (!nrm.allFinite()) continue;
+    out.normals[v] = nrm.cast<float>();
+    out.flat[v] = ev[0] < 0.05 * ev[1];
+  }
   return out;
 }
 

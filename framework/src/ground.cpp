@@ -1,5 +1,7 @@
 #include "furnihost/ground.hpp"
 
+#include "furnihost/geometry.hpp"
+
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
@@ -211,13 +213,52 @@ FloorPlane EstimatePlane(const Points& points) {
 namespace {
 
 constexpr float kSlice = 0.02f;       // height slice of a floor cell [m]
-constexpr float kMaxDrop = 0.5f;      // floor parts looked for below the level estimate [m]
-constexpr float kMaxRise = 0.6f;      // ... and above it (warped reconstructions rise 0.4 m)
+constexpr float kMaxRise = 0.7f;      // floor parts looked for above the lowest points (warps rise 0.4 m)
 constexpr int kMaxCells = 1 << 20;    // grid size cap (the cell grows for huge scans)
+constexpr float kNormalVoxel = 0.05f; // voxel of the coarse normals that tell horizontal surfaces
 
-// The height map of `w` (finite points) seeded at the level `z0`; nullopt when too little
-// floor is seen.
-std::optional<GroundModel> HeightMap(const Points& w, float z0, const GroundOptions& o) {
+// The floor seed: the lowest extensive horizontal level. Over the horizontal points' heights
+// (2 cm bins from the lowest points up), the first bin holding 15 % of the densest one, moved
+// to the densest bin within 6 cm above it. Not the densest level itself: in a bedroom view the
+// bed's top can hold more points than the floor around it.
+float LowestLevel(const std::vector<float>& z, float lo) {
+  std::vector<int> hist(size_t(kMaxRise / kSlice) + 6, 0);
+  for (float v : z) {
+    const int b = int((v - lo) / kSlice);
+    if (b >= 0 && b < int(hist.size())) ++hist[size_t(b)];
+  }
+  const int top = *std::max_element(hist.begin(), hist.end());
+  size_t b = 0;
+  while (b < hist.size() && hist[b] < 0.15 * top) ++b;
+  size_t best = b;
+  for (size_t k = b; k < std::min(hist.size(), b + 4); ++k)
+    if (hist[k] > hist[best]) best = k;
+  return lo + (float(best) + 0.5f) * kSlice;
+}
+
+// The height map of `w` (finite points); nullopt when too little floor is seen.
+std::optional<GroundModel> HeightMap(const Points& w, const GroundOptions& o) {
+  // Horizontal surfaces (coarse voxel normals within 25 deg of vertical) near the bottom of the
+  // scan: the floor candidates. Walls and furniture sides do not count, so a cell's floor is
+  // not pulled up by the wall standing in it.
+  const VoxelNormals vn = EstimateVoxelNormals(w, kNormalVoxel);
+  std::vector<float> all_z;
+  all_z.reserve(w.size());
+  for (const auto& p : w) all_z.push_back(p.z());
+  const size_t k1 = all_z.size() / 100;
+  std::nth_element(all_z.begin(), all_z.begin() + k1, all_z.end());
+  const float z1 = all_z[k1];
+  std::vector<uint32_t> cand;
+  std::vector<float> cand_z;
+  for (size_t i = 0; i < w.size(); ++i) {
+    const int v = vn.voxel_of[i];
+    if (std::abs(vn.normals[size_t(v)].z()) <= 0.9f || w[i].z() > z1 + kMaxRise || w[i].z() < z1 - 0.1f) continue;
+    cand.push_back(uint32_t(i));
+    cand_z.push_back(w[i].z());
+  }
+  if (cand.size() < 10) return std::nullopt;
+  const float z0 = LowestLevel(cand_z, z1 - 0.1f);
+
   Eigen::Vector2f lo(INFINITY, INFINITY), hi(-INFINITY, -INFINITY);
   for (const auto& p : w) {
     lo = lo.cwiseMin(p.head<2>());
@@ -228,67 +269,38 @@ std::optional<GroundModel> HeightMap(const Points& w, float z0, const GroundOpti
   while (double(ext.x() / cell + 1) * double(ext.y() / cell + 1) > kMaxCells) cell *= 2.f;
   const int W = int(ext.x() / cell) + 1, H = int(ext.y() / cell) + 1;
   const size_t cells = size_t(W) * size_t(H);
-  // Band points bucketed by cell (counting sort), each cell's heights then sorted: linear in
-  // the points apart from the per-cell sorts of a few dozen values.
+  // Candidates bucketed by cell (counting sort); each cell's floor is the 20th percentile of
+  // its candidates' heights (at least 3): low noise and a few points under the floor do not
+  // set it, a seat above part of the cell does not either.
   std::vector<uint32_t> start(cells + 1, 0);
-  std::vector<uint32_t> cell_of;
-  cell_of.reserve(w.size());
-  auto cell_index = [&](const Eigen::Vector3f& p) {
+  std::vector<uint32_t> cell_of(cand.size());
+  for (size_t k = 0; k < cand.size(); ++k) {
+    const Eigen::Vector3f& p = w[cand[k]];
     const int ix = std::min(W - 1, int((p.x() - lo.x()) / cell));
     const int iy = std::min(H - 1, int((p.y() - lo.y()) / cell));
-    return uint32_t(size_t(iy) * size_t(W) + size_t(ix));
-  };
-  std::vector<float> band;
-  for (const auto& p : w) {
-    if (p.z() < z0 - kMaxDrop || p.z() > z0 + kMaxRise) continue;
-    const uint32_t c = cell_index(p);
-    cell_of.push_back(c);
-    band.push_back(p.z());
-    ++start[c + 1];
+    cell_of[k] = uint32_t(size_t(iy) * size_t(W) + size_t(ix));
+    ++start[cell_of[k] + 1];
   }
   for (size_t c = 0; c < cells; ++c) start[c + 1] += start[c];
-  std::vector<float> z(band.size());
+  std::vector<float> z(cand.size());
   {
     std::vector<uint32_t> fill(start.begin(), start.end() - 1);
-    for (size_t i = 0; i < band.size(); ++i) z[fill[cell_of[i]]++] = band[i];
+    for (size_t k = 0; k < cand.size(); ++k) z[fill[cell_of[k]]++] = cand_z[k];
   }
-  // Per cell: the lowest 2 cm window with at least `need` points. `need` comes from the floor
-  // itself: the median count of the cells' densest window at the level estimate.
-  std::vector<float> level_count;
-  for (size_t c = 0; c < cells; ++c) {
-    auto b = z.begin() + start[c], e = z.begin() + start[c + 1];
-    std::sort(b, e);
-    const auto l = std::lower_bound(b, e, z0 - kSlice), u = std::upper_bound(b, e, z0 + kSlice);
-    if (u - l >= 3) level_count.push_back(float(u - l));
-  }
-  if (level_count.size() < 4) return std::nullopt;
-  std::nth_element(level_count.begin(), level_count.begin() + level_count.size() / 2, level_count.end());
-  const int need = std::max(3, int(0.25f * level_count[level_count.size() / 2]));
-  // The floor of a cell: the lowest window holding `need` points, moved up (by at most one
-  // slice) to the densest window there, so range noise below the floor does not bias it low.
   std::vector<float> h(cells, NAN);
   for (size_t c = 0; c < cells; ++c) {
     const size_t b = start[c], e = start[c + 1];
-    for (size_t i = b, j = b; i < e; ++i) {
-      while (j < e && z[j] < z[i] + kSlice) ++j;
-      if (int(j - i) < need) continue;
-      size_t bi = i, bj = j;
-      for (size_t i2 = i + 1, j2 = j; i2 < e && z[i2] <= z[i] + kSlice; ++i2) {
-        while (j2 < e && z[j2] < z[i2] + kSlice) ++j2;
-        if (j2 - i2 > bj - bi) bi = i2, bj = j2;
-      }
-      double s = 0;
-      for (size_t k = bi; k < bj; ++k) s += z[k];
-      h[c] = float(s / double(bj - bi));
-      break;
-    }
+    if (e - b < 3) continue;
+    const auto at = z.begin() + long(b) + long(0.2 * double(e - b - 1));
+    std::nth_element(z.begin() + long(b), at, z.begin() + long(e));
+    h[c] = *at;
   }
-  // Flood fill from the cells at the level estimate, across steps of at most o.step (diagonal
-  // steps sqrt(2) x): follows a warped floor, stops at seats, table tops and beds.
+  // Flood fill from the cells at the seed level, across steps of at most o.step (diagonal
+  // steps 1.5 x): follows a warped floor, stops at seats, table tops and beds.
   std::vector<uint8_t> acc(cells, 0);
   std::deque<uint32_t> queue;
   for (size_t c = 0; c < cells; ++c)
-    if (std::abs(h[c] - z0) <= kSlice) {
+    if (std::abs(h[c] - z0) < 0.05f) {
       acc[c] = 1;
       queue.push_back(uint32_t(c));
     }
@@ -303,7 +315,7 @@ std::optional<GroundModel> HeightMap(const Points& w, float z0, const GroundOpti
         if ((!dx && !dy) || nx < 0 || ny < 0 || nx >= W || ny >= H) continue;
         const size_t n = size_t(ny) * size_t(W) + size_t(nx);
         if (acc[n] || !std::isfinite(h[n])) continue;
-        if (std::abs(h[n] - h[c]) > step * (dx && dy ? 1.4142f : 1.f)) continue;
+        if (!(std::abs(h[n] - h[c]) < step * (dx && dy ? 1.5f : 1.f))) continue;
         acc[n] = 1;
         queue.push_back(uint32_t(n));
       }
@@ -410,10 +422,9 @@ GroundModel EstimateGround(const Points& points, const GroundOptions& o) {
   for (const auto& p : points)
     if (p.allFinite() && p.cwiseAbs().maxCoeff() < 1e7f) w.push_back(p);
   if (w.empty()) return GroundModel::Level(0.f, "estimated");
-  const float z0 = EstimateLevelZ(w);
-  if (o.kind == "level") return GroundModel::Level(z0, "estimated");
+  if (o.kind == "level") return GroundModel::Level(EstimateLevelZ(w), "estimated");
   if (o.kind == "plane") return GroundModel::Tilted(EstimatePlane(w), "estimated");
-  if (auto hm = HeightMap(w, z0, o)) return *hm;
+  if (auto hm = HeightMap(w, o)) return *hm;
   // Too little floor for a map (a close-up view): a plane, which falls back to level itself.
   return GroundModel::Tilted(EstimatePlane(w), "estimated");
 }

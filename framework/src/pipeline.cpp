@@ -182,17 +182,21 @@ Pipeline::Pipeline(const GraphConfig& graph, const Registry& registry) : graph_(
 std::vector<std::string> Pipeline::MissingStages() const {
   std::vector<std::string> m;
   if (!input_) m.push_back("sensor (scan reader)");
-  if (!segmenter_) m.push_back("segmenter");
-  if (!features_) m.push_back("features");
+  // A recogniser of proposals needs neither part features nor a fitter to decide.
+  const bool recogniser = proposer_ && voter_;
+  if (!segmenter_ && !recogniser) m.push_back("segmenter");
+  if (!features_ && !recogniser) m.push_back("features");
   if (!voter_) m.push_back("voter");
-  if (fitters_.empty()) m.push_back("fitter");
+  if (fitters_.empty() && !recogniser) m.push_back("fitter");
   return m;
 }
 
 TrainedModel Pipeline::Train(const Catalog& catalog, const RunContext& ctx) {
   if (!training_) throw InputError(graph_.path + ":/training/sensor: the graph names no training sensor");
-  if (!segmenter_ || !features_ || !voter_)
-    throw InputError(graph_.path + ": training needs a segmenter, a features and a voter stage");
+  if (!voter_) throw InputError(graph_.path + ": training needs a voter stage");
+  // A voter of part features needs the parts of every view; a recogniser of whole proposals
+  // (no features stage in the graph) learns from the views' points alone.
+  if (features_ && !segmenter_) throw InputError(graph_.path + ": a features stage needs a segmenter");
   if (catalog.models.empty()) throw InputError(catalog.path + ": no usable models to train from");
   std::vector<TrainingView> views;
   double t_sim = 0, t_seg = 0, t_feat = 0;
@@ -211,16 +215,19 @@ TrainedModel Pipeline::Train(const Catalog& catalog, const RunContext& ctx) {
       tv.model_id = model.id;
       tv.view = static_cast<int>(v);
       tv.object_size = model.size;
+      tv.model = &model;
       tv.scan = std::move(scans[v]);
       Eigen::Vector3d c = Eigen::Vector3d::Zero();
       for (const auto& p : tv.scan.points) c += p.cast<double>();
       tv.object_centroid = (c / static_cast<double>(tv.scan.points.size())).cast<float>();
-      Stopwatch s2;
-      tv.segmentation = Call(*seg_cfg_, [&] { return segmenter_->Segment(tv.scan, ctx); });
-      t_seg += s2.Ms();
-      Stopwatch s3;
-      tv.features = Call(*feat_cfg_, [&] { return features_->Compute(tv.scan, tv.segmentation, ctx); });
-      t_feat += s3.Ms();
+      if (features_) {
+        Stopwatch s2;
+        tv.segmentation = Call(*seg_cfg_, [&] { return segmenter_->Segment(tv.scan, ctx); });
+        t_seg += s2.Ms();
+        Stopwatch s3;
+        tv.features = Call(*feat_cfg_, [&] { return features_->Compute(tv.scan, tv.segmentation, ctx); });
+        t_feat += s3.Ms();
+      }
       if (tv.features.values.rows() != static_cast<Eigen::Index>(tv.segmentation.parts.size()))
         throw StageError("stage '" + feat_cfg_->tag + "': returned " + std::to_string(tv.features.values.rows()) +
                          " rows for " + std::to_string(tv.segmentation.parts.size()) + " parts", false);
@@ -234,9 +241,11 @@ TrainedModel Pipeline::Train(const Catalog& catalog, const RunContext& ctx) {
   std::vector<const FeatureMatrix*> fm;
   for (const auto& v : views) fm.push_back(&v.features);
   TrainedModel m;
-  m.normaliser = Normaliser::Fit(fm);
-  if (m.normaliser.min.size() == 0) throw StageError("training produced no parts: check the segmenter parameters", true);
-  for (auto& v : views) m.normaliser.Apply(v.features);
+  if (features_) {
+    m.normaliser = Normaliser::Fit(fm);
+    if (m.normaliser.min.size() == 0) throw StageError("training produced no parts: check the segmenter parameters", true);
+    for (auto& v : views) m.normaliser.Apply(v.features);
+  }
   Stopwatch sv;
   m.voter_model = Call(*voter_cfg_, [&] { return voter_->Train(views, ctx); });
   const double t_vote = sv.Ms();
@@ -302,8 +311,9 @@ Pipeline::Result Pipeline::Detect(const std::vector<SceneInput>& scenes, const T
       r.scans.push_back(std::move(s));
     }
   }
-  if (!segmenter_) return r;
+  if (!segmenter_ && !proposer_) return r;
   for (const auto& scan : r.scans) {
+    if (!segmenter_) break;
     Stopwatch sw;
     r.segmentations.push_back(Call(*seg_cfg_, [&] { return segmenter_->Segment(scan, ctx); }));
     timed(seg_cfg_->tag, sw.Ms());
@@ -313,14 +323,15 @@ Pipeline::Result Pipeline::Detect(const std::vector<SceneInput>& scenes, const T
   if (proposer_) {
     for (size_t i = 0; i < r.scans.size(); ++i) {
       Stopwatch sw;
-      r.proposals.push_back(Call(*prop_cfg_, [&] { return proposer_->Propose(r.scans[i], &r.segmentations[i], ctx); }));
+      const Segmentation* seg = i < r.segmentations.size() ? &r.segmentations[i] : nullptr;
+      r.proposals.push_back(Call(*prop_cfg_, [&] { return proposer_->Propose(r.scans[i], seg, ctx); }));
       timed(prop_cfg_->tag, sw.Ms());
       spdlog::info("{}: {} proposals (spacing {:.3f} m)", r.scans[i].source, r.proposals.back().items.size(),
                    r.proposals.back().spacing);
     }
   }
-  if (!features_) return r;
-  for (size_t i = 0; i < r.scans.size(); ++i) {
+  if (!features_ && !(proposer_ && voter_)) return r;
+  for (size_t i = 0; i < r.scans.size() && features_; ++i) {
     Stopwatch sw;
     r.features.push_back(Call(*feat_cfg_, [&] { return features_->Compute(r.scans[i], r.segmentations[i], ctx); }));
     timed(feat_cfg_->tag, sw.Ms());
@@ -345,7 +356,8 @@ Pipeline::Result Pipeline::Detect(const std::vector<SceneInput>& scenes, const T
   }
   std::vector<SceneParts> parts;
   for (size_t i = 0; i < r.scans.size(); ++i)
-    parts.push_back({&r.scans[i], &r.segmentations[i], &r.features[i], i < r.proposals.size() ? &r.proposals[i] : nullptr});
+    parts.push_back({&r.scans[i], i < r.segmentations.size() ? &r.segmentations[i] : nullptr,
+                     i < r.features.size() ? &r.features[i] : nullptr, i < r.proposals.size() ? &r.proposals[i] : nullptr});
   Stopwatch sv;
   r.votes = Call(*voter_cfg_, [&] { return voter_->Vote(parts, ctx); });
   timed(voter_cfg_->tag, sv.Ms());
@@ -362,6 +374,13 @@ Pipeline::Result Pipeline::Detect(const std::vector<SceneInput>& scenes, const T
     d.support = h.support;
     d.proposal = h.proposal;
     d.proposal_scene = h.scene;
+    d.model = h.model;
+    if (h.model_pose) d.model_pose = *h.model_pose;
+    if (h.accepted) {
+      d.verified = *h.accepted;
+      d.rejection = h.rejection;
+      r.fitted = true;  // decided: the eval counts accepted detections as verified
+    }
     if (h.box) {
       d.box = h.box;
       d.box_source = "voter";

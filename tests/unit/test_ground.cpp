@@ -53,14 +53,14 @@ GroundOptions Kind(const std::string& k) {
 
 }  // namespace
 
-// A level floor 1.3 m below the origin (a camera's frame): every kind finds it within a
-// centimetre, table and box tops are well above it, and a fixed ground is taken as given.
+// A level floor 1.3 m below the origin (a camera's frame): every kind finds it within 1.5 cm
+// (1 cm range noise; the height map takes a cell's low 20th percentile), table and box tops are well above it, and a fixed ground is taken as given.
 TEST(Ground, LevelFloorBelowTheOrigin) {
   const Points room = Room([](float, float) { return -1.3f; });
   for (const char* k : {"auto", "level", "plane", "height_map"}) {
     const GroundModel g = EstimateGround(room, Kind(k));
     for (float x : {0.5f, 2.5f, 3.7f, 4.8f})
-      for (float y : {0.3f, 2.7f, 3.8f}) EXPECT_NEAR(g.HeightAt(x, y), -1.3f, 0.01f) << k << " " << x << "," << y;
+      for (float y : {0.3f, 2.7f, 3.8f}) EXPECT_NEAR(g.HeightAt(x, y), -1.3f, 0.015f) << k << " " << x << "," << y;
     EXPECT_NEAR(g.Above(Eigen::Vector3f(1.5f, 1.5f, -0.55f)), 0.75f, 0.01f) << k;
     EXPECT_EQ(g.source, "estimated");
   }
@@ -181,7 +181,7 @@ TEST(Frame, WorkingFrameOfAnOpticalScan) {
   FrameOptions up;
   up.up = "-y";
   ToWorkingFrame(a, up);
-  EXPECT_NEAR(EstimateGround(a.points, Kind("auto")).HeightAt(2, 2), -1.4f, 0.01f);
+  EXPECT_NEAR(EstimateGround(a.points, Kind("auto")).HeightAt(2, 2), -1.4f, 0.02f);
   for (size_t i = 0; i < s.points.size(); i += 997)
     EXPECT_TRUE(a.frame.ToFile(a.points[i]).isApprox(s.points[i].cast<double>(), 1e-5));
   FrameOptions au;

@@ -13,6 +13,18 @@ namespace furnihost {
 // voxel <= 0: the points unchanged.
 FURNIHOST_API Points VoxelDownsample(const Points& points, float voxel, std::vector<int>* kept = nullptr);
 
+// Coarse surface normals in linear time: the points' voxel-grid centroids (edge `voxel`), each
+// with the normal (PCA, sign arbitrary) of the centroids in its 3x3x3 voxel neighbourhood, and
+// whether that neighbourhood is flat (smallest eigenvalue < 5 % of the middle one, >= 5
+// centroids). `voxel_of[i]` = the voxel of input point i. For ground and up-axis estimates,
+// where a normal per 5 cm is plenty and no stage's segmentation exists yet.
+struct VoxelNormals {
+  Points centroids, normals;
+  std::vector<uint8_t> flat;
+  std::vector<int> voxel_of;
+};
+FURNIHOST_API VoxelNormals EstimateVoxelNormals(const Points& points, float voxel);
+
 // Isometry for an upright pose: translation (x, y, z), rotation yaw [rad] about +z.
 FURNIHOST_API Eigen::Isometry3f UprightPose(float x, float y, float z, float yaw);
 

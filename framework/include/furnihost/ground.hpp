@@ -66,7 +66,7 @@ struct FURNIHOST_API GroundOptions {
   float fixed_z = 0.f;      // [m] working-frame z of the floor when kind = "fixed"
   float cell = 0.15f;       // [m] height-map cell
   float step = 0.05f;       // [m] largest floor height step between neighbouring cells
-  float min_area = 1.0f;    // [m2] observed floor below which "auto" falls back to a plane
+  float min_area = 0.2f;    // [m2] observed floor below which "auto" falls back to a plane
   // Throws InputError naming the field ("ground.kind: ...") on a bad value.
   void Check(const std::string& where) const;
 };

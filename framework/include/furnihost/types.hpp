@@ -129,13 +129,17 @@ struct Proposal {
   // Proposals of one cluster (several radii, cuts, splits) share a group: alternatives for
   // the same points, of which a recogniser keeps the best per class.
   int group = -1;
-  std::string how;            // how it was made, e.g. "r2.5" (radius 2.5 spacings), "split", "cut"
+  std::string how;            // how it was made, e.g. "all/r2.5+split2" (rule, radius in spacings, variant)
+  std::string source;         // which removal of vertical structure it comes from (the proposer's rule names)
+  // Occupied area in a shell around the box relative to the area inside it: a proposal cut out
+  // of a larger structure (a wall's leftovers, half a bed) has a high one, a free-standing object ~0.
+  float surround = 0.f;
 };
 
 struct Proposals {
   std::vector<Proposal> items;
   float spacing = 0.f;              // the scan's median point spacing [m]
-  std::vector<uint8_t> removed;     // per scan point: 1 = wall / ceiling, 2 = floor (empty = none)
+  std::vector<uint8_t> removed;     // per scan point: 1 = wall, 2 = floor (empty = not reported)
 };
 
 // Features of the parts of one segmentation: rows = parts, columns = feature dimensions.
@@ -163,6 +167,7 @@ struct TrainingView {
   int view = 0;
   Eigen::Vector3f object_centroid = Eigen::Vector3f::Zero();  // centre of mass of the view's points
   Eigen::Vector3f object_size = Eigen::Vector3f::Zero();      // catalog model extents [m]
+  const CatalogModel* model = nullptr;  // the catalog model scanned (lives as long as training)
   Scan scan;
   Segmentation segmentation;
   FeatureMatrix features;  // normalised to [0, 1]
@@ -217,6 +222,14 @@ struct Hypothesis {
   std::optional<OrientedBox> box;  // when the voter knows the object's extent (e.g. from a proposal)
   int proposal = -1;               // index into the scene's Proposals::items, when made from one
   int scene = 0;                   // which scene's proposal
+  // A recogniser that decides itself (a score against its operating threshold, no fitter
+  // needed) sets these; the pipeline copies them into Detection::verified / rejection.
+  std::optional<bool> accepted;
+  std::string rejection;
+  // The catalog model that explains the object best, and where it stands (model -> world),
+  // when the voter knows (e.g. by size and shape); no fitter has refined it.
+  std::string model;
+  std::optional<Eigen::Isometry3f> model_pose;
 };
 
 struct VoteResult {

@@ -1,0 +1,256 @@
+#include "shape/shape.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <nanoflann.hpp>
+#include <unordered_map>
+
+namespace furnihost::shape {
+
+namespace {
+struct Adaptor {
+  const Points& pts;
+  size_t kdtree_get_point_count() const { return pts.size(); }
+  float kdtree_get_pt(size_t i, size_t d) const { return pts[i][int(d)]; }
+  template <class B>
+  bool kdtree_get_bbox(B&) const { return false; }
+};
+using Tree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, Adaptor>, Adaptor, 3, uint32_t>;
+}  // namespace
+
+struct KnnIndex::Impl {
+  Adaptor adaptor;
+  Tree tree;
+  explicit Impl(const Points& p) : adaptor{p}, tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(16)) {
+    tree.buildIndex();
+  }
+};
+
+KnnIndex::KnnIndex(const Points& points) : points_(points), impl_(std::make_unique<Impl>(points)) {}
+KnnIndex::~KnnIndex() = default;
+
+void KnnIndex::Query(const Eigen::Vector3f& q, int k, std::vector<uint32_t>& index, std::vector<float>& dist2) const {
+  const size_t want = std::min<size_t>(size_t(std::max(k, 1)), points_.size());
+  index.resize(want);
+  dist2.resize(want);
+  if (want == 0) return;
+  nanoflann::KNNResultSet<float, uint32_t> rs(want);
+  rs.init(index.data(), dist2.data());
+  impl_->tree.findNeighbors(rs, q.data(), nanoflann::SearchParams());
+  index.resize(rs.size());
+  dist2.resize(rs.size());
+}
+
+LocalShape EstimateLocalShape(const KnnIndex& index, int k) {
+  const Points& pts = index.Cloud();
+  LocalShape out;
+  out.normals.assign(pts.size(), Eigen::Vector3f::UnitZ());
+  out.nn.assign(pts.size(), 0.f);
+  out.nn4.assign(pts.size(), 0.f);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, pts.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
+    std::vector<uint32_t> idx;
+    std::vector<float> d2;
+    for (size_t i = r.begin(); i != r.end(); ++i) {
+      index.Query(pts[i], k + 1, idx, d2);
+      // Distances to other points: skip the query itself (and exact duplicates count as 0).
+      std::vector<float> others;
+      bool self = false;
+      for (size_t j = 0; j < idx.size(); ++j) {
+        if (!self && idx[j] == i) {
+          self = true;
+          continue;
+        }
+        others.push_back(std::sqrt(d2[j]));
+      }
+      if (!others.empty()) out.nn[i] = others.front();
+      if (others.size() >= 4) out.nn4[i] = others[3];
+      else if (!others.empty()) out.nn4[i] = others.back();
+      if (idx.size() < 3) continue;
+      Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+      for (uint32_t j : idx) mean += pts[j].cast<double>();
+      mean /= double(idx.size());
+      Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+      for (uint32_t j : idx) {
+        const Eigen::Vector3d d = pts[j].cast<double>() - mean;
+        cov += d * d.transpose();
+      }
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
+      const Eigen::Vector3d n = es.eigenvectors().col(0);
+      if (n.allFinite()) out.normals[i] = n.cast<float>();
+    }
+  });
+  return out;
+}
+
+float MedianSpacing(const std::vector<float>& nn, size_t stride) {
+  std::vector<float> v;
+  for (size_t i = 0; i < nn.size(); i += std::max<size_t>(stride, 1))
+    if (nn[i] > 1e-6f && std::isfinite(nn[i])) v.push_back(nn[i]);
+  if (v.empty()) return 0.f;
+  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+  return v[v.size() / 2];
+}
+
+namespace {
+float Cross(const Eigen::Vector2f& o, const Eigen::Vector2f& a, const Eigen::Vector2f& b) {
+  return (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
+}
+// Convex hull (Andrew's monotone chain), counter-clockwise.
+std::vector<Eigen::Vector2f> Hull(std::vector<Eigen::Vector2f> p) {
+  std::sort(p.begin(), p.end(), [](const auto& a, const auto& b) { return a.x() != b.x() ? a.x() < b.x() : a.y() < b.y(); });
+  p.erase(std::unique(p.begin(), p.end()), p.end());
+  if (p.size() < 3) return p;
+  std::vector<Eigen::Vector2f> h(2 * p.size());
+  size_t k = 0;
+  for (size_t i = 0; i < p.size(); ++i) {
+    while (k >= 2 && Cross(h[k - 2], h[k - 1], p[i]) <= 0) --k;
+    h[k++] = p[i];
+  }
+  for (size_t i = p.size() - 1, t = k + 1; i > 0; --i) {
+    while (k >= t && Cross(h[k - 2], h[k - 1], p[i - 1]) <= 0) --k;
+    h[k++] = p[i - 1];
+  }
+  h.resize(k - 1);
+  return h;
+}
+// The value at quantile q of v (v is reordered).
+float Quantile(std::vector<float>& v, double q) {
+  const size_t k = std::min(v.size() - 1, size_t(q * double(v.size() - 1) + 0.5));
+  std::nth_element(v.begin(), v.begin() + k, v.end());
+  return v[k];
+}
+}  // namespace
+
+Footprint OrientedFootprint(const std::vector<Eigen::Vector2f>& xy) {
+  Footprint f;
+  if (xy.empty()) return f;
+  if (xy.size() < 5) {
+    Eigen::Vector2f lo = xy[0], hi = xy[0];
+    for (const auto& p : xy) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+    const Eigen::Vector2f e = hi - lo;
+    f.center = 0.5f * (lo + hi);
+    f.length = std::max(e.x(), e.y());
+    f.width = std::min(e.x(), e.y());
+    f.yaw = e.x() >= e.y() ? 0.f : float(M_PI / 2);
+    return f;
+  }
+  // Candidate directions: the hull edges' angles folded into [0, 90 deg), deduplicated to 1 mrad.
+  const std::vector<Eigen::Vector2f> h = Hull(xy);
+  std::vector<float> angles;
+  for (size_t i = 0; i < h.size(); ++i) {
+    const Eigen::Vector2f e = h[(i + 1) % h.size()] - h[i];
+    float a = std::fmod(std::atan2(e.y(), e.x()), float(M_PI / 2));
+    if (a < 0) a += float(M_PI / 2);
+    angles.push_back(std::round(a * 1000.f) / 1000.f);
+  }
+  if (angles.empty()) angles.push_back(0.f);
+  std::sort(angles.begin(), angles.end());
+  angles.erase(std::unique(angles.begin(), angles.end()), angles.end());
+  // The direction is chosen on an even subsample (at most 256 points: the trimmed extents of a
+  // few hundred points rank the directions as all of them do), the extents then taken over all.
+  const size_t stride = std::max<size_t>(1, xy.size() / 256);
+  std::vector<Eigen::Vector2f> sub;
+  for (size_t i = 0; i < xy.size(); i += stride) sub.push_back(xy[i]);
+  auto extents = [](const std::vector<Eigen::Vector2f>& pts, float a, std::vector<float>& u, std::vector<float>& v) {
+    const float c = std::cos(a), s = std::sin(a);
+    u.resize(pts.size());
+    v.resize(pts.size());
+    for (size_t i = 0; i < pts.size(); ++i) {
+      u[i] = c * pts[i].x() + s * pts[i].y();
+      v[i] = -s * pts[i].x() + c * pts[i].y();
+    }
+    return Eigen::Vector4f(Quantile(u, 0.01), Quantile(u, 0.99), Quantile(v, 0.01), Quantile(v, 0.99));
+  };
+  double best = INFINITY;
+  float best_a = 0.f;
+  std::vector<float> u, v;
+  for (float a : angles) {
+    const Eigen::Vector4f e = extents(sub, a, u, v);
+    const double area = double(e[1] - e[0]) * double(e[3] - e[2]);
+    if (area < best) best = area, best_a = a;
+  }
+  const Eigen::Vector4f e = extents(xy, best_a, u, v);
+  const float c = std::cos(best_a), s = std::sin(best_a);
+  const float uc = 0.5f * (e[0] + e[1]), vc = 0.5f * (e[2] + e[3]);
+  f.center = Eigen::Vector2f(uc * c - vc * s, uc * s + vc * c);
+  if (e[1] - e[0] >= e[3] - e[2]) {
+    f.length = e[1] - e[0], f.width = e[3] - e[2], f.yaw = best_a;
+  } else {
+    f.length = e[3] - e[2], f.width = e[1] - e[0], f.yaw = best_a + float(M_PI / 2);
+  }
+  return f;
+}
+
+Profile TopViewProfile(const std::vector<Eigen::Vector2f>& xy, const std::vector<float>& heights, float top, float cell) {
+  Profile p{};
+  if (xy.empty()) {
+    p.fill(1.f / kProfileBins);
+    return p;
+  }
+  Eigen::Vector2f lo = xy[0];
+  for (const auto& q : xy) lo = lo.cwiseMin(q);
+  std::unordered_map<uint64_t, float> column;
+  column.reserve(xy.size());
+  for (size_t i = 0; i < xy.size(); ++i) {
+    const uint64_t ix = uint64_t((xy[i].x() - lo.x()) / cell), iy = uint64_t((xy[i].y() - lo.y()) / cell);
+    const uint64_t key = (ix << 32) | (iy & 0xffffffffu);
+    auto [it, fresh] = column.try_emplace(key, heights[i]);
+    if (!fresh) it->second = std::max(it->second, heights[i]);
+  }
+  const float t = std::max(top, 1e-3f);
+  for (const auto& [key, h] : column) {
+    const float r = std::clamp(h / t, 0.f, 1.f - 1e-6f);
+    p[size_t(r * kProfileBins)] += 1.f;
+  }
+  const float n = float(column.size());
+  for (auto& v : p) v /= n;
+  return p;
+}
+
+float ProfileDistance(const Profile& a, const Profile& b) {
+  float ca = 0.f, cb = 0.f, d = 0.f;
+  for (int i = 0; i < kProfileBins; ++i) {
+    ca += a[i];
+    cb += b[i];
+    d += std::abs(ca - cb);
+  }
+  return d / kProfileBins;
+}
+
+std::vector<uint8_t> VisibleFrom(const Points& points, const Points& eyes, float pixel, float tolerance) {
+  std::vector<uint8_t> seen(points.size(), 0);
+  std::vector<float> r(points.size());
+  std::vector<int64_t> key(points.size());
+  for (const auto& e : eyes) {
+    std::unordered_map<int64_t, float> nearest;
+    nearest.reserve(points.size());
+    for (size_t i = 0; i < points.size(); ++i) {
+      const Eigen::Vector3f d = points[i] - e;
+      r[i] = d.norm();
+      if (!(r[i] > 0.f)) continue;
+      const float az = std::atan2(d.y(), d.x()), el = std::asin(std::clamp(d.z() / r[i], -1.f, 1.f));
+      key[i] = int64_t(std::floor(az / pixel)) * 100000 + int64_t(std::floor(el / pixel));
+      auto [it, fresh] = nearest.try_emplace(key[i], r[i]);
+      if (!fresh) it->second = std::min(it->second, r[i]);
+    }
+    for (size_t i = 0; i < points.size(); ++i)
+      if (r[i] > 0.f && r[i] <= nearest[key[i]] + tolerance) seen[i] = 1;
+  }
+  return seen;
+}
+
+Points EyesAround(const Eigen::Vector3f& size, float height, float distance, int n) {
+  Points eyes;
+  const float R = distance + 0.5f * std::hypot(size.x(), size.y());
+  for (int k = 0; k < n; ++k) {
+    const float a = 2.f * float(M_PI) * float(k) / float(n);
+    eyes.emplace_back(R * std::cos(a), R * std::sin(a), height);
+  }
+  return eyes;
+}
+
+}  // namespace furnihost::shape

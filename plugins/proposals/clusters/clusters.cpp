@@ -1,0 +1,664 @@
+// proposals.clusters — object proposals for real scans: the points that may be furniture
+// (above the ground, walls and ceiling removed) clustered at several radii scaled to the
+// scan's point spacing, long clusters split where two objects meet, clusters floating above
+// the ground extended down to the supports under them.
+//
+// Why each step (measured on the ScanNet dev rooms; /work figures in docs/configs.md):
+// - Radii in units of the scan's median point spacing: ScanNet's 50k-point rooms range from
+//   1.4 to 3.3 cm spacing; a fixed 5 cm radius shatters the sparse ones.
+// - Walls: every large vertical plane ("all" rule: > 1 m tall and > 0.8 m long, or > 1.5 m2)
+//   is removed for chairs, tables and sofas, which otherwise merge with the wall they touch;
+//   classes made of large vertical faces (cabinets, wardrobes: their catalog models are mostly
+//   taller than 1.2 m) use the "segs" rule, which removes only connected plane segments of wall
+//   size (top >= 1.5 m, >= 1.2 m tall, >= 0.6 m long) so a cabinet front survives.
+// - Splits: two armchairs side by side or a chair against a table end form one cluster longer
+//   than any catalog chair; it is cut at the sparsest slice near the middle, but only where the
+//   top-view height profile has a gap, valley or ridge (not across a flat seat or table top).
+// - Extend down: thin legs and floor contacts are often missing in reconstructions, and the
+//   objects' boxes include them.
+//
+// Frames: the scan's working frame (z up); heights above Scan::ground. Points are referenced
+// by index into Scan::points.
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <numeric>
+#include <unordered_map>
+
+#include <spdlog/spdlog.h>
+
+#include "furnihost/plugin.hpp"
+#include "furnihost/voxel_index.hpp"
+#include "shape/shape.hpp"
+
+namespace furnihost {
+namespace {
+
+struct ClustersOptions {
+  std::vector<double> radii{2.0, 2.5, 3.5};  // clustering radii [x spacing]
+  int min_points = 40;
+  float floor_cut = 0.04f;        // points this close to the ground are floor [m]
+  float floor_flat_cut = 0.08f;   // horizontal points this close are floor too [m]
+  float max_height = 2.6f;        // nothing above this is furniture [m] (capped under a ceiling)
+  float split_length = 1.1f;      // clusters longer than this are also split [m]
+  float split_flatness = 0.05f;   // a cut needs this height step in the top-view profile [m]
+  float extend_gap = 0.10f;       // proposals floating this far above the ground get extended [m]
+  float ground_snap = 0.15f;      // bottoms this close to the ground are put on it [m]
+  float leak_shell = 0.10f;       // shell around a box for the surround measure [m]
+  std::string adaptive = "auto";  // radius per local spacing: "auto" (with a sensor origin), "on", "off"
+  int neighbours = 16;            // for normals and local spacing
+
+  static ClustersOptions FromJson(const nlohmann::json& p) {
+    ClustersOptions o;
+    o.radii = p.at("radii").get<std::vector<double>>();
+    o.min_points = p.at("min_points").get<int>();
+    o.floor_cut = p.at("floor_cut_m").get<float>();
+    o.floor_flat_cut = p.at("floor_flat_cut_m").get<float>();
+    o.max_height = p.at("max_height_m").get<float>();
+    o.split_length = p.at("split_length_m").get<float>();
+    o.split_flatness = p.at("split_flatness_m").get<float>();
+    o.extend_gap = p.at("extend_gap_m").get<float>();
+    o.ground_snap = p.at("ground_snap_m").get<float>();
+    o.leak_shell = p.at("surround_shell_m").get<float>();
+    o.adaptive = p.at("adaptive_radius").get<std::string>();
+    o.neighbours = p.at("neighbours").get<int>();
+    if (o.radii.empty()) throw InputError("radii: give at least one clustering radius");
+    return o;
+  }
+};
+
+// A vertical plane found by the Hough transform: unit normal nv and direction d on the floor
+// plane, offset r (nv . p = r), extents of its inliers along d and in height.
+struct VPlane {
+  Eigen::Vector2f nv, d;
+  float r = 0;
+  float a0 = 0, a1 = 0, h0 = 0, h1 = 0;
+  std::vector<uint32_t> inliers;
+};
+
+// Boxes over a subset of the points, for counting what lies in an axis-aligned box: points
+// bucketed by 25 cm floor cells.
+class BoxIndex {
+ public:
+  BoxIndex(const Points& pts, const std::vector<uint32_t>& subset, float cell = 0.25f) : pts_(pts), cell_(cell) {
+    if (subset.empty()) return;
+    lo_ = pts[subset[0]].head<2>();
+    Eigen::Vector2f hi = lo_;
+    for (uint32_t i : subset) lo_ = lo_.cwiseMin(pts[i].head<2>()), hi = hi.cwiseMax(pts[i].head<2>());
+    w_ = int((hi.x() - lo_.x()) / cell) + 1;
+    h_ = int((hi.y() - lo_.y()) / cell) + 1;
+    start_.assign(size_t(w_) * h_ + 1, 0);
+    for (uint32_t i : subset) ++start_[Cell(pts[i]) + 1];
+    for (size_t c = 1; c < start_.size(); ++c) start_[c] += start_[c - 1];
+    items_.resize(subset.size());
+    std::vector<uint32_t> fill(start_.begin(), start_.end() - 1);
+    for (uint32_t i : subset) items_[fill[Cell(pts[i])]++] = i;
+  }
+  template <class F>
+  void ForEachIn(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, F&& f) const {
+    if (items_.empty()) return;
+    const int x0 = std::max(0, int(std::floor((lo.x() - lo_.x()) / cell_)));
+    const int y0 = std::max(0, int(std::floor((lo.y() - lo_.y()) / cell_)));
+    const int x1 = std::min(w_ - 1, int(std::floor((hi.x() - lo_.x()) / cell_)));
+    const int y1 = std::min(h_ - 1, int(std::floor((hi.y() - lo_.y()) / cell_)));
+    for (int y = y0; y <= y1; ++y)
+      for (int x = x0; x <= x1; ++x) {
+        const size_t c = size_t(y) * w_ + x;
+        for (uint32_t k = start_[c]; k < start_[c + 1]; ++k) {
+          const Eigen::Vector3f& p = pts_[items_[k]];
+          if ((p.array() >= lo.array()).all() && (p.array() <= hi.array()).all()) f(items_[k]);
+        }
+      }
+  }
+
+ private:
+  size_t Cell(const Eigen::Vector3f& p) const {
+    const int x = std::clamp(int((p.x() - lo_.x()) / cell_), 0, w_ - 1), y = std::clamp(int((p.y() - lo_.y()) / cell_), 0, h_ - 1);
+    return size_t(y) * w_ + x;
+  }
+  const Points& pts_;
+  float cell_;
+  Eigen::Vector2f lo_ = Eigen::Vector2f::Zero();
+  int w_ = 0, h_ = 0;
+  std::vector<uint32_t> start_, items_;
+};
+
+struct UnionFind {
+  std::vector<uint32_t> parent;
+  explicit UnionFind(size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0u); }
+  uint32_t Find(uint32_t a) {
+    while (parent[a] != a) a = parent[a] = parent[parent[a]];
+    return a;
+  }
+  void Join(uint32_t a, uint32_t b) {
+    a = Find(a), b = Find(b);
+    if (a != b) parent[std::max(a, b)] = std::min(a, b);
+  }
+};
+
+class ClusterProposer : public Proposer {
+ public:
+  static ParamSchema Schema() {
+    return ParamSchema()
+        .NumberList("radii", {2.0, 2.5, 3.5}, 0.5, 20,
+                    "Euclidean clustering radii in units of the scan's median point spacing; every radius gives "
+                    "its own proposals (a small radius separates touching objects, a large one joins sparse ones)")
+        .Int("min_points", 40, 3, 1e7, "clusters with fewer points are dropped")
+        .Number("floor_cut_m", 0.04, 0, 1, "points less than this above the ground are floor [m]")
+        .Number("floor_flat_cut_m", 0.08, 0, 1, "horizontal points (|n_z| > 0.9) less than this above the ground are floor [m]")
+        .Number("max_height_m", 2.6, 0.5, 20,
+                "points higher above the ground are not furniture [m]; lowered to 8 cm under a ceiling when one is seen")
+        .Number("split_length_m", 1.1, 0.2, 20,
+                "clusters whose footprint is longer (longer than any catalog chair) are also cut in 2 (and 3 past 1.7x) [m]")
+        .Number("split_flatness_m", 0.05, 0, 1,
+                "a cut is kept only where the top-view height profile steps by this much (a gap, valley or ridge) [m]")
+        .Number("extend_gap_m", 0.10, 0, 2,
+                "proposals whose bottom is this far above the ground get a variant down to the points under them [m]")
+        .Number("ground_snap_m", 0.15, 0, 1, "a bottom this close to the ground is put on it (floor contacts are not scanned) [m]")
+        .Number("surround_shell_m", 0.10, 0.01, 1,
+                "shell around each box whose occupied area, relative to the box's, is the proposal's surround measure [m]")
+        .Enum("adaptive_radius", "auto", {"auto", "on", "off"},
+              "scale the radius by each point's local spacing (single views thin out with range): 'auto' = when the scan "
+              "has a sensor origin")
+        .Int("neighbours", 16, 4, 64, "neighbours of the normal and local-spacing estimates");
+  }
+  explicit ClusterProposer(const nlohmann::json& p) : o_(ClustersOptions::FromJson(p)) {}
+
+  Proposals Propose(const Scan& scan, const Segmentation*, const RunContext&) override {
+    Proposals out;
+    const size_t n = scan.points.size();
+    if (n < 10) return out;
+    // Working copy: finite points only (the readers drop the others; stay safe).
+    const Points& P = scan.points;
+    shape::KnnIndex knn(P);
+    const shape::LocalShape ls = shape::EstimateLocalShape(knn, o_.neighbours);
+    const float sp = std::max(shape::MedianSpacing(ls.nn), 1e-3f);
+    out.spacing = sp;
+    std::vector<float> hz(n);
+    for (size_t i = 0; i < n; ++i) hz[i] = scan.ground ? scan.ground->Above(P[i]) : P[i].z();
+    std::vector<float> area(n);  // the surface each point stands for
+    for (size_t i = 0; i < n; ++i) area[i] = std::pow(std::max(ls.nn[i], 0.5f * sp), 2.f);
+
+    const float hmax = CeilingCap(ls, hz, area);
+    const std::vector<VPlane> planes = VerticalPlanes(P, ls, hz, sp);
+    // Two removals: every large vertical plane ("all"), or only wall-sized segments ("segs").
+    const std::vector<uint8_t> wall_all = WallsAll(P, planes, sp);
+    const std::vector<uint8_t> wall_segs = WallSegments(P, hz, planes);
+    auto keep_of = [&](const std::vector<uint8_t>& wall) {
+      std::vector<uint32_t> keep;
+      for (size_t i = 0; i < n; ++i) {
+        if (wall[i] || !(hz[i] > o_.floor_cut) || !(hz[i] < hmax)) continue;
+        if (std::abs(ls.normals[i].z()) > 0.9f && hz[i] < o_.floor_flat_cut) continue;
+        keep.push_back(uint32_t(i));
+      }
+      return keep;
+    };
+    const std::vector<uint32_t> keep_all = keep_of(wall_all), keep_segs = keep_of(wall_segs);
+    out.removed.assign(n, 0);
+    for (size_t i = 0; i < n; ++i) out.removed[i] = wall_all[i] ? 1 : hz[i] <= o_.floor_cut ? 2 : 0;
+
+    const bool adaptive = o_.adaptive == "on" || (o_.adaptive == "auto" && scan.origin.has_value());
+    struct Raw {
+      std::vector<int> idx;
+      std::string rule, how;
+      int parent = -1;
+    };
+    std::vector<Raw> raw;
+    for (const auto* rule : {"all", "segs"}) {
+      const auto& keep = std::string(rule) == "all" ? keep_all : keep_segs;
+      for (double m : o_.radii)
+        for (auto& c : Cluster(P, keep, ls.nn4, sp, float(m), adaptive)) {
+          Raw r;
+          r.idx = std::move(c);
+          r.rule = rule;
+          r.how = std::string(rule) + "/r" + Fixed1(m);
+          raw.push_back(std::move(r));
+        }
+    }
+    const size_t clusters = raw.size();
+    for (size_t i = 0; i < clusters; ++i) raw[i].parent = int(i);
+    for (size_t i = 0; i < clusters; ++i)
+      for (auto& part : SplitLong(P, hz, raw[i].idx)) {
+        Raw r;
+        r.idx = std::move(part.first);
+        r.rule = raw[i].rule;
+        r.how = raw[i].how + "+split" + std::to_string(part.second);
+        r.parent = int(i);
+        raw.push_back(std::move(r));
+      }
+    // Boxes, then the extend-down variants of every proposal (clusters and splits).
+    BoxIndex column_index(P, keep_segs), leak_index(P, keep_all);
+    auto make = [&](const Raw& r) {
+      Proposal p;
+      p.indices = r.idx;
+      for (int i : r.idx) p.box.extend(P[i]);
+      std::vector<float> g;
+      for (int i : r.idx) g.push_back(P[i].z() - hz[i]);
+      std::nth_element(g.begin(), g.begin() + g.size() / 2, g.end());
+      p.ground_z = g.empty() ? 0.f : g[g.size() / 2];
+      p.group = r.parent;
+      p.how = r.how;
+      p.source = r.rule;
+      return p;
+    };
+    const size_t base = raw.size();
+    for (size_t i = 0; i < base; ++i) out.items.push_back(make(raw[i]));
+    for (size_t i = 0; i < base; ++i) {
+      const Proposal& p = out.items[i];
+      if (p.box.min().z() - p.ground_z < o_.extend_gap) continue;
+      const Eigen::Vector3f lo(p.box.min().x(), p.box.min().y(), p.ground_z + 0.02f);
+      const Eigen::Vector3f hi(p.box.max().x(), p.box.max().y(), p.box.min().z());
+      std::vector<int> col;
+      column_index.ForEachIn(lo, hi, [&](uint32_t k) { col.push_back(int(k)); });
+      if (col.size() < 5) continue;
+      float zlo = INFINITY;
+      for (int k : col) zlo = std::min(zlo, P[k].z());
+      if (zlo - p.ground_z < o_.ground_snap) zlo = p.ground_z;
+      Proposal e = p;
+      e.indices.insert(e.indices.end(), col.begin(), col.end());
+      e.box.min().z() = zlo;
+      e.how += "+ext";
+      out.items.push_back(std::move(e));
+    }
+    // Surround: the occupied area in a shell around the box relative to the area inside. A
+    // proposal cut out of a larger structure (a wall's leftovers, half a bed) has a high one.
+    tbb::parallel_for(size_t(0), out.items.size(), [&](size_t k) {
+      Proposal& p = out.items[k];
+      const Eigen::Vector3f s(o_.leak_shell, o_.leak_shell, 0.f);
+      double inside = 0, outer = 0;
+      leak_index.ForEachIn(p.box.min(), p.box.max(), [&](uint32_t i) { inside += area[i]; });
+      leak_index.ForEachIn(p.box.min() - s, p.box.max() + s + Eigen::Vector3f(0, 0, o_.leak_shell),
+                           [&](uint32_t i) { outer += area[i]; });
+      p.surround = float((outer - inside) / std::max(inside, 1e-6));
+    });
+    return out;
+  }
+
+ private:
+  static std::string Fixed1(double v) {
+    char b[16];
+    std::snprintf(b, sizeof b, "%.1f", v);
+    return b;
+  }
+
+  // hmax, or 8 cm below a ceiling: a horizontal level above 1.9 m holding >= 1.5 m2 of points.
+  float CeilingCap(const shape::LocalShape& ls, const std::vector<float>& hz, const std::vector<float>& area) const {
+    std::vector<double> a;
+    for (size_t i = 0; i < hz.size(); ++i) {
+      if (!(std::abs(ls.normals[i].z()) > 0.9f) || !(hz[i] > 1.9f) || hz[i] > 20.f) continue;
+      const size_t b = size_t(hz[i] / 0.04f);
+      if (a.size() <= b) a.resize(b + 1, 0.0);
+      a[b] += area[i];
+    }
+    double best = 0;
+    size_t k = 0;
+    for (size_t b = 0; b < a.size(); ++b) {
+      const double w = a[b] + (b + 1 < a.size() ? a[b + 1] : 0.0);
+      if (w > best) best = w, k = b;
+    }
+    if (best < 1.5) return o_.max_height;
+    return std::min(o_.max_height, float(k) * 0.04f - 0.08f);
+  }
+
+  // Iterative (theta, rho) Hough over the vertical-normal points: 2 deg x 4 cm bins, 3x3
+  // smoothed; each peak's bin members give a line (PCA), its inliers (within 5 cm, normal
+  // within 25 deg) leave the pool. Up to 40 planes of >= 100 inliers.
+  std::vector<VPlane> VerticalPlanes(const Points& P, const shape::LocalShape& ls, const std::vector<float>& hz,
+                                     float) const {
+    const size_t n = P.size();
+    std::vector<uint8_t> vert(n), avail(n);
+    for (size_t i = 0; i < n; ++i) vert[i] = avail[i] = std::abs(ls.normals[i].z()) < 0.25f;
+    std::vector<VPlane> planes;
+    constexpr int TB = 90;
+    const float kPi = float(M_PI);
+    const float cos25 = std::cos(25.f * kPi / 180.f);
+    std::vector<uint32_t> idx;
+    std::vector<int> tb, rb;
+    for (int it = 0; it < 40; ++it) {
+      idx.clear();
+      for (size_t i = 0; i < n; ++i)
+        if (avail[i]) idx.push_back(uint32_t(i));
+      if (idx.size() < 200) break;
+      tb.resize(idx.size());
+      rb.resize(idx.size());
+      std::vector<float> rho(idx.size());
+      float rmin = INFINITY, rmax = -INFINITY;
+      for (size_t k = 0; k < idx.size(); ++k) {
+        const Eigen::Vector3f& nn = ls.normals[idx[k]];
+        float th = std::atan2(nn.y(), nn.x());
+        th = std::fmod(th + 2 * kPi, kPi);
+        rho[k] = P[idx[k]].x() * std::cos(th) + P[idx[k]].y() * std::sin(th);
+        tb[k] = std::min(TB - 1, int(th / kPi * TB));
+        rmin = std::min(rmin, rho[k]);
+        rmax = std::max(rmax, rho[k]);
+      }
+      const int RB = std::min(100000, int((rmax - rmin) / 0.04f) + 1);
+      std::vector<int> hist(size_t(TB) * RB, 0);
+      for (size_t k = 0; k < idx.size(); ++k) {
+        rb[k] = std::min(RB - 1, int((rho[k] - rmin) / 0.04f));
+        ++hist[size_t(tb[k]) * RB + rb[k]];
+      }
+      int best = -1, bt = 0, br = 0;
+      for (int t = 0; t < TB; ++t)
+        for (int r = 0; r < RB; ++r) {
+          int s = 0;
+          for (int dt = -1; dt <= 1; ++dt)
+            for (int dr = -1; dr <= 1; ++dr) {
+              const int rr = r + dr;
+              if (rr < 0 || rr >= RB) continue;
+              s += hist[size_t((t + dt + TB) % TB) * RB + rr];
+            }
+          if (s > best) best = s, bt = t, br = r;
+        }
+      if (best < 150) break;
+      // The peak's members: within one bin in theta (wrapping) and rho.
+      std::vector<uint32_t> members;
+      for (size_t k = 0; k < idx.size(); ++k) {
+        const int dt = std::abs(((tb[k] - bt + TB / 2) % TB + TB) % TB - TB / 2);
+        if (dt <= 1 && std::abs(rb[k] - br) <= 1) members.push_back(idx[k]);
+      }
+      Eigen::Vector2d c = Eigen::Vector2d::Zero();
+      for (uint32_t i : members) c += P[i].head<2>().cast<double>();
+      c /= double(members.size());
+      Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
+      for (uint32_t i : members) {
+        const Eigen::Vector2d d = P[i].head<2>().cast<double>() - c;
+        cov += d * d.transpose();
+      }
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(cov);
+      VPlane pl;
+      pl.d = es.eigenvectors().col(1).cast<float>();
+      pl.nv = Eigen::Vector2f(-pl.d.y(), pl.d.x());
+      pl.r = float(c.cast<float>().dot(pl.nv));
+      for (size_t i = 0; i < n; ++i) {
+        if (!vert[i]) continue;
+        if (std::abs(P[i].head<2>().dot(pl.nv) - pl.r) < 0.05f &&
+            std::abs(ls.normals[i].head<2>().dot(pl.nv)) > cos25)
+          pl.inliers.push_back(uint32_t(i));
+      }
+      for (uint32_t i : members) avail[i] = 0;
+      if (pl.inliers.size() < 100) continue;
+      for (uint32_t i : pl.inliers) avail[i] = 0;
+      std::vector<float> al, hh;
+      for (uint32_t i : pl.inliers) al.push_back(P[i].head<2>().dot(pl.d)), hh.push_back(hz[i]);
+      pl.a0 = Quantile(al, 0.01), pl.a1 = Quantile(al, 0.99);
+      pl.h0 = Quantile(hh, 0.02), pl.h1 = Quantile(hh, 0.98);
+      planes.push_back(std::move(pl));
+    }
+    return planes;
+  }
+
+  static float Quantile(std::vector<float> v, double q) {
+    if (v.empty()) return 0.f;
+    const size_t k = std::min(v.size() - 1, size_t(q * double(v.size() - 1) + 0.5));
+    std::nth_element(v.begin(), v.begin() + k, v.end());
+    return v[k];
+  }
+
+  // "all": every plane taller than 1 m and longer than 0.8 m, or with 1.5 m2 of inliers: the
+  // points within 6 cm of it along its length (+- 5 cm), at any height.
+  std::vector<uint8_t> WallsAll(const Points& P, const std::vector<VPlane>& planes, float sp) const {
+    std::vector<uint8_t> wall(P.size(), 0);
+    for (const VPlane& w : planes) {
+      const bool big = (w.h1 - w.h0 > 1.0f && w.a1 - w.a0 > 0.8f) || float(w.inliers.size()) * sp * sp > 1.5f;
+      spdlog::debug("proposals.clusters: vertical plane n ({:.2f} {:.2f}) r {:.2f}: {:.2f} m long, {:.2f}-{:.2f} m high, "
+                    "{} inliers{}", w.nv.x(), w.nv.y(), w.r, w.a1 - w.a0, w.h0, w.h1, w.inliers.size(), big ? ": wall" : "");
+      if (!big) continue;
+      for (size_t i = 0; i < P.size(); ++i) {
+        const Eigen::Vector2f q = P[i].head<2>();
+        const float along = q.dot(w.d);
+        if (std::abs(q.dot(w.nv) - w.r) < 0.06f && along > w.a0 - 0.05f && along < w.a1 + 0.05f) wall[i] = 1;
+      }
+    }
+    return wall;
+  }
+
+  // "segs": each plane's inliers rasterised in (along, height) cells of 10 cm, closed (3x3),
+  // split into 8-connected components; a component whose top is >= 1.5 m, >= 1.2 m tall and
+  // >= 0.6 m long is wall: the points within 6 cm of the plane inside its rectangle (+- 5 cm).
+  // A Hough "plane" also collects collinear points of several objects across a room; only
+  // connected stretches of wall size are walls.
+  std::vector<uint8_t> WallSegments(const Points& P, const std::vector<float>& hz, const std::vector<VPlane>& planes) const {
+    std::vector<uint8_t> wall(P.size(), 0);
+    constexpr float cell = 0.10f;
+    for (const VPlane& w : planes) {
+      float alo = INFINITY, hlo = INFINITY, ahi = -INFINITY, hhi = -INFINITY;
+      std::vector<float> al(w.inliers.size());
+      for (size_t k = 0; k < w.inliers.size(); ++k) {
+        al[k] = P[w.inliers[k]].head<2>().dot(w.d);
+        alo = std::min(alo, al[k]), ahi = std::max(ahi, al[k]);
+        hlo = std::min(hlo, hz[w.inliers[k]]), hhi = std::max(hhi, hz[w.inliers[k]]);
+      }
+      const int W = int((ahi - alo) / cell) + 3, H = int((hhi - hlo) / cell) + 3;
+      if (W <= 0 || H <= 0 || size_t(W) * size_t(H) > 4000000) continue;
+      std::vector<uint8_t> occ(size_t(W) * H, 0);
+      std::vector<int> ci(w.inliers.size());
+      for (size_t k = 0; k < w.inliers.size(); ++k) {
+        const int ia = int((al[k] - alo) / cell) + 1, ih = int((hz[w.inliers[k]] - hlo) / cell) + 1;
+        ci[k] = ih * W + ia;
+        occ[size_t(ci[k])] = 1;
+      }
+      auto morph = [&](const std::vector<uint8_t>& in, bool dilate) {
+        std::vector<uint8_t> o(in.size(), 0);
+        for (int y = 0; y < H; ++y)
+          for (int x = 0; x < W; ++x) {
+            bool any = false, all = true;
+            for (int dy = -1; dy <= 1; ++dy)
+              for (int dx = -1; dx <= 1; ++dx) {
+                const int xx = x + dx, yy = y + dy;
+                const bool v = xx >= 0 && yy >= 0 && xx < W && yy < H && in[size_t(yy) * W + xx];
+                any |= v;
+                all &= v;
+              }
+            o[size_t(y) * W + x] = dilate ? any : all;
+          }
+        return o;
+      };
+      std::vector<uint8_t> closed = morph(morph(occ, true), false);
+      for (size_t c = 0; c < closed.size(); ++c) closed[c] |= occ[c];
+      // 8-connected components of the closed raster.
+      std::vector<int> label(closed.size(), -1);
+      int labels = 0;
+      std::vector<int> stack;
+      for (size_t c0 = 0; c0 < closed.size(); ++c0) {
+        if (!closed[c0] || label[c0] >= 0) continue;
+        label[c0] = labels;
+        stack.assign(1, int(c0));
+        while (!stack.empty()) {
+          const int c = stack.back();
+          stack.pop_back();
+          const int x = c % W, y = c / W;
+          for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx) {
+              const int xx = x + dx, yy = y + dy;
+              if (xx < 0 || yy < 0 || xx >= W || yy >= H) continue;
+              const size_t m = size_t(yy) * W + xx;
+              if (closed[m] && label[m] < 0) label[m] = labels, stack.push_back(int(m));
+            }
+        }
+        ++labels;
+      }
+      struct Seg {
+        int n = 0, x0 = 1 << 30, x1 = -1, y0 = 1 << 30, y1 = -1;
+      };
+      std::vector<Seg> segs(labels);
+      for (size_t k = 0; k < ci.size(); ++k) ++segs[label[size_t(ci[k])]].n;
+      for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+          const int l = label[size_t(y) * W + x];
+          if (l < 0) continue;
+          Seg& s = segs[l];
+          s.x0 = std::min(s.x0, x), s.x1 = std::max(s.x1, x), s.y0 = std::min(s.y0, y), s.y1 = std::max(s.y1, y);
+        }
+      for (const Seg& s : segs) {
+        if (s.n < 30) continue;
+        const float a0 = alo + float(s.x0 - 1) * cell, a1 = alo + float(s.x1) * cell;
+        const float h0 = hlo + float(s.y0 - 1) * cell, h1 = hlo + float(s.y1) * cell;
+        if (h1 - h0 < 1.2f || h1 < 1.5f || a1 - a0 < 0.6f) continue;
+        for (size_t i = 0; i < P.size(); ++i) {
+          const Eigen::Vector2f q = P[i].head<2>();
+          const float along = q.dot(w.d);
+          if (std::abs(q.dot(w.nv) - w.r) < 0.06f && along > a0 - 0.05f && along < a1 + 0.05f && hz[i] > h0 - 0.05f &&
+              hz[i] < h1 + 0.05f)
+            wall[i] = 1;
+        }
+      }
+    }
+    return wall;
+  }
+
+  // Connected components of `keep` with edges between points closer than m x spacing (or, for
+  // single views, m x the larger local spacing of the two), >= min_points each, in first-point order.
+  std::vector<std::vector<int>> Cluster(const Points& P, const std::vector<uint32_t>& keep, const std::vector<float>& nn4,
+                                        float sp, float m, bool adaptive) const {
+    std::vector<std::vector<int>> out;
+    if (keep.empty()) return out;
+    // Exact duplicates are one point for the neighbourhood search (a (0, 0, 0) flood stays linear).
+    std::unordered_map<uint64_t, uint32_t> first;
+    std::vector<uint32_t> rep(keep.size());
+    Points uniq;
+    std::vector<float> lsp;
+    first.reserve(keep.size());
+    for (size_t k = 0; k < keep.size(); ++k) {
+      const Eigen::Vector3f& p = P[keep[k]];
+      uint32_t bits[3];
+      std::memcpy(bits, p.data(), 12);
+      const uint64_t h = (uint64_t(bits[0]) * 0x9E3779B97F4A7C15ull) ^ (uint64_t(bits[1]) * 0xC2B2AE3D27D4EB4Full) ^
+                         (uint64_t(bits[2]) * 0x165667B19E3779F9ull);
+      auto [it, fresh] = first.try_emplace(h, uint32_t(uniq.size()));
+      if (fresh || uniq[it->second] != p) {
+        if (!fresh) it->second = uint32_t(uniq.size());  // a hash clash: keep both
+        uniq.push_back(p);
+        lsp.push_back(nn4[keep[k]]);
+      }
+      rep[k] = it->second;
+    }
+    float rmax = m * sp;
+    if (adaptive) rmax = std::max(rmax, m * Quantile(lsp, 0.99));
+    VoxelIndex index;
+    index.Build(uniq, rmax);
+    UnionFind uf(uniq.size());
+    const float base = m * sp;
+    for (size_t s = 0; s < index.size(); ++s) {
+      const uint32_t i = index.order[s];
+      index.ForEachWithin(index.cell_of[s], index.x[s], index.y[s], index.z[s], rmax,
+                          [&](int t, float, float, float, float d2) {
+                            const uint32_t j = index.order[size_t(t)];
+                            if (j <= i) return;
+                            const float lim = adaptive ? std::max(base, m * std::max(lsp[i], lsp[j])) : base;
+                            if (d2 < lim * lim) uf.Join(i, j);
+                          });
+    }
+    std::unordered_map<uint32_t, size_t> slot;
+    std::vector<std::vector<int>> groups;
+    for (size_t k = 0; k < keep.size(); ++k) {
+      const uint32_t root = uf.Find(rep[k]);
+      auto [it, fresh] = slot.try_emplace(root, groups.size());
+      if (fresh) groups.emplace_back();
+      groups[it->second].push_back(int(keep[k]));
+    }
+    for (auto& g : groups)
+      if (int(g.size()) >= o_.min_points) out.push_back(std::move(g));
+    return out;
+  }
+
+  // Cuts of a cluster longer than split_length along its footprint's length: 2 parts (and 3
+  // past 1.7 x split_length), each cut at the sparsest 5 cm slice within a third of a part of
+  // the nominal cut, kept only where the top-view height profile there steps by split_flatness
+  // from the profile 20-25 cm to either side. Returns (part, k) pairs.
+  std::vector<std::pair<std::vector<int>, int>> SplitLong(const Points& P, const std::vector<float>& hz,
+                                                          const std::vector<int>& idx) const {
+    std::vector<std::pair<std::vector<int>, int>> out;
+    if (idx.size() < 60) return out;
+    std::vector<Eigen::Vector2f> xy(idx.size());
+    for (size_t k = 0; k < idx.size(); ++k) xy[k] = P[idx[k]].head<2>();
+    const shape::Footprint f = shape::OrientedFootprint(xy);
+    if (f.length < o_.split_length) return out;
+    const Eigen::Vector2f ax(std::cos(f.yaw), std::sin(f.yaw)), ay(-std::sin(f.yaw), std::cos(f.yaw));
+    std::vector<float> u(idx.size()), v(idx.size());
+    float vmin = INFINITY;
+    for (size_t k = 0; k < idx.size(); ++k) {
+      u[k] = (xy[k] - f.center).dot(ax);
+      v[k] = (xy[k] - f.center).dot(ay);
+      vmin = std::min(vmin, v[k]);
+    }
+    const float u0 = Quantile(u, 0.01), u1 = Quantile(u, 0.99);
+    constexpr float bin = 0.05f;
+    int nb = 0;
+    std::vector<int> iu(idx.size()), iv(idx.size());
+    int vmax_bin = 0;
+    for (size_t k = 0; k < idx.size(); ++k) {
+      iu[k] = std::max(0, int((u[k] - u0) / bin));
+      iv[k] = int((v[k] - vmin) / bin);
+      nb = std::max(nb, iu[k] + 1);
+      vmax_bin = std::max(vmax_bin, iv[k]);
+    }
+    std::vector<int> count(nb, 0);
+    for (int b : iu) ++count[b];
+    // Per 5 cm slice: the median of its columns' top heights (above the cluster's ground).
+    std::vector<float> g;
+    for (int i : idx) g.push_back(P[i].z() - hz[i]);
+    std::nth_element(g.begin(), g.begin() + g.size() / 2, g.end());
+    const float g0 = g[g.size() / 2];
+    std::unordered_map<int64_t, float> top;
+    for (size_t k = 0; k < idx.size(); ++k) {
+      const int64_t key = int64_t(iu[k]) * (vmax_bin + 1) + iv[k];
+      const float h = P[idx[k]].z() - g0;
+      auto [it, fresh] = top.try_emplace(key, h);
+      if (!fresh) it->second = std::max(it->second, h);
+    }
+    std::vector<std::vector<float>> slice(nb);
+    for (const auto& [key, h] : top) slice[size_t(key / (vmax_bin + 1))].push_back(h);
+    std::vector<float> prof(nb, NAN);
+    for (int b = 0; b < nb; ++b)
+      if (!slice[b].empty()) prof[b] = Quantile(slice[b], 0.5);
+    std::vector<int> ks = {2};
+    if (f.length >= 1.7f * o_.split_length) ks.push_back(3);
+    for (int k : ks) {
+      std::vector<float> cuts;
+      for (int j = 1; j < k; ++j) {
+        const float c = u0 + (u1 - u0) * float(j) / float(k), w = (u1 - u0) / float(3 * k);
+        const int b0 = std::max(int((c - w - u0) / bin), 0), b1 = std::min(int((c + w - u0) / bin) + 1, nb);
+        if (b1 <= b0) {
+          cuts.push_back(c);
+          continue;
+        }
+        const int at = b0 + int(std::min_element(count.begin() + b0, count.begin() + b1) - (count.begin() + b0));
+        cuts.push_back(u0 + (float(at) + 0.5f) * bin);
+      }
+      bool ok = true;
+      for (float c : cuts) {
+        const int b = int((c - u0) / bin);
+        if (b < 0 || b >= nb || !std::isfinite(prof[b])) continue;
+        std::vector<float> side;
+        for (int x : {b - 5, b - 4, b + 4, b + 5})
+          if (x >= 0 && x < nb && std::isfinite(prof[x])) side.push_back(prof[x]);
+        if (!side.empty() && std::abs(prof[b] - Quantile(side, 0.5)) < o_.split_flatness) ok = false;
+      }
+      if (!ok) continue;
+      std::vector<float> edges = {-INFINITY};
+      edges.insert(edges.end(), cuts.begin(), cuts.end());
+      edges.push_back(INFINITY);
+      for (size_t e = 0; e + 1 < edges.size(); ++e) {
+        std::vector<int> part;
+        for (size_t q = 0; q < idx.size(); ++q)
+          if (u[q] >= edges[e] && u[q] < edges[e + 1]) part.push_back(idx[q]);
+        if (part.size() >= 30) out.emplace_back(std::move(part), k);
+      }
+    }
+    return out;
+  }
+
+  ClustersOptions o_;
+};
+
+}  // namespace
+}  // namespace furnihost
+
+FURNIHOST_PLUGIN(furnihost::ClusterProposer, "proposals.clusters", "1.0.0",
+                 "object proposals: ground, walls and ceiling removed, Euclidean clusters at radii scaled to the scan's "
+                 "point spacing, long clusters split, floating ones extended to the ground")

@@ -1,0 +1,562 @@
+// voters.catalog_shape — recognises object proposals (proposals.<name>) by the catalog's
+// metric sizes and top-view shapes: for every class, the catalog model whose length, width and
+// height and whose top-view height profile the proposal matches best gives the class score;
+// one detection per proposal and plausible class, the proposal's box, non-maximum suppressed.
+//
+// Why size and top view (measured on the ScanNet dev rooms, docs/configs.md): the metric size
+// of an object survives the gap between simulated CAD views and real reconstructions, which
+// part features and global descriptors do not (ESF on real segments: 45 % correct, size and
+// height alone: 66-71 %); the top-view height profile (the distribution of each floor column's
+// highest point as a share of the object's height) tells a chair's seat-and-back from a
+// table's one level and a sofa's two, and needs no points the scan lacks (undersides, legs).
+//
+// Score of class c for a proposal of footprint L x W (L >= W), top T and bottom B above the
+// ground, profile h and surround s (Proposal::surround):
+//   E_m = pen(ln L/L_m; long) + pen(ln W/W_m; short) + pen(ln T/H_m; top) + (B / sig_bottom)^2 / 2
+//         + EMD(h, h_m)^2 / (2 sig_profile^2)
+//   pen(d) = d^2 / (2 s^2), s = sig_*_small when the proposal is smaller than the model (a partial
+//   scan is tolerated), sig_*_big when larger;
+//   score_c = exp(-min over the class's models m of E_m - s / sig_surround),
+// then optionally class competition (score_c * (score_c / best class score of the proposal's
+// group)^compete): one object is one class, whatever variant of its cluster is looked at.
+//
+// Training: the catalog models' sizes (TrainingView::object_size), and the profile and open
+// floor of each model's mesh as a sensor around it sees them (views without a mesh: of their
+// simulated views fused).
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <set>
+#include <tuple>
+#include <unordered_map>
+
+#include <spdlog/spdlog.h>
+
+#include "furnihost/geometry.hpp"
+#include "furnihost/plugin.hpp"
+#include "shape/shape.hpp"
+
+namespace furnihost {
+namespace {
+
+// Per output class: the spreads of the score (defaults: the shared values).
+struct ClassParams {
+  float long_small = 0.35f, long_big = 0.2f, short_small = 0.35f, short_big = 0.2f;
+  float top_small = 0.15f, top_big = 0.1f, bottom = 0.15f, profile = 0.05f, surround = 0.3f;
+  float floor_under = 0.5f, floor_over = 0.2f;
+  float compete = 0.f;
+  std::string source = "catalog";  // proposals scored: "catalog" (from the class's model heights), "any", or a rule name
+};
+
+const std::vector<std::pair<std::string, float ClassParams::*>>& Fields() {
+  static const std::vector<std::pair<std::string, float ClassParams::*>> f = {
+      {"sig_long_small", &ClassParams::long_small}, {"sig_long_big", &ClassParams::long_big},
+      {"sig_short_small", &ClassParams::short_small}, {"sig_short_big", &ClassParams::short_big},
+      {"sig_top_small", &ClassParams::top_small},   {"sig_top_big", &ClassParams::top_big},
+      {"sig_bottom", &ClassParams::bottom},          {"sig_profile", &ClassParams::profile},
+      {"sig_surround", &ClassParams::surround},      {"sig_floor_less", &ClassParams::floor_under},
+      {"sig_floor_more", &ClassParams::floor_over},  {"compete", &ClassParams::compete}};
+  return f;
+}
+
+struct Model {
+  std::string id, cls;  // cls: the output class (after class_map)
+  float length = 0, width = 0, height = 0;
+  bool wide = true;     // the model's x extent (width) is its length
+  shape::Profile profile{};
+  float open = 0.f;     // share of its inner footprint whose floor a sensor around it sees
+};
+
+struct Options {
+  std::map<std::string, std::string> class_map;  // catalog class -> output class
+  ClassParams base;
+  std::map<std::string, ClassParams> per_class;
+  std::map<std::string, float> thresholds;  // operating threshold per output class (accepted above)
+  float default_threshold = 0.f;
+  float min_score = 1e-3f;
+  float nms_iou = 0.25f;
+  float cell = 0.05f;
+  float tall_class = 1.2f;
+  bool floor_term = true;
+
+  const ClassParams& Of(const std::string& c) const {
+    auto it = per_class.find(c);
+    return it == per_class.end() ? base : it->second;
+  }
+};
+
+ClassParams ParseClassParams(const nlohmann::json& j, ClassParams p, const std::string& where) {
+  if (!j.is_object()) throw InputError(where + ": expected an object of spreads, e.g. {\"sig_top_big\": 0.2}");
+  for (auto it = j.begin(); it != j.end(); ++it) {
+    if (it.key() == "source") {
+      if (!it->is_string()) throw InputError(where + "/source: expected a string");
+      p.source = it->get<std::string>();
+      continue;
+    }
+    auto f = std::find_if(Fields().begin(), Fields().end(), [&](const auto& x) { return x.first == it.key(); });
+    if (f == Fields().end()) {
+      std::string names = "source";
+      for (const auto& x : Fields()) names += ", " + x.first;
+      throw InputError(where + "/" + it.key() + ": unknown; valid: " + names);
+    }
+    if (!it->is_number() || !(it->get<double>() >= 0.0) || it->get<double>() > 100.0 ||
+        (f->first != "compete" && !(it->get<double>() > 0.0)))
+      throw InputError(where + "/" + it.key() + ": expected a number in " +
+                       (f->first == "compete" ? "[0, 100]" : "(0, 100]"));
+    p.*(f->second) = it->get<float>();
+  }
+  return p;
+}
+
+float Pen(float d, float small, float big) {
+  const float s = d < 0 ? small : big;
+  return d * d / (2 * s * s);
+}
+
+// Inner footprint cells (10 cm, the rectangle shrunk by 10 cm on every side) of a footprint.
+constexpr float kFloorCell = 0.10f;
+template <class F>
+void ForEachInnerCell(const Eigen::Vector2f& c, float length, float width, float yaw, F&& f) {
+  const float l = std::max(length - 2 * kFloorCell, kFloorCell), w = std::max(width - 2 * kFloorCell, kFloorCell);
+  const float co = std::cos(yaw), si = std::sin(yaw);
+  for (float u = -l / 2 + kFloorCell / 2; u < l / 2; u += kFloorCell)
+    for (float v = -w / 2 + kFloorCell / 2; v < w / 2; v += kFloorCell) f(Eigen::Vector2f(c.x() + u * co - v * si, c.y() + u * si + v * co));
+}
+
+// The floor cells of a scan that hold ground-level points (within 3 cm of the ground).
+class FloorCells {
+ public:
+  FloorCells() = default;
+  explicit FloorCells(const Scan& scan) {
+    if (!scan.ground) return;
+    for (const auto& p : scan.points)
+      if (std::abs(scan.ground->Above(p)) < 0.03f) cells_.insert(Key(p.head<2>()));
+  }
+  // Share of the footprint's inner cells whose floor is seen.
+  float SeenUnder(const shape::Footprint& f) const {
+    int n = 0, seen = 0;
+    ForEachInnerCell(f.center, f.length, f.width, f.yaw, [&](const Eigen::Vector2f& q) {
+      ++n;
+      seen += cells_.count(Key(q)) > 0;
+    });
+    return n ? float(seen) / float(n) : 0.f;
+  }
+
+ private:
+  static uint64_t Key(const Eigen::Vector2f& q) {
+    const int64_t x = int64_t(std::floor(q.x() / kFloorCell)), y = int64_t(std::floor(q.y() / kFloorCell));
+    return (uint64_t(x) << 32) ^ (uint64_t(y) & 0xffffffffu);
+  }
+  std::set<uint64_t> cells_;
+};
+
+// The share of a model's inner footprint (model frame: bounding-box bottom centre at the
+// origin, size = extents) whose floor one of its training views' sensors sees: the segment
+// from the floor cell's centre to the sensor passes no point of that view within 3 cm.
+float OpenFloor(const std::vector<const TrainingView*>& views, const Eigen::Vector3f& size) {
+  constexpr float clear = 0.03f;
+  int cells = 0, open = 0;
+  auto key = [&](const Eigen::Vector3f& p, int dx = 0, int dy = 0, int dz = 0) {
+    const int64_t x = int64_t(std::floor(p.x() / clear)) + dx, y = int64_t(std::floor(p.y() / clear)) + dy,
+                  z = int64_t(std::floor(p.z() / clear)) + dz;
+    return (uint64_t(x & 0x1fffff) << 42) | (uint64_t(y & 0x1fffff) << 21) | uint64_t(z & 0x1fffff);
+  };
+  std::vector<std::unordered_map<uint64_t, std::vector<Eigen::Vector3f>>> occupied(views.size());
+  for (size_t v = 0; v < views.size(); ++v)
+    for (const auto& p : views[v]->scan.points) {
+      const Eigen::Vector3f w = views[v]->scan.pose * p;
+      occupied[v][key(w)].push_back(w);
+    }
+  auto near = [&](size_t v, const Eigen::Vector3f& q) {
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          auto it = occupied[v].find(key(q, dx, dy, dz));
+          if (it == occupied[v].end()) continue;
+          for (const auto& p : it->second)
+            if ((p - q).squaredNorm() < clear * clear) return true;
+        }
+    return false;
+  };
+  ForEachInnerCell(Eigen::Vector2f::Zero(), std::max(size.x(), size.y()), std::min(size.x(), size.y()),
+                   size.x() >= size.y() ? 0.f : float(M_PI / 2), [&](const Eigen::Vector2f& q) {
+                     ++cells;
+                     const Eigen::Vector3f g(q.x(), q.y(), 0.01f);
+                     for (size_t v = 0; v < views.size(); ++v) {
+                       if (!views[v]->scan.origin) continue;
+                       const Eigen::Vector3f o = views[v]->scan.pose * *views[v]->scan.origin;
+                       const float len = (o - g).norm();
+                       bool blocked = false;
+                       for (float t = 0.04f; t < len && !blocked; t += 0.02f) blocked = near(v, g + (o - g) * (t / len));
+                       if (!blocked) {
+                         ++open;
+                         return;
+                       }
+                     }
+                   });
+  return cells ? float(open) / float(cells) : 0.f;
+}
+
+// The same two from the model's mesh, as a sensor around it at 1.4 m sees it (8 eyes 1.5 m
+// beyond its footprint): dense surface samples, the visible ones for the profile; the floor
+// under a cell is seen when the segment to an eye passes no sample within 3 cm. Noiseless, so
+// a column's top is the surface's, not a range error above it.
+std::pair<shape::Profile, float> FromMesh(const CatalogModel& m, float cell) {
+  double area = 0;
+  const int nv = int(m.mesh.vertices.size());
+  for (const auto& t : m.mesh.triangles)
+    if (t.minCoeff() >= 0 && t.maxCoeff() < nv)
+      area += 0.5 * double((m.mesh.vertices[t[1]] - m.mesh.vertices[t[0]]).cross(m.mesh.vertices[t[2]] - m.mesh.vertices[t[0]]).norm());
+  const Points samples = area > 0 ? SampleSurface(m.mesh, float(40000.0 / area), 0) : Points{};
+  const Eigen::Vector3f size = m.size;
+  const Points eyes = shape::EyesAround(size);
+  const std::vector<uint8_t> vis = shape::VisibleFrom(samples, eyes);
+  std::vector<Eigen::Vector2f> xy;
+  std::vector<float> h;
+  for (size_t i = 0; i < samples.size(); ++i)
+    if (vis[i]) xy.push_back(samples[i].head<2>()), h.push_back(samples[i].z());
+  const shape::Profile prof = shape::TopViewProfile(xy, h, size.z(), cell);
+  // Open floor: blockers are every 4th sample, hashed in 3 cm cells.
+  constexpr float clear = 0.03f;
+  auto key = [&](const Eigen::Vector3f& p, int dx, int dy, int dz) {
+    const int64_t x = int64_t(std::floor(p.x() / clear)) + dx, y = int64_t(std::floor(p.y() / clear)) + dy,
+                  z = int64_t(std::floor(p.z() / clear)) + dz;
+    return (uint64_t(x & 0x1fffff) << 42) | (uint64_t(y & 0x1fffff) << 21) | uint64_t(z & 0x1fffff);
+  };
+  std::unordered_map<uint64_t, std::vector<Eigen::Vector3f>> blockers;
+  for (size_t i = 0; i < samples.size(); i += 4) blockers[key(samples[i], 0, 0, 0)].push_back(samples[i]);
+  auto near = [&](const Eigen::Vector3f& q) {
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          auto it = blockers.find(key(q, dx, dy, dz));
+          if (it == blockers.end()) continue;
+          for (const auto& p : it->second)
+            if ((p - q).squaredNorm() < clear * clear) return true;
+        }
+    return false;
+  };
+  int cells = 0, open = 0;
+  ForEachInnerCell(Eigen::Vector2f::Zero(), size.x(), size.y(), 0.f, [&](const Eigen::Vector2f& q) {
+    ++cells;
+    const Eigen::Vector3f g(q.x(), q.y(), 0.01f);
+    for (const auto& e : eyes) {
+      const float len = (e - g).norm();
+      const int steps = int(std::ceil(len / 0.02f));
+      bool blocked = false;
+      for (int s = 0; s < steps && !blocked; ++s) {
+        const float t = 0.02f + 0.98f * float(s) / float(std::max(steps - 1, 1));
+        blocked = near(g + t * (e - g));
+      }
+      if (!blocked) {
+        ++open;
+        return;
+      }
+    }
+  });
+  return {prof, cells ? float(open) / float(cells) : 0.f};
+}
+
+class CatalogShapeVoter : public Voter {
+ public:
+  static ParamSchema Schema() {
+    ParamSchema s;
+    s.Object("class_map", nlohmann::json::object(),
+             "catalog class -> detected class, e.g. {\"armchair\": \"chair\", \"desk\": \"table\"}: the models of "
+             "merged classes compete as one class (one detection per object)")
+        .DetectionOnly()
+        .Object("class_params", nlohmann::json::object(),
+                "per detected class, spreads overriding the shared ones below ({\"table\": {\"sig_long_big\": 0.5}}); "
+                "also 'source': which proposals a class is scored on ('catalog' = segs for classes whose models are "
+                "mostly taller than tall_class_m, else all; 'any'; or a proposer rule name)")
+        .DetectionOnly();
+    const ClassParams d;
+    s.Number("sig_long_small", d.long_small, 1e-3, 100, "spread of ln(length / model length) when shorter than the model").DetectionOnly()
+        .Number("sig_long_big", d.long_big, 1e-3, 100, "... when longer").DetectionOnly()
+        .Number("sig_short_small", d.short_small, 1e-3, 100, "spread of ln(width / model width) when narrower").DetectionOnly()
+        .Number("sig_short_big", d.short_big, 1e-3, 100, "... when wider").DetectionOnly()
+        .Number("sig_top_small", d.top_small, 1e-3, 100, "spread of ln(top height / model height) when lower").DetectionOnly()
+        .Number("sig_top_big", d.top_big, 1e-3, 100, "... when higher").DetectionOnly()
+        .Number("sig_bottom", d.bottom, 1e-3, 100, "spread of the bottom's height above the ground [m]").DetectionOnly()
+        .Number("sig_profile", d.profile, 1e-3, 100, "spread of the top-view height profile's distance to the model's").DetectionOnly()
+        .Number("sig_surround", d.surround, 1e-3, 100, "score factor exp(-surround / this)").DetectionOnly()
+        .Bool("floor_term", true,
+              "compare the floor seen under the proposal with the model's open floor (under a table or chair "
+              "the floor shows, under a cabinet or a bed never): a share of floor cells seen above the model's is "
+              "strong evidence against it, below it weak (chairs and people hide it)")
+        .DetectionOnly()
+        .Number("sig_floor_less", d.floor_under, 1e-3, 100, "spread of (floor seen - model's open floor) when less is seen").DetectionOnly()
+        .Number("sig_floor_more", d.floor_over, 1e-3, 100, "... when more is seen").DetectionOnly()
+        .Number("compete", d.compete, 0, 100, "class competition exponent (0 = off)").DetectionOnly()
+        .Object("thresholds", nlohmann::json::object(),
+                "operating score per detected class: detections at or above it are accepted (verified), the others "
+                "kept as rejected candidates")
+        .DetectionOnly()
+        .Number("default_threshold", 0.0, 0, 1, "operating score of classes not in thresholds").DetectionOnly()
+        .Number("min_score", 1e-3, 0, 1, "candidates scoring lower are not reported").DetectionOnly()
+        .Number("nms_iou", 0.25, 0, 1, "a candidate overlapping a better one of its class by more box IoU is dropped").DetectionOnly()
+        .Number("profile_cell_m", 0.05, 0.005, 1, "column size of the top-view height profile [m]")
+        .Number("tall_class_m", 1.2, 0, 10,
+                "classes whose catalog models are mostly taller are made of large vertical faces: source 'catalog' "
+                "scores them on the proposals that keep such faces (rule 'segs')").DetectionOnly();
+    return s;
+  }
+
+  explicit CatalogShapeVoter(const nlohmann::json& p) {
+    for (auto it = p.at("class_map").begin(); it != p.at("class_map").end(); ++it) {
+      if (!it->is_string() || it->get<std::string>().empty())
+        throw InputError("class_map/" + it.key() + ": expected a class name");
+      o_.class_map[it.key()] = it->get<std::string>();
+    }
+    for (const auto& [name, field] : Fields()) o_.base.*field = p.at(name).get<float>();
+    for (auto it = p.at("class_params").begin(); it != p.at("class_params").end(); ++it)
+      o_.per_class[it.key()] = ParseClassParams(*it, o_.base, "class_params/" + it.key());
+    for (auto it = p.at("thresholds").begin(); it != p.at("thresholds").end(); ++it) {
+      if (!it->is_number() || !(it->get<double>() >= 0.0))
+        throw InputError("thresholds/" + it.key() + ": expected a score >= 0");
+      o_.thresholds[it.key()] = it->get<float>();
+    }
+    o_.default_threshold = p.at("default_threshold").get<float>();
+    o_.min_score = p.at("min_score").get<float>();
+    o_.nms_iou = p.at("nms_iou").get<float>();
+    o_.cell = p.at("profile_cell_m").get<float>();
+    o_.tall_class = p.at("tall_class_m").get<float>();
+    o_.floor_term = p.at("floor_term").get<bool>();
+  }
+
+  nlohmann::json Train(const std::vector<TrainingView>& views, const RunContext&) override {
+    // One entry per model: its size and the profile of all its views fused.
+    std::map<std::string, std::pair<const TrainingView*, std::vector<const TrainingView*>>> by_model;
+    std::vector<std::string> order;
+    for (const auto& v : views) {
+      auto [it, fresh] = by_model.try_emplace(v.model_id, &v, std::vector<const TrainingView*>{});
+      if (fresh) order.push_back(v.model_id);
+      it->second.second.push_back(&v);
+    }
+    nlohmann::json models = nlohmann::json::array();
+    for (const auto& id : order) {
+      const auto& [first, vs] = by_model.at(id);
+      std::vector<Eigen::Vector2f> xy;
+      std::vector<float> h;
+      for (const TrainingView* v : vs)
+        for (const auto& p : v->scan.points) {
+          const Eigen::Vector3f w = v->scan.pose * p;
+          xy.push_back(w.head<2>());
+          h.push_back(v->scan.HeightAboveGround(w));
+        }
+      const Eigen::Vector3f s = first->object_size;
+      shape::Profile prof;
+      float open = 0.f;
+      if (first->model && !first->model->mesh.triangles.empty()) {
+        std::tie(prof, open) = FromMesh(*first->model, o_.cell);
+      } else {  // views without their mesh: what the views saw
+        prof = shape::TopViewProfile(xy, h, s.z(), o_.cell);
+        open = OpenFloor(vs, s);
+      }
+      models.push_back({{"id", id},
+                        {"class", first->cls},
+                        {"size", {s.x(), s.y(), s.z()}},
+                        {"profile", std::vector<float>(prof.begin(), prof.end())},
+                        {"open", open}});
+    }
+    return {{"format", "catalog_shape/1"}, {"profile_cell_m", o_.cell}, {"models", models}};
+  }
+
+  void Load(const nlohmann::json& m) override {
+    if (!m.is_object() || m.value("format", "") != "catalog_shape/1")
+      throw InputError("not a voters.catalog_shape model (format catalog_shape/1)");
+    models_.clear();
+    for (const auto& j : m.at("models")) {
+      Model md;
+      md.id = j.at("id").get<std::string>();
+      const std::string cls = j.at("class").get<std::string>();
+      auto it = o_.class_map.find(cls);
+      md.cls = it == o_.class_map.end() ? cls : it->second;
+      const auto size = j.at("size").get<std::vector<float>>();
+      const auto prof = j.at("profile").get<std::vector<float>>();
+      if (size.size() != 3 || prof.size() != size_t(shape::kProfileBins))
+        throw InputError("catalog_shape model " + md.id + ": bad size or profile");
+      for (float v : size)
+        if (!(v > 0.f) || !std::isfinite(v)) throw InputError("catalog_shape model " + md.id + ": bad size");
+      md.length = std::max(size[0], size[1]);
+      md.width = std::min(size[0], size[1]);
+      md.height = size[2];
+      md.wide = size[0] >= size[1];
+      std::copy(prof.begin(), prof.end(), md.profile.begin());
+      md.open = j.value("open", 0.f);
+      if (!(md.open >= 0.f && md.open <= 1.f)) throw InputError("catalog_shape model " + md.id + ": bad open share");
+      spdlog::debug("catalog_shape: model {} ({}) {:.2f} x {:.2f} x {:.2f} m, open floor {:.2f}, profile {:.3f}", md.id,
+                    md.cls, md.length, md.width, md.height, md.open, fmt::join(md.profile, " "));
+      models_.push_back(md);
+    }
+    classes_.clear();
+    for (const auto& md : models_)
+      if (std::find(classes_.begin(), classes_.end(), md.cls) == classes_.end()) classes_.push_back(md.cls);
+    // Which proposals each class is scored on.
+    source_.clear();
+    for (const auto& c : classes_) {
+      std::string src = o_.Of(c).source;
+      if (src == "catalog") {
+        std::vector<float> h;
+        for (const auto& md : models_)
+          if (md.cls == c) h.push_back(md.height);
+        std::nth_element(h.begin(), h.begin() + h.size() / 2, h.end());
+        src = h[h.size() / 2] > o_.tall_class ? "segs" : "all";
+      }
+      source_[c] = src;
+    }
+  }
+
+  VoteResult Vote(const std::vector<SceneParts>& scenes, const RunContext&) override {
+    VoteResult out;
+    out.classes = classes_;
+    if (models_.empty()) throw StageError("voters.catalog_shape: no model loaded", false);
+    for (size_t s = 0; s < scenes.size(); ++s) {
+      const SceneParts& sc = scenes[s];
+      if (!sc.proposals || !sc.scan) {
+        if (s == 0 && !sc.proposals)
+          throw InputError("voters.catalog_shape recognises proposals: give it a proposer as input (e.g. proposals.clusters)");
+        continue;
+      }
+      const Scan& scan = *sc.scan;
+      const auto& items = sc.proposals->items;
+      const size_t n = items.size();
+      const FloorCells floor = o_.floor_term ? FloorCells(scan) : FloorCells();
+      const size_t C = classes_.size();
+      std::vector<std::vector<float>> score(C, std::vector<float>(n, 0.f));
+      std::vector<std::vector<int>> best_model(C, std::vector<int>(n, -1));
+      std::vector<shape::Footprint> foot(n);
+      for (size_t i = 0; i < n; ++i) {
+        const Proposal& p = items[i];
+        if (p.indices.size() < 10) continue;
+        std::vector<Eigen::Vector2f> xy(p.indices.size());
+        std::vector<float> h(p.indices.size());
+        for (size_t k = 0; k < p.indices.size(); ++k) {
+          const Eigen::Vector3f& q = scan.points[size_t(p.indices[k])];
+          xy[k] = q.head<2>();
+          h[k] = q.z() - p.ground_z;
+        }
+        foot[i] = shape::OrientedFootprint(xy);
+        const float L = std::max(foot[i].length, 0.02f), W = std::max(foot[i].width, 0.02f);
+        const float T = std::max(p.box.max().z() - p.ground_z, 0.02f), B = std::max(p.box.min().z() - p.ground_z, 0.f);
+        const shape::Profile prof = shape::TopViewProfile(xy, h, T, o_.cell);
+        const float seen = o_.floor_term ? floor.SeenUnder(foot[i]) : 0.f;
+        for (size_t c = 0; c < C; ++c) {
+          const ClassParams& cp = o_.Of(classes_[c]);
+          float best = INFINITY;
+          for (size_t m = 0; m < models_.size(); ++m) {
+            const Model& md = models_[m];
+            if (md.cls != classes_[c]) continue;
+            const float emd = shape::ProfileDistance(prof, md.profile);
+            const float E = Pen(std::log(L / md.length), cp.long_small, cp.long_big) +
+                            Pen(std::log(W / md.width), cp.short_small, cp.short_big) +
+                            Pen(std::log(T / md.height), cp.top_small, cp.top_big) +
+                            0.5f * (B / cp.bottom) * (B / cp.bottom) + emd * emd / (2 * cp.profile * cp.profile) +
+                            (o_.floor_term ? Pen(seen - md.open, cp.floor_under, cp.floor_over) : 0.f);
+            if (E < best) best = E, best_model[c][i] = int(m);
+          }
+          score[c][i] = std::exp(-best - p.surround / cp.surround);
+          if (spdlog::should_log(spdlog::level::trace) && score[c][i] >= o_.min_score)
+            spdlog::trace("catalog_shape: {} {} box ({:.2f} {:.2f} {:.2f})-({:.2f} {:.2f} {:.2f}) L {:.3f} W {:.3f} T {:.3f} "
+                          "B {:.3f} surround {:.3f} floor seen {:.3f} -> {} {:.4f}",
+                          p.how, classes_[c], p.box.min().x(), p.box.min().y(), p.box.min().z(), p.box.max().x(),
+                          p.box.max().y(), p.box.max().z(), L, W, T, B, p.surround, seen,
+                          models_[size_t(best_model[c][i])].id, score[c][i]);
+        }
+      }
+      // Class competition within each group (the variants of one cluster are one object).
+      std::map<int, float> group_best;
+      std::vector<float> best_of(n, 0.f);
+      for (size_t i = 0; i < n; ++i) {
+        for (size_t c = 0; c < C; ++c) best_of[i] = std::max(best_of[i], score[c][i]);
+        float& g = group_best[items[i].group];
+        g = std::max(g, best_of[i]);
+      }
+      for (size_t c = 0; c < C; ++c) {
+        const float a = o_.Of(classes_[c]).compete;
+        if (a > 0.f)
+          for (size_t i = 0; i < n; ++i) {
+            const float b = std::max(group_best[items[i].group], 1e-12f);
+            score[c][i] *= std::pow(score[c][i] / b, a);
+          }
+        const std::string& src = source_.at(classes_[c]);
+        if (src != "any")
+          for (size_t i = 0; i < n; ++i)
+            if (items[i].source != src) score[c][i] = 0.f;
+      }
+      // Non-maximum suppression per class by box IoU, then the hypotheses.
+      for (size_t c = 0; c < C; ++c) {
+        std::vector<size_t> order;
+        for (size_t i = 0; i < n; ++i)
+          if (score[c][i] >= o_.min_score && best_model[c][i] >= 0) order.push_back(i);
+        std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return score[c][a] > score[c][b]; });
+        std::vector<size_t> kept;
+        for (size_t i : order) {
+          bool suppressed = false;
+          for (size_t k : kept)
+            if (Iou(items[i].box, items[k].box) > o_.nms_iou) {
+              suppressed = true;
+              break;
+            }
+          if (suppressed) continue;
+          kept.push_back(i);
+          out.hypotheses.push_back(MakeHypothesis(classes_[c], score[c][i], items[i], int(i), int(s), foot[i],
+                                                  models_[size_t(best_model[c][i])], scan.pose));
+        }
+      }
+    }
+    return out;
+  }
+
+ private:
+  static float Iou(const Eigen::AlignedBox3f& a, const Eigen::AlignedBox3f& b) {
+    const Eigen::AlignedBox3f i = a.intersection(b);
+    if (i.isEmpty()) return 0.f;
+    const float vi = i.volume(), u = a.volume() + b.volume() - vi;
+    return u > 0 ? vi / u : 0.f;
+  }
+
+  Hypothesis MakeHypothesis(const std::string& cls, float score, const Proposal& p, int index, int scene,
+                            const shape::Footprint& f, const Model& md, const Eigen::Isometry3f& pose) const {
+    Hypothesis h;
+    h.cls = cls;
+    h.score = score;
+    h.proposal = index;
+    h.scene = scene;
+    // The proposal's axis-aligned box (world frame for fused scans: upright poses keep it upright).
+    OrientedBox b;
+    b.center = pose * p.box.center();
+    b.size = p.box.sizes();
+    b.yaw = std::atan2(pose.linear()(1, 0), pose.linear()(0, 0));
+    h.box = b;
+    h.center = b.center;
+    const auto thr = o_.thresholds.find(cls);
+    const float t = thr == o_.thresholds.end() ? o_.default_threshold : thr->second;
+    h.accepted = score >= t;
+    if (!*h.accepted) {
+      char buf[64];
+      std::snprintf(buf, sizeof buf, "score %.4f < %.4f", score, t);
+      h.rejection = buf;
+    }
+    // The best model standing on the ground at the footprint's centre, its width along the
+    // footprint's length when the model is wider than deep (yaw: modulo a half turn).
+    h.model = md.id;
+    const float yaw = f.yaw + (md.wide ? 0.f : float(M_PI / 2));
+    Eigen::Isometry3f m = Eigen::Isometry3f::Identity();
+    m.linear() = Eigen::AngleAxisf(yaw, Eigen::Vector3f::UnitZ()).toRotationMatrix();
+    m.translation() = Eigen::Vector3f(f.center.x(), f.center.y(), p.ground_z);
+    h.model_pose = pose * m;
+    return h;
+  }
+
+  Options o_;
+  std::vector<Model> models_;
+  std::vector<std::string> classes_;
+  std::map<std::string, std::string> source_;
+};
+
+}  // namespace
+}  // namespace furnihost
+
+FURNIHOST_PLUGIN(furnihost::CatalogShapeVoter, "voters.catalog_shape", "1.0.0",
+                 "recognises object proposals by the catalog models' metric sizes and top-view height profiles")

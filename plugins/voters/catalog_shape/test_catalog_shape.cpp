@@ -1,0 +1,164 @@
+// voters.catalog_shape with proposals.clusters on rooms simulated by sensors.simulated_laser:
+// a table (a top on four legs) and a cabinet (a closed box) are trained from their own views
+// and found, each as its class, in a room where they stand beside each other on a floor that
+// is not at z = 0.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "furnihost/ground.hpp"
+#include "furnihost/stage.hpp"
+#include "test_support.hpp"
+
+namespace furnihost {
+namespace {
+
+using nlohmann::json;
+
+Registry& Reg() {
+  static auto reg = testing::MakeRegistry();
+  return *reg;
+}
+
+template <class T>
+std::shared_ptr<T> Make(const std::string& type, const json& params = json::object()) {
+  const auto* entry = Reg().Find(type);
+  if (!entry) throw std::runtime_error("plugin not found: " + type);
+  return Reg().CreateAs<T>(type, entry->params.Resolve(params, "test"));
+}
+
+void AddBox(Mesh& m, Eigen::Vector3f lo, Eigen::Vector3f hi) {
+  const int b = static_cast<int>(m.vertices.size());
+  for (int i = 0; i < 8; ++i) m.vertices.emplace_back(i & 1 ? hi.x() : lo.x(), i & 2 ? hi.y() : lo.y(), i & 4 ? hi.z() : lo.z());
+  const int f[12][3] = {{0, 2, 1}, {1, 2, 3}, {4, 5, 6}, {5, 7, 6}, {0, 1, 4}, {1, 5, 4},
+                        {2, 6, 3}, {3, 6, 7}, {0, 4, 2}, {2, 4, 6}, {1, 3, 5}, {3, 7, 5}};
+  for (const auto& t : f) m.triangles.emplace_back(b + t[0], b + t[1], b + t[2]);
+}
+
+// Catalog models stand with their bounding-box bottom centre at the origin.
+CatalogModel Table() {
+  CatalogModel m;
+  m.id = "test_table";
+  m.cls = "table";
+  AddBox(m.mesh, {-0.6f, -0.4f, 0.71f}, {0.6f, 0.4f, 0.75f});
+  for (float x : {-0.55f, 0.5f})
+    for (float y : {-0.35f, 0.3f}) AddBox(m.mesh, {x, y, 0.f}, {x + 0.05f, y + 0.05f, 0.71f});
+  m.size = m.mesh.Bounds().sizes();
+  return m;
+}
+
+CatalogModel Cabinet() {
+  CatalogModel m;
+  m.id = "test_cabinet";
+  m.cls = "cabinet";
+  AddBox(m.mesh, {-0.45f, -0.25f, 0.f}, {0.45f, 0.25f, 1.2f});
+  m.size = m.mesh.Bounds().sizes();
+  return m;
+}
+
+std::vector<TrainingView> Views(const std::vector<const CatalogModel*>& models) {
+  auto sensor = Make<Sensor>("sensors.simulated_laser", {{"voxel_m", 0.02}, {"views", 8}});
+  std::vector<TrainingView> out;
+  RunContext ctx;
+  for (const CatalogModel* m : models) {
+    SensorRequest req;
+    req.objects.push_back({m, Eigen::Isometry3f::Identity()});
+    int v = 0;
+    for (auto& s : sensor->Acquire(req, ctx)) {
+      TrainingView tv;
+      tv.cls = m->cls;
+      tv.model_id = m->id;
+      tv.view = v++;
+      tv.object_size = m->size;
+      tv.scan = std::move(s);
+      out.push_back(std::move(tv));
+    }
+  }
+  return out;
+}
+
+TEST(CatalogShape, TrainsSizesProfilesAndOpenFloor) {
+  const CatalogModel table = Table(), cabinet = Cabinet();
+  auto voter = Make<Voter>("voters.catalog_shape");
+  RunContext ctx;
+  const json model = voter->Train(Views({&table, &cabinet}), ctx);
+  ASSERT_EQ(model.at("models").size(), 2u);
+  const json& t = model["models"][0];
+  const json& c = model["models"][1];
+  EXPECT_EQ(t.at("class"), "table");
+  // The floor under a table shows between its legs; under a closed cabinet it never does.
+  EXPECT_GT(t.at("open").get<float>(), 0.8f);
+  EXPECT_LT(c.at("open").get<float>(), 0.05f);
+  // A table puts its whole top in the profile's highest bins, a box too (its top is flat).
+  const auto tp = t.at("profile").get<std::vector<float>>();
+  EXPECT_GT(tp.back() + tp[tp.size() - 2], 0.8f);
+  EXPECT_NO_THROW(voter->Load(model));
+}
+
+// The room: both objects on a floor 1.2 m below the origin (a camera's frame), scanned from
+// four sides. Proposals and recognition find the table as a table and the cabinet as a cabinet,
+// each with its box, and neither as the other class first.
+TEST(CatalogShape, FindsEachObjectAsItsClass) {
+  const CatalogModel table = Table(), cabinet = Cabinet();
+  auto voter = Make<Voter>("voters.catalog_shape", {{"thresholds", {{"table", 0.05}, {"cabinet", 0.05}}}});
+  RunContext ctx;
+  voter->Load(voter->Train(Views({&table, &cabinet}), ctx));
+
+  const float floor_z = -1.2f;
+  SensorRequest req;
+  Eigen::Isometry3f tp = Eigen::Isometry3f::Identity(), cp = Eigen::Isometry3f::Identity();
+  tp.translation() = Eigen::Vector3f(0.f, 0.f, floor_z);
+  cp.translation() = Eigen::Vector3f(2.0f, 0.3f, floor_z);
+  cp.linear() = Eigen::AngleAxisf(0.6f, Eigen::Vector3f::UnitZ()).toRotationMatrix();
+  req.objects = {{&table, tp}, {&cabinet, cp}};
+  AddBox(req.extra, {-3.f, -3.f, floor_z - 0.02f}, {5.f, 3.f, floor_z});  // the floor
+  for (float a : {0.f, 1.57f, 3.14f, 4.71f}) {
+    Eigen::Isometry3f s = Eigen::Isometry3f::Identity();
+    s.linear() = Eigen::AngleAxisf(a + 3.14159f, Eigen::Vector3f::UnitZ()).toRotationMatrix();
+    s.translation() = Eigen::Vector3f(1.f + 3.f * std::cos(a), 3.f * std::sin(a), floor_z + 1.5f);
+    req.poses.push_back(s);
+  }
+  auto sensor = Make<Sensor>("sensors.simulated_laser", {{"voxel_m", 0.015}});
+  Scan scan;
+  for (auto& s : sensor->Acquire(req, ctx)) scan.points.insert(scan.points.end(), s.points.begin(), s.points.end());
+  scan.ground = EstimateGround(scan.points, GroundOptions{});
+  EXPECT_NEAR(scan.ground->HeightAt(1.f, 0.f), floor_z, 0.02f);
+
+  auto proposer = Make<Proposer>("proposals.clusters");
+  const Proposals props = proposer->Propose(scan, nullptr, ctx);
+  ASSERT_FALSE(props.items.empty());
+  SceneParts parts;
+  parts.scan = &scan;
+  parts.proposals = &props;
+  const VoteResult r = voter->Vote({parts}, ctx);
+  auto best = [&](const std::string& cls) {
+    const Hypothesis* b = nullptr;
+    for (const auto& h : r.hypotheses)
+      if (h.cls == cls && (!b || h.score > b->score)) b = &h;
+    return b;
+  };
+  const Hypothesis* t = best("table");
+  const Hypothesis* c = best("cabinet");
+  ASSERT_TRUE(t && c);
+  EXPECT_LT((t->center.head<2>() - Eigen::Vector2f(0.f, 0.f)).norm(), 0.1f);
+  EXPECT_LT((c->center.head<2>() - Eigen::Vector2f(2.0f, 0.3f)).norm(), 0.1f);
+  EXPECT_TRUE(t->accepted.value_or(false));
+  EXPECT_TRUE(c->accepted.value_or(false));
+  EXPECT_EQ(t->model, "test_table");
+  // Boxes: the table's reaches the floor (its legs), the cabinet's is 1.2 m tall.
+  ASSERT_TRUE(t->box && c->box);
+  EXPECT_NEAR(t->box->center.z() - 0.5f * t->box->size.z(), floor_z, 0.06f);
+  EXPECT_NEAR(c->box->size.z(), 1.2f, 0.06f);
+  // Each object scores its own class above the other one.
+  auto score_at = [&](const std::string& cls, const Eigen::Vector2f& at) {
+    float s = 0.f;
+    for (const auto& h : r.hypotheses)
+      if (h.cls == cls && (h.center.head<2>() - at).norm() < 0.2f) s = std::max(s, h.score);
+    return s;
+  };
+  EXPECT_GT(score_at("table", {0.f, 0.f}), score_at("cabinet", {0.f, 0.f}));
+  EXPECT_GT(score_at("cabinet", {2.0f, 0.3f}), score_at("table", {2.0f, 0.3f}));
+}
+
+}  // namespace
+}  // namespace furnihost
