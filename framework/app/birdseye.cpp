@@ -77,12 +77,12 @@ View MakeView(const std::vector<const Scan*>& scans, const VoteResult& votes,
       if (w.allFinite()) box.extend(w.head<2>().cast<double>());
     }
   }
-  // The picture is the scan: votes that fall outside it (parts voting for centres beyond a
-  // wall) are clipped, hypotheses and detections only widen it when there are no points.
-  if (box.isEmpty()) {
+  // The picture is the scan and its detections: votes that fall outside it (parts voting for
+  // centres beyond a wall) are clipped, hypotheses only widen it when there are no points.
+  for (const auto& d : detections)
+    if (d.center.allFinite()) box.extend(d.center.head<2>().cast<double>());
+  if (box.isEmpty())
     for (const auto& h : votes.hypotheses) box.extend(h.center.head<2>().cast<double>());
-    for (const auto& d : detections) box.extend(d.center.head<2>().cast<double>());
-  }
   if (box.isEmpty()) box = Eigen::AlignedBox2d(Eigen::Vector2d(-0.5, -0.5), Eigen::Vector2d(0.5, 0.5));
   View v;
   const Eigen::Vector2d pad = Eigen::Vector2d::Constant(0.25);

@@ -14,6 +14,10 @@ void CommonOptions::Add(CLI::App& app, bool with_run_options) {
   app.add_option("--plugin-path", plugin_paths,
                  "extra folder(s) searched for plugins first (then $FURNIHOST_PLUGIN_PATH, the build tree, the install prefix)")
       ->allow_extra_args(false);
+  app.add_option("--set", sets,
+                 "override a stage parameter: TAG.PARAM=VALUE (JSON value; repeatable), e.g. --set "
+                 "vote.height_tolerance_m=0.2; ground.kind=plane sets the ground; recorded in the run record")
+      ->allow_extra_args(false);
   app.add_flag("-v,--verbose", verbose, "more log output (-vv for debug, -vvv for trace)");
   app.add_flag("-q,--quiet", quiet, "only warnings and errors");
   if (with_run_options) {
@@ -66,6 +70,10 @@ std::vector<double> ParseNumbers(const std::string& text, size_t count, const st
   if (!in.eof() || v.size() != count || std::any_of(v.begin(), v.end(), [](double d) { return !std::isfinite(d); }))
     throw InputError(option + ": expected " + std::to_string(count) + " comma-separated numbers, got '" + text + "'");
   return v;
+}
+
+GraphConfig CommonOptions::LoadGraph(const std::string& path, const Registry& registry) const {
+  return furnihost::LoadGraph(path, registry, sets);
 }
 
 void FrameCli::Add(CLI::App& app) {

@@ -19,12 +19,15 @@ struct CommonOptions {
   bool quiet = false;
   int threads = 0;
   std::optional<uint64_t> seed;
+  std::vector<std::string> sets;  // --set TAG.PARAM=VALUE
 
   void Add(CLI::App& app, bool with_run_options = true);
   // Applies logging and thread settings; call after parsing.
   void Apply() const;
   std::unique_ptr<Registry> MakeRegistry() const;
   RunContext Context(uint64_t graph_seed) const;
+  // The graph with the --set overrides applied.
+  GraphConfig LoadGraph(const std::string& path, const Registry& registry) const;
 };
 
 // Scan frame and ground options of detect (--up, --transform, --shift, --ground).

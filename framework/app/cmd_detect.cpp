@@ -149,7 +149,7 @@ int RunTrain(const std::vector<std::string>& args) {
   if (auto rc = Parse(app, args)) return *rc;
   common.Apply();
   auto reg = common.MakeRegistry();
-  GraphConfig g = LoadGraph(graph, *reg);
+  GraphConfig g = common.LoadGraph(graph, *reg);
   if (!out.empty()) g.model_cache = out;
   if (g.model_cache.empty()) throw InputError(graph + ":/model_cache: missing (or pass --out)");
   Catalog catalog = LoadCatalog(g.catalog, strict);
@@ -183,7 +183,7 @@ int RunDetect(const std::vector<std::string>& args) {
   common.Apply();
   auto reg = common.MakeRegistry();
   const FrameOptions frame = frame_cli.Frame();  // bad values exit 2 before the graph loads
-  GraphConfig g = LoadGraph(graph, *reg);
+  GraphConfig g = common.LoadGraph(graph, *reg);
   frame_cli.ApplyGround(g);
   RunContext ctx = common.Context(g.seed);
   if (!poses.empty() && poses.size() != scans.size())

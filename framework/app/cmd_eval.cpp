@@ -162,6 +162,7 @@ struct RunInput {
   const std::vector<std::vector<GroundTruthObject>>* truth;
   WidthConvention width;
   int jobs;  // 0 = auto
+  std::string detections_dir;  // when set: each scene's detections as <dir>/<config>/<seed>/<scan stem>.json
 };
 
 // Ground-truth boxes (file frame) in a scan's working frame: centres mapped, sizes the extents
@@ -284,6 +285,12 @@ RunFigures RunOne(Loaded& cfg, const Registry& reg, const RunContext& ctx, const
     }
   }
   f.scenes = std::move(records);
+  if (!in.detections_dir.empty())
+    for (size_t i = 0; i < n; ++i) {
+      json j = {{"scan", scenes[i].scan}, {"seed", ctx.seed}, {"detections", json::array()}};
+      for (const auto& d : evals[i].detections) j["detections"].push_back(DetectionToJson(d));
+      WriteJson((fs::path(in.detections_dir) / cfg.name / std::to_string(ctx.seed) / (evals[i].name + ".json")).string(), j);
+    }
   f.metrics = Evaluate(evals, in.dataset->classes, in.width);
   f.peak_rss_mb = PeakRssMb(reset_ok);
   return f;
@@ -371,7 +378,7 @@ int RunEval(const std::vector<std::string>& args) {
   std::vector<std::string> graphs, names;
   std::string dataset_path, out = "furnihost-out/eval", width_text = "max";
   int seeds = 1, jobs = 0;
-  bool retrain = false, strict = false;
+  bool retrain = false, strict = false, save_detections = false;
   common.Add(app);
   app.add_option("--graph,-g", graphs, "graph config (repeat: the first is the baseline A)")->required();
   app.add_option("--name", names, "label per graph, in --graph order (default: the file stem)");
@@ -387,6 +394,9 @@ int RunEval(const std::vector<std::string>& args) {
                  "override every graph's ground: auto, level, plane, height_map, or a fixed floor height [m]");
   app.add_option("--jobs,-j", jobs, "scenes processed in parallel (0 = as cores and memory allow)")->check(CLI::Range(0, 1024));
   app.add_flag("--retrain", retrain, "retrain each graph's model even if its cache is valid");
+  app.add_flag("--save-detections", save_detections,
+               "also write every scene's detections to OUT/detections/<config>/<seed>/<scan stem>.json (for "
+               "cross-validation scripts)");
   app.add_flag("--strict", strict, "invalid catalog entries are fatal instead of skipped");
   if (auto rc = Parse(app, args)) return *rc;
   common.Apply();
@@ -401,7 +411,7 @@ int RunEval(const std::vector<std::string>& args) {
   const std::vector<std::string> config_names = Names(graphs, names);
   std::vector<Loaded> configs;
   for (size_t i = 0; i < graphs.size(); ++i) {
-    configs.push_back({config_names[i], LoadGraph(graphs[i], *reg), {}, {}});
+    configs.push_back({config_names[i], common.LoadGraph(graphs[i], *reg), {}, {}});
     ground_cli.ApplyGround(configs.back().graph);
   }
   spdlog::info("eval: {} configs x {} seeds on {} ({} scenes, {})", configs.size(), seeds, dataset_path,
@@ -418,7 +428,7 @@ int RunEval(const std::vector<std::string>& args) {
                                 for (const auto& [k, v] : dataset.classes.map) m[k] = v ? json(*v) : json(nullptr);
                                 return m;
                               }()}};
-  const RunInput run_in{&dataset, &truth, width, jobs};
+  const RunInput run_in{&dataset, &truth, width, jobs, save_detections ? (fs::path(out) / "detections").string() : ""};
   std::vector<ConfigSummary> summaries;
   for (auto& cfg : configs) {
     ConfigSummary summary;

@@ -339,8 +339,52 @@ GraphConfig ValidateGraph(const std::string& path, const nlohmann::json& config,
   return g;
 }
 
-GraphConfig LoadGraph(const std::string& path, const Registry& registry) {
-  return ValidateGraph(path, LoadConfigJson(path), registry);
+GraphConfig LoadGraph(const std::string& path, const Registry& registry, const std::vector<std::string>& sets) {
+  nlohmann::json config = LoadConfigJson(path);
+  struct Set {
+    std::string text, pointer;
+  };
+  std::vector<Set> applied;
+  for (const auto& s : sets) {
+    const std::string where = "--set " + s;
+    const size_t eq = s.find('='), dot = s.find('.');
+    if (eq == std::string::npos || dot == std::string::npos || dot > eq || dot == 0 || dot + 1 == eq)
+      throw InputError(where + ": expected TAG.PARAM=VALUE (e.g. vote.height_tolerance_m=0.2)");
+    const std::string tag = s.substr(0, dot), key = s.substr(dot + 1, eq - dot - 1), text = s.substr(eq + 1);
+    nlohmann::json value = nlohmann::json::parse(text, nullptr, false);
+    if (value.is_discarded()) value = text;  // a bare word: a string
+    if (tag == "ground") {
+      if (!config.contains("ground") || !config["ground"].is_object()) config["ground"] = nlohmann::json::object();
+      config["ground"][key] = value;
+      applied.push_back({s.substr(0, eq), "/ground/" + key});
+      continue;
+    }
+    if (!config.contains("stages") || !config["stages"].is_object() || !config["stages"].contains(tag)) {
+      std::string tags;
+      if (config.contains("stages") && config["stages"].is_object())
+        for (auto it = config["stages"].begin(); it != config["stages"].end(); ++it) tags += (tags.empty() ? "" : ", ") + it.key();
+      throw InputError(where + ": no stage '" + tag + "' in " + path + " (stages: " + tags + "; or ground)");
+    }
+    auto& st = config["stages"][tag];
+    if (!st.is_object()) throw InputError(where + ": stage '" + tag + "' is not an object");
+    if (!st.contains("params") || !st["params"].is_object()) st["params"] = nlohmann::json::object();
+    st["params"][key] = value;
+    applied.push_back({s.substr(0, eq), "/stages/" + tag + "/params/" + key});
+  }
+  try {
+    GraphConfig g = ValidateGraph(path, config, registry);
+    if (!sets.empty()) g.resolved["overrides"] = sets;
+    return g;
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    for (const auto& a : applied)
+      if (what.find(":" + a.pointer) != std::string::npos) {
+        std::string rest = what.substr(what.find(":" + a.pointer) + a.pointer.size() + 1);
+        while (!rest.empty() && (rest[0] == ':' || rest[0] == ' ')) rest.erase(0, 1);
+        throw InputError("--set " + a.text + ": " + rest);
+      }
+    throw;
+  }
 }
 
 }  // namespace furnihost

@@ -93,6 +93,13 @@ TEST(Cli, BadInputsExitTwoWithOneLine) {
       {"--graph " + dir + "/nothere.json x.pcd", "nothere.json: no such JSON file"},
       {"validate --graph " + dir + "/unknown_param.json", "unknown parameter"},
       {"detect --graph", "--graph"},
+      // Issue 18's frame options name themselves.
+      {g + "--up q " + dir + "/corrupt.pcd", "--up: 'q' is not an axis"},
+      {g + "--transform 0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,1 " + dir + "/corrupt.pcd", "--transform: the matrix is singular"},
+      {g + "--transform 1,2,3 " + dir + "/corrupt.pcd", "--transform: expected 16 numbers"},
+      {g + "--shift nan,0,0 " + dir + "/corrupt.pcd", "--shift: expected 3 comma-separated numbers"},
+      {g + "--ground wobbly " + dir + "/corrupt.pcd", "--ground"},
+      {g + "--set nope " + dir + "/corrupt.pcd", "--set"},
   };
   for (const auto& c : cases) {
     auto r = Furnihost(c.args);

@@ -66,6 +66,11 @@ FURNIHOST_API nlohmann::json MergePatch(nlohmann::json target, const nlohmann::j
 FURNIHOST_API GraphConfig ValidateGraph(const std::string& path, const nlohmann::json& config,
                                         const Registry& registry);
 
-FURNIHOST_API GraphConfig LoadGraph(const std::string& path, const Registry& registry);
+// `sets`: command-line overrides "TAG.PARAM=VALUE" (VALUE is JSON: 0.2, true, "text" or an
+// object; anything that is not JSON is taken as a string), applied to the stage TAG's params
+// after `extends` and before validation; "ground.KEY=VALUE" sets the ground options. A bad
+// override is an InputError naming it ("--set vote.nope=1: ...").
+FURNIHOST_API GraphConfig LoadGraph(const std::string& path, const Registry& registry,
+                                    const std::vector<std::string>& sets = {});
 
 }  // namespace furnihost

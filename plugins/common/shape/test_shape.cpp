@@ -1,2 +1,162 @@
+// furnihost::shape: nearest neighbours against brute force, PCA normals of a plane, the
+// spacing of a grid, the footprint of a turned rectangle with outliers, profiles and their
+// distance, visibility behind an occluder.
+#include "shape/shape.hpp"
+
 #include <gtest/gtest.h>
-TEST(Placeholder, Builds) { EXPECT_TRUE(true); }
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <random>
+
+namespace furnihost::shape {
+namespace {
+
+constexpr float kPi = 3.14159265358979f;
+
+Points RandomCloud(int n, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  Points p;
+  for (int i = 0; i < n; ++i) p.emplace_back(u(rng), u(rng), u(rng));
+  return p;
+}
+
+TEST(KnnIndex, AgreesWithBruteForce) {
+  const Points cloud = RandomCloud(2000, 3);
+  KnnIndex index(cloud);
+  std::vector<uint32_t> idx;
+  std::vector<float> d2;
+  for (int q = 0; q < 50; ++q) {
+    const Eigen::Vector3f p = cloud[q * 37] + Eigen::Vector3f(0.01f, -0.02f, 0.005f);
+    index.Query(p, 8, idx, d2);
+    ASSERT_EQ(idx.size(), 8u);
+    std::vector<float> all;
+    for (const auto& c : cloud) all.push_back((c - p).squaredNorm());
+    std::sort(all.begin(), all.end());
+    for (int k = 0; k < 8; ++k) EXPECT_NEAR(d2[k], all[k], 1e-6f) << "query " << q << " rank " << k;
+    EXPECT_TRUE(std::is_sorted(d2.begin(), d2.end()));
+  }
+}
+
+TEST(LocalShape, PlaneNormalsAndGridSpacing) {
+  // A 2 cm grid on a plane tilted 30 degrees about x.
+  const Eigen::Vector3f n(0.f, -std::sin(kPi / 6), std::cos(kPi / 6));
+  const Eigen::Vector3f u(1.f, 0.f, 0.f), v = n.cross(u);
+  Points plane;
+  for (int i = 0; i < 60; ++i)
+    for (int j = 0; j < 60; ++j) plane.push_back(0.02f * i * u + 0.02f * j * v);
+  KnnIndex index(plane);
+  const LocalShape s = EstimateLocalShape(index, 16);
+  ASSERT_EQ(s.normals.size(), plane.size());
+  for (size_t i = 0; i < plane.size(); i += 97) EXPECT_GT(std::abs(s.normals[i].dot(n)), 0.999f) << i;
+  EXPECT_NEAR(MedianSpacing(s.nn), 0.02f, 1e-4f);
+  for (size_t i = 0; i < plane.size(); i += 97) EXPECT_GE(s.nn4[i], s.nn[i]);
+  // Duplicates are left out of the spacing; nothing to measure gives 0.
+  EXPECT_NEAR(MedianSpacing(std::vector<float>{0.f, 0.f, 0.f, 0.03f, 0.03f}, 1), 0.03f, 1e-6f);
+  EXPECT_EQ(MedianSpacing(std::vector<float>{0.f, 0.f}, 1), 0.f);
+  EXPECT_EQ(MedianSpacing({}, 1), 0.f);
+}
+
+TEST(Footprint, TurnedRectangleWithStrayPoints) {
+  // A 1.2 x 0.5 m rectangle turned by 35 degrees about (2, -1), filled with points, plus 1 %
+  // stray points 1 m away that must not set its size.
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> ul(-0.6f, 0.6f), uw(-0.25f, 0.25f);
+  const float yaw = 35.f * kPi / 180.f;
+  const Eigen::Rotation2Df r(yaw);
+  const Eigen::Vector2f c(2.f, -1.f);
+  std::vector<Eigen::Vector2f> xy;
+  for (int i = 0; i < 3000; ++i) xy.push_back(c + r * Eigen::Vector2f(ul(rng), uw(rng)));
+  for (int i = 0; i < 20; ++i) xy.push_back(c + Eigen::Vector2f(1.5f, 1.5f));
+  const Footprint f = OrientedFootprint(xy);
+  EXPECT_NEAR(f.length, 1.2f, 0.06f);
+  EXPECT_NEAR(f.width, 0.5f, 0.04f);
+  EXPECT_NEAR(f.center.x(), c.x(), 0.05f);
+  EXPECT_NEAR(f.center.y(), c.y(), 0.05f);
+  // The yaw of the long side, up to its symmetry (pi).
+  const float dy = std::remainder(f.yaw - yaw, kPi);
+  EXPECT_LT(std::abs(dy), 3.f * kPi / 180.f) << f.yaw;
+  // Too few points: their axis-aligned extents.
+  const Footprint small = OrientedFootprint({{0.f, 0.f}, {0.4f, 0.1f}, {0.2f, 0.f}});
+  EXPECT_NEAR(small.length, 0.4f, 1e-5f);
+  EXPECT_NEAR(small.width, 0.1f, 1e-5f);
+}
+
+TEST(Profile, TableTopAndChairDifferAndTheDistanceIsAMetric) {
+  // A table: a flat top at 0.75 m over the whole footprint. A chair: a seat at 0.45 m over
+  // 3/4 of it and a back at 0.9 m over the last quarter. Heights as a share of top = 1 m.
+  std::vector<Eigen::Vector2f> xy;
+  std::vector<float> table_h, chair_h;
+  for (int i = 0; i < 40; ++i)
+    for (int j = 0; j < 40; ++j) {
+      xy.emplace_back(0.0125f * i, 0.0125f * j);
+      table_h.push_back(0.75f);
+      chair_h.push_back(i < 30 ? 0.45f : 0.9f);
+    }
+  const Profile table = TopViewProfile(xy, table_h, 1.f);
+  const Profile chair = TopViewProfile(xy, chair_h, 1.f);
+  EXPECT_NEAR(std::accumulate(table.begin(), table.end(), 0.f), 1.f, 1e-5f);
+  EXPECT_NEAR(std::accumulate(chair.begin(), chair.end(), 0.f), 1.f, 1e-5f);
+  EXPECT_NEAR(table[15], 1.f, 1e-5f);                 // 0.75 of top: bin 15 of 20
+  // 5 cm columns: the seat covers 7 of 10 columns across, the back the other 3.
+  EXPECT_NEAR(chair[9], 0.7f, 0.06f);   // the seat
+  EXPECT_NEAR(chair[18], 0.3f, 0.06f);  // the back
+  EXPECT_NEAR(chair[9] + chair[18], 1.f, 1e-5f);
+  EXPECT_EQ(ProfileDistance(table, table), 0.f);
+  const float d = ProfileDistance(table, chair);
+  EXPECT_NEAR(d, ProfileDistance(chair, table), 1e-6f);
+  // EMD on [0, 1]: the seat's mass moves 0.30 (bin 9 to 15), the back's 0.15 (18 to 15).
+  EXPECT_NEAR(d, chair[9] * 0.30f + chair[18] * 0.15f, 1e-4f);
+  // Heights at or above the top fall into the last bin, not outside.
+  const Profile over = TopViewProfile(xy, std::vector<float>(xy.size(), 2.f), 1.f);
+  EXPECT_NEAR(over[kProfileBins - 1], 1.f, 1e-5f);
+}
+
+TEST(Visibility, AnOccluderHidesWhatIsBehindIt) {
+  // Eye at the origin; a wall of samples at x = 2, a second one at x = 3 behind it but only
+  // for |y| < 0.5 where the first wall stands, the rest of the back wall in the open.
+  Points pts;
+  for (int j = -20; j <= 20; ++j)
+    for (int k = -10; k <= 10; ++k) {
+      const float y = 0.025f * j, z = 0.025f * k;
+      pts.emplace_back(2.f, y, z);
+    }
+  const size_t front = pts.size();
+  for (int j = -60; j <= 60; ++j)
+    for (int k = -10; k <= 10; ++k) pts.emplace_back(3.f, 0.025f * j, 0.025f * k);
+  const std::vector<uint8_t> seen = VisibleFrom(pts, {Eigen::Vector3f::Zero()}, 0.02f, 0.03f);
+  ASSERT_EQ(seen.size(), pts.size());
+  int front_seen = 0, hidden_seen = 0, hidden = 0, open_seen = 0, open = 0;
+  for (size_t i = 0; i < pts.size(); ++i) {
+    if (i < front) {
+      front_seen += seen[i];
+      continue;
+    }
+    // Behind the front wall when its ray from the eye crosses x = 2 within |y| <= 0.5.
+    const bool behind = std::abs(pts[i].y() * 2.f / 3.f) < 0.45f;
+    const bool clear = std::abs(pts[i].y() * 2.f / 3.f) > 0.55f;
+    if (behind) hidden += 1, hidden_seen += seen[i];
+    if (clear) open += 1, open_seen += seen[i];
+  }
+  EXPECT_EQ(front_seen, static_cast<int>(front));
+  EXPECT_EQ(hidden_seen, 0) << "of " << hidden;
+  EXPECT_GT(open_seen, open * 9 / 10);
+}
+
+TEST(Visibility, EyesSurroundTheObjectAtTheirHeight) {
+  const Points eyes = EyesAround(Eigen::Vector3f(1.f, 0.6f, 0.8f), 1.4f, 1.5f, 8);
+  ASSERT_EQ(eyes.size(), 8u);
+  const float half_diag = 0.5f * std::hypot(1.f, 0.6f);
+  Eigen::Vector2f mean = Eigen::Vector2f::Zero();
+  for (const auto& e : eyes) {
+    EXPECT_NEAR(e.z(), 1.4f, 1e-5f);
+    EXPECT_NEAR(e.head<2>().norm(), half_diag + 1.5f, 1e-4f);
+    mean += e.head<2>() / 8.f;
+  }
+  EXPECT_LT(mean.norm(), 1e-4f);
+}
+
+}  // namespace
+}  // namespace furnihost::shape

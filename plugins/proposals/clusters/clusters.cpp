@@ -3,7 +3,7 @@
 // scan's point spacing, long clusters split where two objects meet, clusters floating above
 // the ground extended down to the supports under them.
 //
-// Why each step (measured on the ScanNet dev rooms; /work figures in docs/configs.md):
+// Why each step (measured on the ScanNet dev rooms; figures in docs/configs.md):
 // - Radii in units of the scan's median point spacing: ScanNet's 50k-point rooms range from
 //   1.4 to 3.3 cm spacing; a fixed 5 cm radius shatters the sparse ones.
 // - Walls: every large vertical plane ("all" rule: > 1 m tall and > 0.8 m long, or > 1.5 m2)

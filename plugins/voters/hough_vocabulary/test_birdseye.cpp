@@ -1,5 +1,6 @@
 // furnihost::app::WriteBirdsEye: both files written atomically, classes in their colours at
-// the right places (x right, y up), scan points grey, errors on unwritable paths.
+// the right places (x right, y up), scan points grey by their height above the ground, errors
+// on unwritable paths.
 #include <cairo.h>
 #include <gtest/gtest.h>
 
@@ -73,7 +74,7 @@ TEST(BirdsEye, WritesSvgAndPngWithClassColoursWhereTheObjectsAre) {
     const uint32_t p = reinterpret_cast<const uint32_t*>(data + static_cast<size_t>(y) * stride)[x];
     return Pixel{static_cast<int>((p >> 16) & 255), static_cast<int>((p >> 8) & 255), static_cast<int>(p & 255)};
   };
-  // Centroids of bluish, reddish and exactly grey pixels left of the legend (the legend
+  // Centroids of bluish, reddish and wall-grey (1 m up: 90) pixels left of the legend (the legend
   // column is the rightmost 190 px).
   const int plot_right = w - 200;
   double bx = 0, by = 0, rx = 0, ry = 0, gx = 0;
@@ -83,7 +84,7 @@ TEST(BirdsEye, WritesSvgAndPngWithClassColoursWhereTheObjectsAre) {
       const Pixel p = at(x, y);
       if (p.b > 120 && p.b > p.r + 60 && p.b > p.g + 60) bx += x, by += y, ++nb;
       if (p.r > 120 && p.r > p.g + 60 && p.r > p.b + 60) rx += x, ry += y, ++nr;
-      if (p.r == 190 && p.g == 190 && p.b == 190) gx += x, ++ng;
+      if (p.r == 90 && p.g == 90 && p.b == 90) gx += x, ++ng;  // 1 m above the floor
     }
   ASSERT_GT(nb, 20);
   ASSERT_GT(nr, 20);
