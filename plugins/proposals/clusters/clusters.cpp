@@ -23,6 +23,7 @@
 #include <tbb/parallel_for.h>
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -318,6 +319,12 @@ class ClusterProposer : public Proposer {
     const float cos25 = std::cos(25.f * kPi / 180.f);
     std::vector<uint32_t> idx;
     std::vector<int> tb, rb;
+    // rho about the cloud's centre on the floor plane, not the frame's origin: a room 100 m
+    // from its origin (a shifted survey) bins like the same room at the origin.
+    Eigen::AlignedBox2f extent;
+    for (const auto& p : P) extent.extend(p.head<2>());
+    Eigen::Vector2f c0 = Eigen::Vector2f::Zero();
+    if (!P.empty()) c0 = extent.center();
     for (int it = 0; it < 40; ++it) {
       idx.clear();
       for (size_t i = 0; i < n; ++i)
@@ -331,7 +338,7 @@ class ClusterProposer : public Proposer {
         const Eigen::Vector3f& nn = ls.normals[idx[k]];
         float th = std::atan2(nn.y(), nn.x());
         th = std::fmod(th + 2 * kPi, kPi);
-        rho[k] = P[idx[k]].x() * std::cos(th) + P[idx[k]].y() * std::sin(th);
+        rho[k] = (P[idx[k]].x() - c0.x()) * std::cos(th) + (P[idx[k]].y() - c0.y()) * std::sin(th);
         tb[k] = std::min(TB - 1, int(th / kPi * TB));
         rmin = std::min(rmin, rho[k]);
         rmax = std::max(rmax, rho[k]);

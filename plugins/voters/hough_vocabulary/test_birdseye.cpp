@@ -100,7 +100,7 @@ TEST(BirdsEye, WritesSvgAndPngWithClassColoursWhereTheObjectsAre) {
   for (int y = 0; y < hgt; ++y)
     for (int x = 0; x < plot_right; ++x) {
       const Pixel p = at(x, y);
-      if (p.r == 190 && p.g == 190 && p.b == 190) ymin = std::min(ymin, y), ymax = std::max(ymax, y);
+      if (p.r == 90 && p.g == 90 && p.b == 90) ymin = std::min(ymin, y), ymax = std::max(ymax, y);
     }
   EXPECT_NEAR(d_px / (ymax - ymin), 2.5 / 3.0, 0.05 * 2.5 / 3.0);
   cairo_surface_destroy(png);
