@@ -188,6 +188,9 @@ RunFigures RunOne(Loaded& cfg, const Registry& reg, const RunContext& ctx, const
   std::vector<SceneRecord> records(n);
   std::vector<std::vector<Eigen::Vector3f>> voter_centres(n);  // before a fitter moved them
   std::vector<std::optional<std::vector<GroundTruthObject>>> truth_working(n);
+  // With --save-detections: each scene's frame, pose and ground (no points), so its detections
+  // are written in the file's frame like detect's detections.json.
+  std::vector<std::optional<Scan>> frame_of(n);
   std::vector<std::unique_ptr<Pipeline>> pipelines;
   pipelines.push_back(std::make_unique<Pipeline>(cfg.graph, reg));
   Progress progress("eval " + cfg.name + " seed " + std::to_string(ctx.seed), n);
@@ -217,6 +220,12 @@ RunFigures RunOne(Loaded& cfg, const Registry& reg, const RunContext& ctx, const
     for (const auto& h : r.votes.hypotheses) voter_centres[i].push_back(h.center);
     // Ground truth is in the file's frame: into the working frame of the detections.
     if (!r.scans.empty() && !r.scans.front().frame.IsIdentity()) truth_working[i] = ToWorking((*in.truth)[i], r.scans.front().frame);
+    if (!in.detections_dir.empty() && !r.scans.empty()) {
+      Scan& f = frame_of[i].emplace();
+      f.frame = r.scans.front().frame;
+      f.pose = r.scans.front().pose;
+      f.ground = r.scans.front().ground;
+    }
     Pipeline::Result keep;
     keep.detections = std::move(r.detections);
     keep.fitted = r.fitted;
@@ -288,7 +297,8 @@ RunFigures RunOne(Loaded& cfg, const Registry& reg, const RunContext& ctx, const
   if (!in.detections_dir.empty())
     for (size_t i = 0; i < n; ++i) {
       json j = {{"scan", scenes[i].scan}, {"seed", ctx.seed}, {"detections", json::array()}};
-      for (const auto& d : evals[i].detections) j["detections"].push_back(DetectionToJson(d));
+      const Scan* frame = frame_of[i] ? &*frame_of[i] : nullptr;
+      for (const auto& d : evals[i].detections) j["detections"].push_back(DetectionToJson(d, frame));
       WriteJson((fs::path(in.detections_dir) / cfg.name / std::to_string(ctx.seed) / (evals[i].name + ".json")).string(), j);
     }
   f.metrics = Evaluate(evals, in.dataset->classes, in.width);
@@ -395,8 +405,8 @@ int RunEval(const std::vector<std::string>& args) {
   app.add_option("--jobs,-j", jobs, "scenes processed in parallel (0 = as cores and memory allow)")->check(CLI::Range(0, 1024));
   app.add_flag("--retrain", retrain, "retrain each graph's model even if its cache is valid");
   app.add_flag("--save-detections", save_detections,
-               "also write every scene's detections to OUT/detections/<config>/<seed>/<scan stem>.json (for "
-               "cross-validation scripts)");
+               "also write every scene's detections (in its file's frame) to OUT/detections/<config>/<seed>/<scan "
+               "stem>.json (for cross-validation scripts)");
   app.add_flag("--strict", strict, "invalid catalog entries are fatal instead of skipped");
   if (auto rc = Parse(app, args)) return *rc;
   common.Apply();
