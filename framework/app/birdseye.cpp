@@ -13,6 +13,7 @@
 
 #include "furnihost/error.hpp"
 #include "furnihost/io.hpp"
+#include "furnihost/pipeline.hpp"
 
 namespace furnihost::app {
 
@@ -51,6 +52,12 @@ class Colours {
 };
 
 using SurfacePtr = std::unique_ptr<cairo_surface_t, decltype(&cairo_surface_destroy)>;
+
+// A scan as drawn: its points through `pose` (the scan's pose, then the display transform).
+struct Shown {
+  const Scan* scan;
+  Eigen::Isometry3f pose;
+};
 using ContextPtr = std::unique_ptr<cairo_t, decltype(&cairo_destroy)>;
 
 // World window [lo, hi] mapped to pixels with `ppm` pixels per metre, y flipped.
@@ -66,12 +73,10 @@ struct View {
   double Y(double y) const { return margin + (hi.y() - y) * ppm; }
 };
 
-View MakeView(const std::vector<const Scan*>& scans, const VoteResult& votes,
+View MakeView(const std::vector<Shown>& scans, const VoteResult& votes,
               const std::vector<Detection>& detections) {
   Eigen::AlignedBox2d box;
-  for (const Scan* s : scans) {
-    if (!s) continue;
-    const Eigen::Isometry3f pose = s->pose;
+  for (const auto& [s, pose] : scans) {
     for (const auto& p : s->points) {
       const Eigen::Vector3f w = pose * p;
       if (w.allFinite()) box.extend(w.head<2>().cast<double>());
@@ -98,7 +103,7 @@ View MakeView(const std::vector<const Scan*>& scans, const VoteResult& votes,
 // shaded by the highest point above the ground that falls in it: the floor light blue-grey
 // (where the ground model saw it), objects from mid grey (low) to near black (2 m and up), so
 // furniture stands out from the floor it stands on.
-SurfacePtr PointsRaster(const std::vector<const Scan*>& scans, const View& v) {
+SurfacePtr PointsRaster(const std::vector<Shown>& scans, const View& v) {
   const int w = std::max(1, static_cast<int>(std::ceil(v.PlotWidth())));
   const int h = std::max(1, static_cast<int>(std::ceil(v.PlotHeight())));
   SurfacePtr img(cairo_image_surface_create(CAIRO_FORMAT_ARGB32, w, h), cairo_surface_destroy);
@@ -106,10 +111,10 @@ SurfacePtr PointsRaster(const std::vector<const Scan*>& scans, const View& v) {
   unsigned char* data = cairo_image_surface_get_data(img.get());
   const int stride = cairo_image_surface_get_stride(img.get());
   std::vector<float> top(static_cast<size_t>(w) * h, -INFINITY);
-  for (const Scan* s : scans) {
-    if (!s || !data) continue;
+  for (const auto& [s, pose] : scans) {
+    if (!data) continue;
     for (const auto& p : s->points) {
-      const Eigen::Vector3f wp = s->pose * p;
+      const Eigen::Vector3f wp = pose * p;
       if (!wp.allFinite()) continue;
       const int x = static_cast<int>(std::floor(v.X(wp.x()) - v.margin));
       const int y = static_cast<int>(std::floor(v.Y(wp.y()) - v.margin));
@@ -139,7 +144,7 @@ SurfacePtr PointsRaster(const std::vector<const Scan*>& scans, const View& v) {
 }
 
 // One class's density as translucent cells: alpha grows with sqrt(value / class maximum).
-void DrawGrid(cairo_t* cr, const VoteGrid& g, Rgb c, const View& v) {
+void DrawGrid(cairo_t* cr, const VoteGrid& g, Rgb c, const View& v, const Eigen::Isometry3f& display) {
   if (g.width <= 0 || g.height <= 0 || g.values.size() != static_cast<size_t>(g.width) * g.height) return;
   const float vmax = *std::max_element(g.values.begin(), g.values.end());
   if (!(vmax > 0.f)) return;
@@ -159,8 +164,11 @@ void DrawGrid(cairo_t* cr, const VoteGrid& g, Rgb c, const View& v) {
     }
   cairo_surface_mark_dirty(img.get());
   cairo_save(cr);
-  // Image row iy is world y = origin.y + iy * cell, which runs up: flip.
-  cairo_translate(cr, v.X(g.origin.x()), v.Y(g.origin.y()));
+  // Image row iy is world y = origin.y + iy * cell, which runs up: flip. The grid's axes are
+  // the world's, turned by the display transform (the screen's y runs down: the other way).
+  const Eigen::Vector3f o = display * Eigen::Vector3f(g.origin.x(), g.origin.y(), 0.f);
+  cairo_translate(cr, v.X(o.x()), v.Y(o.y()));
+  cairo_rotate(cr, -std::atan2(display.linear()(1, 0), display.linear()(0, 0)));
   cairo_scale(cr, g.cell * v.ppm, -g.cell * v.ppm);
   cairo_set_source_surface(cr, img.get(), 0, 0);
   cairo_pattern_set_filter(cairo_get_source(cr), CAIRO_FILTER_NEAREST);
@@ -181,8 +189,8 @@ void Text(cairo_t* cr, double x, double y, const std::string& s, double size = 1
   cairo_show_text(cr, s.c_str());
 }
 
-void Draw(cairo_t* cr, const std::vector<const Scan*>& scans, const VoteResult& votes,
-          const std::vector<Detection>& detections, const View& v) {
+void Draw(cairo_t* cr, const std::vector<Shown>& scans, const VoteResult& votes,
+          const std::vector<Detection>& detections, const View& v, const Eigen::Isometry3f& display) {
   Colours colours;
   cairo_set_source_rgb(cr, 1, 1, 1);
   cairo_paint(cr);
@@ -196,7 +204,7 @@ void Draw(cairo_t* cr, const std::vector<const Scan*>& scans, const VoteResult& 
     if (std::find(classes.begin(), classes.end(), c) == classes.end()) classes.push_back(c);
   };
   for (const auto& g : votes.grids) {
-    DrawGrid(cr, g, colours.Of(g.cls), v);
+    DrawGrid(cr, g, colours.Of(g.cls), v, display);
     note_class(g.cls);
   }
   // The scan over the vote densities, so it stays readable where many classes voted.
@@ -317,8 +325,8 @@ void Draw(cairo_t* cr, const std::vector<const Scan*>& scans, const VoteResult& 
     Text(cr, lx + 20, ly, what);
     ly += 18;
   }
-  for (const Scan* s : scans)
-    if (s && s->ground) {
+  for (const auto& [s, pose] : scans)
+    if (s->ground) {
       Text(cr, lx, ly + 4, std::string("ground: ") + ToString(s->ground->kind) + " (" + s->ground->source + ")", 10);
       ly += 16;
       break;
@@ -333,15 +341,23 @@ void Check(cairo_status_t st, const std::string& path) {
 
 }  // namespace
 
-void WriteBirdsEye(const std::string& stem, const std::vector<const Scan*>& scans,
-                   const VoteResult& votes, const std::vector<Detection>& detections) {
+void WriteBirdsEye(const std::string& stem, const std::vector<const Scan*>& scan_list, const VoteResult& world_votes,
+                   const std::vector<Detection>& world_detections, const Eigen::Isometry3f& display) {
+  // Everything into the frame drawn: scans by their poses, hypotheses, votes and detections.
+  std::vector<Shown> scans;
+  for (const Scan* s : scan_list)
+    if (s) scans.push_back({s, display * s->pose});
+  VoteResult votes = world_votes;
+  for (auto& h : votes.hypotheses) h.center = display * h.center;
+  std::vector<Detection> detections;
+  for (const auto& d : world_detections) detections.push_back(TransformDetection(d, display));
   const View v = MakeView(scans, votes, detections);
   AtomicWrite(stem + ".svg", [&](const std::string& tmp) {
     SurfacePtr s(cairo_svg_surface_create(tmp.c_str(), v.Width(), v.Height()), cairo_surface_destroy);
     Check(cairo_surface_status(s.get()), stem + ".svg");
     {
       ContextPtr cr(cairo_create(s.get()), cairo_destroy);
-      Draw(cr.get(), scans, votes, detections, v);
+      Draw(cr.get(), scans, votes, detections, v, display);
       Check(cairo_status(cr.get()), stem + ".svg");
     }
     cairo_surface_finish(s.get());  // flushes the file
@@ -353,7 +369,7 @@ void WriteBirdsEye(const std::string& stem, const std::vector<const Scan*>& scan
     Check(cairo_surface_status(s.get()), stem + ".png");
     {
       ContextPtr cr(cairo_create(s.get()), cairo_destroy);
-      Draw(cr.get(), scans, votes, detections, v);
+      Draw(cr.get(), scans, votes, detections, v, display);
       Check(cairo_status(cr.get()), stem + ".png");
     }
     Check(cairo_surface_write_to_png(s.get(), tmp.c_str()), stem + ".png");

@@ -1,7 +1,7 @@
 // Bird's-eye view of a detection run (as the paper's Fig. 4 f/h): the scans from above in
 // light grey, the vote density of each class as translucent coloured cells, hypotheses as
 // circle outlines and detections as filled circles, both sized by score, a legend and a 1 m
-// scale bar. World frame (Scan::pose applied), x to the right, y up.
+// scale bar. The user's frame (Scan::pose, then `display`), x to the right, y up.
 #pragma once
 #include <string>
 #include <vector>
@@ -13,8 +13,11 @@ namespace furnihost::app {
 // Writes <stem>.svg and <stem>.png (each atomically). Classes are coloured chair blue, table
 // red, cabinet yellow, others from a fixed palette. Throws InputError when a file cannot be
 // written.
+// `display` maps the world frame of the run to the frame drawn (Pipeline::Result::world_to_user:
+// the user's z-up frame, whatever working frame the stages used).
 void WriteBirdsEye(const std::string& stem, const std::vector<const furnihost::Scan*>& scans,
                    const furnihost::VoteResult& votes,
-                   const std::vector<furnihost::Detection>& detections);
+                   const std::vector<furnihost::Detection>& detections,
+                   const Eigen::Isometry3f& display = Eigen::Isometry3f::Identity());
 
 }  // namespace furnihost::app

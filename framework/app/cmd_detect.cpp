@@ -69,8 +69,8 @@ std::string RejectionReason(const std::string& why) {
   return std::regex_replace(why, measured, "", std::regex_constants::format_first_only);
 }
 
-// One line per detection: class, model, x, y [m], yaw [deg], score, coverage.
-void PrintTable(std::ostream& os, const std::vector<const Detection*>& dets) {
+// One line per detection: class, model, x, y [m] (+ `shift`), yaw [deg], score, coverage.
+void PrintTable(std::ostream& os, const std::vector<const Detection*>& dets, const Eigen::Vector3d& shift) {
   size_t wc = 5, wm = 5;
   for (const Detection* d : dets) {
     wc = std::max(wc, d->cls.size());
@@ -81,7 +81,7 @@ void PrintTable(std::ostream& os, const std::vector<const Detection*>& dets) {
   for (const Detection* d : dets) {
     os << "    " << std::left << std::setw(int(wc)) << d->cls << "  " << std::setw(int(wm))
        << (d->model.empty() ? "-" : d->model) << std::right << std::fixed << std::setprecision(2) << std::setw(8)
-       << d->center.x() << std::setw(8) << d->center.y() << std::setprecision(0) << std::setw(11)
+       << d->center.x() + shift.x() << std::setw(8) << d->center.y() + shift.y() << std::setprecision(0) << std::setw(11)
        << d->yaw * 180 / M_PI << std::setprecision(3) << std::setw(8) << d->score;
     if (d->coverage >= 0) os << std::setprecision(2) << std::setw(10) << d->coverage;
     else os << std::setw(10) << "-";
@@ -92,7 +92,7 @@ void PrintTable(std::ostream& os, const std::vector<const Detection*>& dets) {
 // Verified detections first, one line each; the rejected hypotheses as one summary line per
 // class and reason (the full list is in detections.json); hypotheses no fitter looked at
 // (graphs without a fitter) one line each, they are the result then.
-void PrintDetections(std::ostream& os, const std::vector<Detection>& dets) {
+void PrintDetections(std::ostream& os, const std::vector<Detection>& dets, const Eigen::Vector3d& shift) {
   std::vector<const Detection*> verified, unverified;
   std::map<std::string, std::map<std::string, int>> rejected;  // class -> reason -> count
   size_t n_rejected = 0;
@@ -107,7 +107,7 @@ void PrintDetections(std::ostream& os, const std::vector<Detection>& dets) {
   const size_t fitted = verified.size() + n_rejected;
   if (fitted > 0) {
     os << "  verified " << verified.size() << " of " << fitted << " hypotheses" << (verified.empty() ? "\n" : ":\n");
-    if (!verified.empty()) PrintTable(os, verified);
+    if (!verified.empty()) PrintTable(os, verified, shift);
   }
   if (n_rejected > 0) {
     os << "  rejected " << n_rejected << ":";
@@ -131,7 +131,7 @@ void PrintDetections(std::ostream& os, const std::vector<Detection>& dets) {
   if (!unverified.empty()) {
     os << "  " << unverified.size() << (unverified.size() == 1 ? " hypothesis" : " hypotheses")
        << (fitted > 0 ? " not verified:\n" : " (no fitter ran):\n");
-    PrintTable(os, unverified);
+    PrintTable(os, unverified, shift);
   }
 }
 
@@ -275,7 +275,7 @@ int RunDetect(const std::vector<std::string>& args) {
     if (r.voted) {
       std::vector<const Scan*> sp;
       for (const auto& s : r.scans) sp.push_back(&s);
-      WriteBirdsEye((fs::path(dir) / "votes").string(), sp, r.votes, r.detections);
+      WriteBirdsEye((fs::path(dir) / "votes").string(), sp, r.votes, r.detections, r.world_to_user);
     }
 #endif
     if (r.fitted && frame_scan) WriteFitted((fs::path(dir) / "fitted.ply").string(), r.detections, *catalog, *frame_scan);
@@ -284,7 +284,12 @@ int RunDetect(const std::vector<std::string>& args) {
     if (!r.voted) std::cout << "; no voter ran, so no detections";
     std::cout << " -> " << dir << "/detections.json\n";
     if (r.voted && r.detections.empty()) std::cout << "  no hypotheses\n";
-    PrintDetections(std::cout, r.detections);
+    // Printed in the scan's z-up frame with any global shift added back (the user's numbers).
+    std::vector<Detection> shown;
+    for (const auto& d : r.detections) shown.push_back(TransformDetection(d, r.world_to_user));
+    const Eigen::Vector3d shift =
+        frame_scan ? Eigen::Vector3d(frame_scan->frame.to_upright.linear() * frame_scan->frame.shift) : Eigen::Vector3d::Zero();
+    PrintDetections(std::cout, shown, shift);
   }
   return 0;
 }

@@ -165,12 +165,12 @@ struct RunInput {
   std::string detections_dir;  // when set: each scene's detections as <dir>/<config>/<seed>/<scan stem>.json
 };
 
-// Ground-truth boxes (file frame) in a scan's working frame: centres mapped, sizes the extents
+// Ground-truth boxes (file frame) in a scan's z-up frame: centres mapped, sizes the extents
 // of the mapped box (exact for axis turns such as an optical frame's), yaw about the new up.
-std::vector<GroundTruthObject> ToWorking(std::vector<GroundTruthObject> truth, const ScanFrame& f) {
-  const Eigen::Matrix3f r = f.to_working.linear().cast<float>();
+std::vector<GroundTruthObject> ToUpright(std::vector<GroundTruthObject> truth, const ScanFrame& f) {
+  const Eigen::Matrix3f r = f.to_upright.linear().cast<float>();
   for (auto& g : truth) {
-    g.center = (f.to_working * (g.center.cast<double>() - f.shift)).cast<float>();
+    g.center = (f.to_upright * (g.center.cast<double>() - f.shift)).cast<float>();
     g.size = (r.cwiseAbs() * g.size).eval();
     if (g.yaw) {
       const Eigen::Vector3f d = r * Eigen::Vector3f(std::cos(*g.yaw), std::sin(*g.yaw), 0.f);
@@ -217,13 +217,18 @@ RunFigures RunOne(Loaded& cfg, const Registry& reg, const RunContext& ctx, const
     records[i].detections = static_cast<int>(r.detections.size());
     records[i].timings_ms = r.timings_ms;
     // Keep only what the evaluation needs: scans and features of every scene would add up.
-    for (const auto& h : r.votes.hypotheses) voter_centres[i].push_back(h.center);
-    // Ground truth is in the file's frame: into the working frame of the detections.
-    if (!r.scans.empty() && !r.scans.front().frame.IsIdentity()) truth_working[i] = ToWorking((*in.truth)[i], r.scans.front().frame);
+    // Compared in the scan's z-up frame: the detections from the working frame, the ground
+    // truth from the file's.
+    for (const auto& h : r.votes.hypotheses) voter_centres[i].push_back(r.world_to_user * h.center);
+    for (auto& d : r.detections) d = TransformDetection(d, r.world_to_user);
+    if (!r.scans.empty()) {
+      const ScanFrame& fr = r.scans.front().frame;
+      if (!fr.shift.isZero() || !fr.to_upright.matrix().isIdentity()) truth_working[i] = ToUpright((*in.truth)[i], fr);
+    }
     if (!in.detections_dir.empty() && !r.scans.empty()) {
       Scan& f = frame_of[i].emplace();
       f.frame = r.scans.front().frame;
-      f.pose = r.scans.front().pose;
+      f.pose = r.world_to_user * r.scans.front().pose;  // the detections are in the z-up frame now
       f.ground = r.scans.front().ground;
     }
     Pipeline::Result keep;

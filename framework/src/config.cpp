@@ -17,7 +17,7 @@ namespace {
 
 const std::vector<std::string> kTopKeys = {"extends", "description", "comment", "seed", "threads",
                                            "catalog", "model_cache", "training", "stages", "limits",
-                                           "ground"};
+                                           "ground", "frame"};
 const std::vector<std::string> kStageKeys = {"type", "inputs", "params", "comment"};
 const std::vector<std::string> kTrainingKeys = {"sensor", "comment"};
 const std::vector<std::string> kLimitKeys = {"max_points", "max_grid_cells", "comment"};
@@ -143,6 +143,17 @@ GraphConfig ValidateGraph(const std::string& path, const nlohmann::json& config,
   // Before anything runs (a typo in the ground's kind must not surface after training).
   g.ground = GroundOptionsFromJson(config.value("ground", nlohmann::json()), w + "/ground");
   resolved["ground"] = ToJson(g.ground);
+  if (config.contains("frame")) {
+    const auto& f = config["frame"];
+    if (!f.is_object()) throw InputError(w + "/frame: expected an object such as {\"canonical\": true}, got " + Shown(f));
+    for (auto it = f.begin(); it != f.end(); ++it) {
+      if (it.key() == "comment") continue;
+      if (it.key() != "canonical") throw InputError(w + "/frame/" + it.key() + ": unknown key (frame takes canonical)");
+      if (!it->is_boolean()) throw InputError(w + "/frame/canonical: expected true or false, got " + Shown(*it));
+      g.canonical_frame = it->get<bool>();
+    }
+  }
+  resolved["frame"] = {{"canonical", g.canonical_frame}};
   if (config.contains("catalog")) g.catalog = config["catalog"].get<std::string>();
   if (config.contains("model_cache")) g.model_cache = config["model_cache"].get<std::string>();
   if (config.contains("limits")) {
@@ -353,17 +364,17 @@ GraphConfig LoadGraph(const std::string& path, const Registry& registry, const s
     const std::string tag = s.substr(0, dot), key = s.substr(dot + 1, eq - dot - 1), text = s.substr(eq + 1);
     nlohmann::json value = nlohmann::json::parse(text, nullptr, false);
     if (value.is_discarded()) value = text;  // a bare word: a string
-    if (tag == "ground") {
-      if (!config.contains("ground") || !config["ground"].is_object()) config["ground"] = nlohmann::json::object();
-      config["ground"][key] = value;
-      applied.push_back({s.substr(0, eq), "/ground/" + key});
+    if (tag == "ground" || tag == "frame") {
+      if (!config.contains(tag) || !config[tag].is_object()) config[tag] = nlohmann::json::object();
+      config[tag][key] = value;
+      applied.push_back({s.substr(0, eq), "/" + tag + "/" + key});
       continue;
     }
     if (!config.contains("stages") || !config["stages"].is_object() || !config["stages"].contains(tag)) {
       std::string tags;
       if (config.contains("stages") && config["stages"].is_object())
         for (auto it = config["stages"].begin(); it != config["stages"].end(); ++it) tags += (tags.empty() ? "" : ", ") + it.key();
-      throw InputError(where + ": no stage '" + tag + "' in " + path + " (stages: " + tags + "; or ground)");
+      throw InputError(where + ": no stage '" + tag + "' in " + path + " (stages: " + tags + "; or ground, frame)");
     }
     auto& st = config["stages"][tag];
     if (!st.is_object()) throw InputError(where + ": stage '" + tag + "' is not an object");

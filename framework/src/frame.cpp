@@ -2,10 +2,15 @@
 
 #include <spdlog/spdlog.h>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <nanoflann.hpp>
 #include <nlohmann/json.hpp>
+#include <numeric>
 #include <sstream>
 #include <unordered_map>
 
@@ -168,6 +173,109 @@ std::optional<Eigen::Vector3d> EstimateUpAxis(const Points& points) {
   return up;
 }
 
+namespace {
+struct CloudAdaptor {
+  const Points& pts;
+  size_t kdtree_get_point_count() const { return pts.size(); }
+  float kdtree_get_pt(size_t i, size_t d) const { return pts[i][int(d)]; }
+  template <class B>
+  bool kdtree_get_bbox(B&) const { return false; }
+};
+using CloudTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, CloudAdaptor>, CloudAdaptor, 3, uint32_t>;
+}  // namespace
+
+Eigen::Isometry3d EstimateCanonicalFrame(const Points& upright) {
+  std::vector<uint32_t> finite;
+  finite.reserve(upright.size());
+  for (size_t i = 0; i < upright.size(); ++i)
+    if (upright[i].allFinite()) finite.push_back(uint32_t(i));
+  if (finite.size() < 10) return Eigen::Isometry3d::Identity();
+  // A sample by index (every s-th finite point), exact duplicates once: the same points in
+  // whatever frame the cloud is given.
+  const size_t stride = std::max<size_t>(1, finite.size() / 30000);
+  Points sample;
+  for (size_t k = 0; k < finite.size(); k += stride) sample.push_back(upright[finite[k]]);
+  {
+    std::vector<uint32_t> order(sample.size());
+    std::iota(order.begin(), order.end(), 0u);
+    auto less = [&](uint32_t a, uint32_t b) {
+      const auto &p = sample[a], &q = sample[b];
+      return p.x() != q.x() ? p.x() < q.x() : p.y() != q.y() ? p.y() < q.y() : p.z() < q.z();
+    };
+    std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return less(a, b) || (!less(b, a) && a < b); });
+    std::vector<uint8_t> dup(sample.size(), 0);
+    for (size_t k = 1; k < order.size(); ++k) dup[order[k]] = sample[order[k]] == sample[order[k - 1]];
+    Points u;
+    for (size_t k = 0; k < sample.size(); ++k)
+      if (!dup[k]) u.push_back(sample[k]);
+    sample.swap(u);
+  }
+  // Azimuths of the vertical surfaces' normals (plane fits over 12 neighbours), as 4 x angle.
+  double C = 0, S = 0, W = 0;
+  if (sample.size() >= 20) {
+    CloudAdaptor ad{sample};
+    CloudTree tree(3, ad, nanoflann::KDTreeSingleIndexAdaptorParams(16));
+    tree.buildIndex();
+    const size_t k = 12;
+    std::vector<Eigen::Vector3d> acc(sample.size(), Eigen::Vector3d::Zero());  // (cos, sin, weight)
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, sample.size(), 2048), [&](const tbb::blocked_range<size_t>& r) {
+      std::vector<uint32_t> idx(k);
+      std::vector<float> d2(k);
+      for (size_t i = r.begin(); i != r.end(); ++i) {
+        nanoflann::KNNResultSet<float, uint32_t> rs(k);
+        rs.init(idx.data(), d2.data());
+        tree.findNeighbors(rs, sample[i].data(), nanoflann::SearchParams());
+        const size_t n = rs.size();
+        if (n < 6) continue;
+        Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+        for (size_t j = 0; j < n; ++j) mean += sample[idx[j]].cast<double>();
+        mean /= double(n);
+        Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+        for (size_t j = 0; j < n; ++j) {
+          const Eigen::Vector3d d = sample[idx[j]].cast<double>() - mean;
+          cov += d * d.transpose();
+        }
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
+        const Eigen::Vector3d ev = es.eigenvalues();
+        if (!(ev[0] < 0.1 * ev[1])) continue;  // not flat
+        const Eigen::Vector3d nrm = es.eigenvectors().col(0);
+        if (!nrm.allFinite() || std::abs(nrm.z()) > 0.3) continue;  // not a vertical surface
+        const double a = 4.0 * std::atan2(nrm.y(), nrm.x());
+        acc[i] = Eigen::Vector3d(std::cos(a), std::sin(a), 1.0);
+      }
+    });
+    for (const auto& a : acc) C += a.x(), S += a.y(), W += a.z();
+  }
+  double yaw = 0;  // of the dominant directions, in (-45, 45] degrees
+  // Walls decide when their directions agree beyond what chance gives noisy normals (a
+  // resultant of 4 random-walk steps).
+  if (W >= 50 && std::hypot(C, S) >= std::max(0.05 * W, 4.0 * std::sqrt(W))) {
+    yaw = 0.25 * std::atan2(S, C);
+  } else {
+    // No walls to go by: the major axis of the points on the floor plane.
+    Eigen::Vector2d m = Eigen::Vector2d::Zero();
+    for (const auto& p : sample) m += p.head<2>().cast<double>();
+    m /= double(sample.size());
+    Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
+    for (const auto& p : sample) {
+      const Eigen::Vector2d d = p.head<2>().cast<double>() - m;
+      cov += d * d.transpose();
+    }
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(cov);
+    const Eigen::Vector2d ev = es.eigenvalues();
+    if (ev[1] > 0 && ev[0] < 0.8 * ev[1]) {
+      const Eigen::Vector2d ax = es.eigenvectors().col(1);
+      yaw = 0.25 * std::atan2(std::sin(4 * std::atan2(ax.y(), ax.x())), std::cos(4 * std::atan2(ax.y(), ax.x())));
+    }
+  }
+  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+  t.linear() = Eigen::AngleAxisd(-yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  Eigen::AlignedBox3d box;
+  for (uint32_t i : finite) box.extend(t.linear() * upright[i].cast<double>());
+  t.translation() = -box.center();
+  return t;
+}
+
 void ToWorkingFrame(Scan& scan, const FrameOptions& o) {
   Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
   std::string how = o.up;
@@ -194,19 +302,44 @@ void ToWorkingFrame(Scan& scan, const FrameOptions& o) {
   } else {
     t.linear() = UpAxisRotation(o.up, "--up");
   }
-  scan.frame.to_working = t;
+  scan.frame.to_upright = t;
   scan.frame.up = how;
-  if (t.matrix().isIdentity()) return;
-  const Eigen::Isometry3f tf = t.cast<float>();
-  for (auto& p : scan.points) p = tf * p;
-  if (scan.origin) scan.origin = tf * *scan.origin;
+  if (o.canonical) {
+    Points upright;
+    const Points* u = &scan.points;
+    if (!t.matrix().isIdentity()) {
+      const Eigen::Isometry3f tf = t.cast<float>();
+      upright.resize(scan.points.size());
+      for (size_t i = 0; i < upright.size(); ++i) upright[i] = tf * scan.points[i];
+      u = &upright;
+    }
+    scan.frame.canonical = EstimateCanonicalFrame(*u);
+    const Eigen::Isometry3d& c = scan.frame.canonical;
+    spdlog::debug("{}: canonical frame: turned {:.3f} deg about z, shifted by ({:.3f}, {:.3f}, {:.3f}) m", scan.source,
+                  std::atan2(c.linear()(1, 0), c.linear()(0, 0)) * 180.0 / M_PI, c.translation().x(),
+                  c.translation().y(), c.translation().z());
+  } else {
+    scan.frame.canonical = Eigen::Isometry3d::Identity();
+  }
+  // One rounding: the file's (shifted) coordinates straight into the working frame, in double.
+  const Eigen::Isometry3d w = scan.frame.ToWorking();
+  if (w.matrix().isIdentity()) return;
+  for (auto& p : scan.points) p = (w * p.cast<double>()).cast<float>();
+  if (scan.origin) scan.origin = (w * scan.origin->cast<double>()).cast<float>();
 }
 
 nlohmann::json ToJson(const ScanFrame& f) {
-  nlohmann::json m = nlohmann::json::array();
-  for (int r = 0; r < 4; ++r)
-    for (int c = 0; c < 4; ++c) m.push_back(f.to_working.matrix()(r, c));
-  return {{"shift", {f.shift.x(), f.shift.y(), f.shift.z()}}, {"file_to_working", m}, {"up", f.up}};
+  auto rows = [](const Eigen::Isometry3d& t) {
+    nlohmann::json m = nlohmann::json::array();
+    for (int r = 0; r < 4; ++r)
+      for (int c = 0; c < 4; ++c) m.push_back(t.matrix()(r, c));
+    return m;
+  };
+  return {{"shift", {f.shift.x(), f.shift.y(), f.shift.z()}},
+          {"file_to_upright", rows(f.to_upright)},
+          {"upright_to_working", rows(f.canonical)},
+          {"file_to_working", rows(f.ToWorking())},
+          {"up", f.up}};
 }
 
 }  // namespace furnihost

@@ -265,8 +265,11 @@ std::optional<GroundModel> HeightMap(const Points& w, const GroundOptions& o) {
     hi = hi.cwiseMax(p.head<2>());
   }
   float cell = o.cell;
+  while (double((hi.x() - lo.x()) / cell + 2) * double((hi.y() - lo.y()) / cell + 2) > kMaxCells) cell *= 2.f;
+  // Cells on the lattice of multiples of `cell` (not from the scan's corner): the scan's
+  // canonical frame then lays them the same way on it whichever quarter turn it came in.
+  lo = (lo / cell).array().floor().matrix() * cell;
   const Eigen::Vector2f ext = hi - lo;
-  while (double(ext.x() / cell + 1) * double(ext.y() / cell + 1) > kMaxCells) cell *= 2.f;
   const int W = int(ext.x() / cell) + 1, H = int(ext.y() / cell) + 1;
   const size_t cells = size_t(W) * size_t(H);
   // Candidates bucketed by cell (counting sort); each cell's floor is the 20th percentile of
@@ -393,21 +396,25 @@ std::optional<GroundModel> HeightMap(const Points& w, const GroundOptions& o) {
   std::vector<uint32_t> hidden;
   for (size_t c = 0; c < cells; ++c)
     if (!acc[c]) hidden.push_back(uint32_t(c));
-  for (int sweep = 0; sweep < 200 && !hidden.empty(); ++sweep) {
+  // Jacobi sweeps (each reads the previous sweep's heights; sums in double, exact for four
+  // floats): the same result whatever order the cells are stored in, so a scan turned by a
+  // quarter gets the same ground.
+  std::vector<float> next(hidden.size());
+  for (int sweep = 0; sweep < 400 && !hidden.empty(); ++sweep) {
     float change = 0.f;
-    for (uint32_t c : hidden) {
+    for (size_t i = 0; i < hidden.size(); ++i) {
+      const uint32_t c = hidden[i];
       const int cx = int(c % uint32_t(W)), cy = int(c / uint32_t(W));
-      float sum = 0.f;
+      double sum = 0.0;
       int k = 0;
       if (cx > 0) sum += g.heights[c - 1], ++k;
       if (cx + 1 < W) sum += g.heights[c + 1], ++k;
       if (cy > 0) sum += g.heights[c - size_t(W)], ++k;
       if (cy + 1 < H) sum += g.heights[c + size_t(W)], ++k;
-      if (!k) continue;
-      const float v = sum / float(k);
-      change = std::max(change, std::abs(v - g.heights[c]));
-      g.heights[c] = v;
+      next[i] = k ? float(sum / k) : g.heights[c];
+      change = std::max(change, std::abs(next[i] - g.heights[c]));
     }
+    for (size_t i = 0; i < hidden.size(); ++i) g.heights[hidden[i]] = next[i];
     if (change < 1e-4f) break;
   }
   return g;

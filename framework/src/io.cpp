@@ -530,7 +530,7 @@ void WritePlyInFrame(const std::string& path, const Points& working, const ScanF
                      const std::vector<std::array<uint8_t, 3>>* colors) {
   if (frame.IsIdentity()) return WritePly(path, working, colors);
   if (frame.shift.isZero()) {
-    const Eigen::Isometry3f back = frame.to_working.inverse().cast<float>();
+    const Eigen::Isometry3f back = frame.ToWorking().inverse().cast<float>();
     Points p(working.size());
     for (size_t i = 0; i < working.size(); ++i) p[i] = back * working[i];
     return WritePly(path, p, colors);

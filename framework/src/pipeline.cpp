@@ -278,6 +278,7 @@ Pipeline::Result Pipeline::Detect(const std::vector<SceneInput>& scenes, const T
       if (t.first == tag) { t.second += ms; return; }
     r.timings_ms.emplace_back(tag, ms);
   };
+  Eigen::Isometry3d world_to_user = Eigen::Isometry3d::Identity();
   for (const auto& sc : scenes) {
     SensorRequest req;
     req.path = sc.path;
@@ -289,8 +290,12 @@ Pipeline::Result Pipeline::Detect(const std::vector<SceneInput>& scenes, const T
     // The working frame (z up) and the ground, once per scan, before any stage sees it.
     Stopwatch sg;
     for (auto& s : got) {
-      ToWorkingFrame(s, sc.frame);
-      if (!s.ground || graph_.ground.kind == "fixed") s.ground = EstimateGround(s.points, graph_.ground);
+      FrameOptions fo = sc.frame;
+      fo.canonical = fo.canonical && graph_.canonical_frame;
+      ToWorkingFrame(s, fo);
+      GroundOptions go = graph_.ground;
+      go.fixed_z += float(s.frame.canonical.translation().z());  // given in the z-up frame
+      if (!s.ground || graph_.ground.kind == "fixed") s.ground = EstimateGround(s.points, go);
       const GroundModel& g = *s.ground;
       spdlog::info("{}: ground {} ({}): z = {:.4f} x + {:.4f} y + {:.3f} m{}", s.source, ToString(g.kind), g.source,
                    g.plane.a, g.plane.b, g.plane.c,
@@ -307,7 +312,15 @@ Pipeline::Result Pipeline::Detect(const std::vector<SceneInput>& scenes, const T
           throw InputError("stage '" + input_cfg_->tag + "' (" + input_cfg_->type + "): " + sc.path + ": " +
                            std::to_string(s.points.size()) + " points exceed /limits/max_points = " + std::to_string(cap));
     for (auto& s : got) {
-      s.pose = sc.pose;
+      // The world frame is the first scan's working frame; a scan's pose maps its working
+      // frame there (through its z-up frame and the pose given for it).
+      if (r.scans.empty()) {
+        world_to_user = sc.pose.cast<double>() * s.frame.canonical.inverse();
+        r.world_to_user = world_to_user.cast<float>();
+        s.pose = Eigen::Isometry3f::Identity();
+      } else {
+        s.pose = (world_to_user.inverse() * sc.pose.cast<double>() * s.frame.canonical.inverse()).cast<float>();
+      }
       r.scans.push_back(std::move(s));
     }
   }
@@ -449,6 +462,19 @@ std::map<std::string, Eigen::Vector3f> TypicalClassSizes(const Catalog& catalog)
     out[cls] = med;
   }
   return out;
+}
+
+Detection TransformDetection(Detection d, const Eigen::Isometry3f& t) {
+  const float turn = std::atan2(t.linear()(1, 0), t.linear()(0, 0));
+  auto wrap = [](float a) { return std::remainder(a, float(2 * M_PI)); };
+  d.center = t * d.center;
+  d.yaw = wrap(d.yaw + turn);
+  d.model_pose = t * d.model_pose;
+  if (d.box) {
+    d.box->center = t * d.box->center;
+    d.box->yaw = wrap(d.box->yaw + turn);
+  }
+  return d;
 }
 
 namespace {

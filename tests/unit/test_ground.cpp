@@ -180,6 +180,7 @@ TEST(Frame, WorkingFrameOfAnOpticalScan) {
   Scan a = s, b = s;
   FrameOptions up;
   up.up = "-y";
+  up.canonical = false;  // the z-up frame itself: the floor stays 1.4 m below the camera
   ToWorkingFrame(a, up);
   EXPECT_NEAR(EstimateGround(a.points, Kind("auto")).HeightAt(2, 2), -1.4f, 0.02f);
   for (size_t i = 0; i < s.points.size(); i += 997)
@@ -187,8 +188,55 @@ TEST(Frame, WorkingFrameOfAnOpticalScan) {
   FrameOptions au;
   au.up = "auto";
   ToWorkingFrame(b, au);
-  const Eigen::Vector3d z = b.frame.to_working.linear().row(2).transpose();
+  const Eigen::Vector3d z = b.frame.to_upright.linear().row(2).transpose();
   EXPECT_GT(z.dot(Eigen::Vector3d(0, -1, 0)), 0.999) << z.transpose();
+  // The canonical working frame (the default) comes back to the file frame as exactly.
+  Scan c = s;
+  up.canonical = true;
+  ToWorkingFrame(c, up);
+  EXPECT_FALSE(c.frame.canonical.matrix().isIdentity());
+  for (size_t i = 0; i < s.points.size(); i += 997)
+    EXPECT_TRUE(c.frame.ToFile(c.points[i]).isApprox(s.points[i].cast<double>(), 1e-5));
+}
+
+// The canonical frame of a room turned about z by any angle and shifted anywhere puts the room
+// the same way (up to a quarter turn) on the axes, centred on the origin: the wall's normal on
+// an axis. A room without walls turns by the major axis of its floor plan.
+TEST(Frame, CanonicalFrameIsTheSameWhateverTheTurnAndShift) {
+  const Points room = Room([](float, float) { return 0.f; });
+  const Eigen::Isometry3d c0 = EstimateCanonicalFrame(room);
+  Points w0(room.size());
+  for (size_t i = 0; i < room.size(); ++i) w0[i] = (c0 * room[i].cast<double>()).cast<float>();
+  // The room's wall stands at x = 0: it stays on an axis (a turn of 0 mod 90 degrees).
+  const double turn0 = std::atan2(c0.linear()(1, 0), c0.linear()(0, 0));
+  EXPECT_NEAR(std::remainder(turn0, M_PI / 2), 0.0, 0.02) << turn0;
+  Eigen::AlignedBox3f box;
+  for (const auto& p : w0) box.extend(p);
+  EXPECT_LT(box.center().norm(), 1e-4f);
+  for (double yaw : {0.3, 1.2, M_PI / 2, -2.5}) {
+    SCOPED_TRACE(yaw);
+    const Eigen::Isometry3d t = Eigen::Translation3d(120.5, -33.25, 1.5) * Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ());
+    Points moved(room.size());
+    for (size_t i = 0; i < room.size(); ++i) moved[i] = (t * room[i].cast<double>()).cast<float>();
+    const Eigen::Isometry3d c = EstimateCanonicalFrame(moved);
+    double best = INFINITY;
+    for (int k = 0; k < 4; ++k) {
+      const Eigen::Matrix3f q = Eigen::AngleAxisf(float(k * M_PI / 2), Eigen::Vector3f::UnitZ()).toRotationMatrix();
+      double worst = 0;
+      for (size_t i = 0; i < room.size(); i += 101)
+        worst = std::max(worst, double(((c * moved[i].cast<double>()).cast<float>() - q * w0[i]).norm()));
+      best = std::min(best, worst);
+    }
+    EXPECT_LT(best, 2e-3) << "the working points differ by up to " << best << " m";
+  }
+  // No walls: the floor plan's long side (5 x 2 m, turned by 0.4 rad) comes onto an axis.
+  Points floor;
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(0.f, 1.f);
+  for (int i = 0; i < 20000; ++i)
+    floor.push_back(Eigen::AngleAxisf(0.4f, Eigen::Vector3f::UnitZ()) * Eigen::Vector3f(5.f * u(rng), 2.f * u(rng), 0.f));
+  const Eigen::Isometry3d cf = EstimateCanonicalFrame(floor);
+  EXPECT_NEAR(std::remainder(std::atan2(cf.linear()(1, 0), cf.linear()(0, 0)) + 0.4, M_PI / 2), 0.0, 0.05);
 }
 
 // Georeferenced coordinates: shifted automatically in double at read time (the local points

@@ -10,6 +10,7 @@
 //     "training": {"sensor": "simulate"},       // tag of the sensor stage that scans the catalog
 //     "ground": {"kind": "auto"},               // each scan's floor: auto | level | plane | height_map |
 //                                               //   fixed (+ "z_m"); "cell_m", "step_m", "min_area_m2"
+//     "frame": {"canonical": true},             // stages see scans in their canonical frame (frame.hpp)
 //     "stages": {                               // an object keyed by tag (not an array) so a
 //       "input":   {"type": "sensors.scan_file"},//   merge patch can change one stage's params
 //       "segment": {"type": "segmenters.region_growing", "inputs": ["input"], "params": {...}},
@@ -45,6 +46,9 @@ struct FURNIHOST_API GraphConfig {
   std::string model_cache; // absolute or empty
   std::string training_sensor;  // tag, or empty
   GroundOptions ground;         // how the pipeline gets each scan's ground ("ground" key)
+  // Stages see each scan in its canonical frame ("frame": {"canonical": true}, the default;
+  // see EstimateCanonicalFrame), else in its z-up frame as given.
+  bool canonical_frame = true;
   std::vector<StageConfig> stages;  // in execution (topological) order
 
   const StageConfig* Find(const std::string& tag) const;

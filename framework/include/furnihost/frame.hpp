@@ -16,9 +16,11 @@ namespace furnihost {
 
 struct FrameOptions {
   std::string up = "+z";                        // "+x", "-x", "+y", "-y", "+z", "-z" or "auto"
-  std::optional<Eigen::Isometry3d> transform;   // file (after the shift) -> working; excludes `up`
+  std::optional<Eigen::Isometry3d> transform;   // file (after the shift) -> z up; excludes `up`
   ShiftOption shift;
-  bool IsDefault() const { return up == "+z" && !transform && !shift.shift && shift.automatic; }
+  // Stages see the scan in its canonical frame (EstimateCanonicalFrame); off: in the z-up frame
+  // itself (then detections depend on where the file's origin and axes happen to lie).
+  bool canonical = true;
 };
 
 // The rotation (working = R * file) that makes file axis `axis` ("+z", "-y", ...) point up, the
@@ -37,8 +39,20 @@ FURNIHOST_API Eigen::Isometry3d ParseTransform(const std::string& text, const st
 // signed to point at them. nullopt when no plane direction dominates.
 FURNIHOST_API std::optional<Eigen::Vector3d> EstimateUpAxis(const Points& points);
 
+// The canonical working frame of a z-up cloud: upright -> working = a turn about z that puts
+// the dominant directions of its vertical surfaces (walls, furniture sides) on the x and y axes,
+// then a translation that puts the centre of its bounding box at the origin. The direction is
+// the circular mean of 4 x the azimuth of the surface normals (k nearest neighbours over a
+// sample of at most ~30k points taken by index, so the same points whatever the frame), which a
+// turn of the cloud turns with it; without vertical surfaces, the major axis of the points on
+// the floor plane. Equivariant: the cloud turned about z and shifted gives the same working
+// points up to rounding (and, for turns of a quarter, up to that quarter turn).
+// Identity for fewer than 10 finite points.
+FURNIHOST_API Eigen::Isometry3d EstimateCanonicalFrame(const Points& upright);
+
 // Applies the frame options to a scan just read (its points and origin are in the file's frame,
-// shifted): turns them into the working frame and records the transform in scan.frame.
+// shifted): turns them into the z-up frame and then into the canonical one (unless
+// options.canonical is off), and records both transforms in scan.frame.
 // InputError naming `option` when --up auto finds no up axis.
 FURNIHOST_API void ToWorkingFrame(Scan& scan, const FrameOptions& options);
 

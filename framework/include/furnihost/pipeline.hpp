@@ -67,6 +67,9 @@ class FURNIHOST_API Pipeline {
     VoteResult votes;
     std::vector<Detection> detections;
     bool voted = false, fitted = false;
+    // The world frame (detections, votes) is the first scan's working frame; this maps it to
+    // the frame the user gave the scans in: the first scan's z-up frame, moved by its --pose.
+    Eigen::Isometry3f world_to_user = Eigen::Isometry3f::Identity();
     std::vector<std::pair<std::string, double>> timings_ms;  // stage tag -> ms, in order
   };
   // Runs the chain on the scenes (fused into one vote space when there are several).
@@ -103,6 +106,10 @@ FURNIHOST_API std::map<std::string, Eigen::Vector3f> TypicalClassSizes(const Cat
 // writes it (atomically). `force` retrains.
 FURNIHOST_API TrainedModel EnsureModel(Pipeline& pipeline, const Catalog& catalog,
                                        const RunContext& ctx, bool force = false);
+
+// A detection moved by an upright transform t (a turn about z and a translation): centre, yaw,
+// model pose and box.
+FURNIHOST_API Detection TransformDetection(Detection d, const Eigen::Isometry3f& t);
 
 // Detection JSON as written to detections.json. With a scan, geometry (centre, box, model
 // pose) is written in the scan's file frame (ScanFrame) and the height above its ground is

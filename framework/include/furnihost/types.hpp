@@ -58,20 +58,32 @@ struct ShiftOption {
 };
 
 // How a scan's working frame (metres, z up: what every stage sees) relates to the
-// coordinates of its file: working = to_working * (file - shift). The shift is subtracted in
-// double at read time (georeferenced files); to_working turns the user's axes (a camera's
-// optical frame: x right, y down, z forward; --up, --transform) so that z points up.
+// coordinates of its file:
+//   upright = to_upright * (file - shift)   the user's z-up frame
+//   working = canonical * upright           what the stages see
+// The shift is subtracted in double at read time (georeferenced files); to_upright turns the
+// user's axes (a camera's optical frame: x right, y down, z forward; --up, --transform) so that
+// z points up; canonical (a turn about z and a translation, see EstimateCanonicalFrame in
+// frame.hpp) puts the scan's dominant wall directions on the axes and its box centre at the
+// origin, so every grid a stage lays over the scan (normals, ground cells, Hough bins) falls
+// the same way on the scan whatever frame the file came in: a scan shifted, turned or given
+// in a sensor's frame gives the same detections, mapped back.
 struct ScanFrame {
   Eigen::Vector3d shift = Eigen::Vector3d::Zero();
-  Eigen::Isometry3d to_working = Eigen::Isometry3d::Identity();
-  std::string up = "+z";   // how to_working was chosen: an axis, "transform" or "auto: <axis>"
-  bool IsIdentity() const { return shift.isZero() && to_working.matrix().isIdentity(); }
+  Eigen::Isometry3d to_upright = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d canonical = Eigen::Isometry3d::Identity();
+  std::string up = "+z";   // how to_upright was chosen: an axis, "transform" or "auto: <axis>"
+  bool IsIdentity() const {
+    return shift.isZero() && to_upright.matrix().isIdentity() && canonical.matrix().isIdentity();
+  }
+  // (file - shift) -> working.
+  Eigen::Isometry3d ToWorking() const { return canonical * to_upright; }
   Eigen::Vector3d ToFile(const Eigen::Vector3f& working) const {
-    return to_working.inverse() * working.cast<double>() + shift;
+    return to_upright.inverse() * (canonical.inverse() * working.cast<double>()) + shift;
   }
   // A direction (unit vector) of the working frame in the file's axes.
   Eigen::Vector3d DirectionToFile(const Eigen::Vector3f& d) const {
-    return to_working.linear().transpose() * d.cast<double>();
+    return to_upright.linear().transpose() * (canonical.linear().transpose() * d.cast<double>());
   }
 };
 

@@ -125,7 +125,7 @@ float Quantile(std::vector<float>& v, double q) {
 }
 }  // namespace
 
-Footprint OrientedFootprint(const std::vector<Eigen::Vector2f>& xy) {
+Footprint OrientedFootprint(const std::vector<Eigen::Vector2f>& xy, float axis_margin) {
   Footprint f;
   if (xy.empty()) return f;
   if (xy.size() < 5) {
@@ -173,6 +173,10 @@ Footprint OrientedFootprint(const std::vector<Eigen::Vector2f>& xy) {
     const double area = double(e[1] - e[0]) * double(e[3] - e[2]);
     if (area < best) best = area, best_a = a;
   }
+  {
+    const Eigen::Vector4f e = extents(sub, 0.f, u, v);
+    if (double(e[1] - e[0]) * double(e[3] - e[2]) * (1.0 - double(axis_margin)) <= best) best_a = 0.f;
+  }
   const Eigen::Vector4f e = extents(xy, best_a, u, v);
   const float c = std::cos(best_a), s = std::sin(best_a);
   const float uc = 0.5f * (e[0] + e[1]), vc = 0.5f * (e[2] + e[3]);
@@ -191,13 +195,13 @@ Profile TopViewProfile(const std::vector<Eigen::Vector2f>& xy, const std::vector
     p.fill(1.f / kProfileBins);
     return p;
   }
-  Eigen::Vector2f lo = xy[0];
-  for (const auto& q : xy) lo = lo.cwiseMin(q);
+  // Columns on the lattice of multiples of `cell` (the scan's canonical frame lays it the same
+  // way on an object whichever quarter turn the scan came in).
   std::unordered_map<uint64_t, float> column;
   column.reserve(xy.size());
   for (size_t i = 0; i < xy.size(); ++i) {
-    const uint64_t ix = uint64_t((xy[i].x() - lo.x()) / cell), iy = uint64_t((xy[i].y() - lo.y()) / cell);
-    const uint64_t key = (ix << 32) | (iy & 0xffffffffu);
+    const int64_t ix = int64_t(std::floor(xy[i].x() / cell)), iy = int64_t(std::floor(xy[i].y() / cell));
+    const uint64_t key = (uint64_t(ix) << 32) ^ (uint64_t(iy) & 0xffffffffu);
     auto [it, fresh] = column.try_emplace(key, heights[i]);
     if (!fresh) it->second = std::max(it->second, heights[i]);
   }

@@ -46,11 +46,15 @@ float MedianSpacing(const std::vector<float>& nn, size_t stride = 10);
 // length's direction, centre; extents between the 1st and 99th percentiles along the axes of
 // the minimum-area rectangle over the convex hull (rotating calipers), so stray points do not
 // set the size. Fewer than 5 points: their axis-aligned extents.
+// The rectangle along the frame's axes is kept unless another is smaller by more than
+// `axis_margin` of its area: in a scan's canonical frame the axes are the walls' directions,
+// which most furniture follows, and of near-equal rectangles (an L-shaped sofa, a ragged
+// outline) which one is smallest is decided by a few points.
 struct Footprint {
   float length = 0.f, width = 0.f, yaw = 0.f;
   Eigen::Vector2f center = Eigen::Vector2f::Zero();
 };
-Footprint OrientedFootprint(const std::vector<Eigen::Vector2f>& xy);
+Footprint OrientedFootprint(const std::vector<Eigen::Vector2f>& xy, float axis_margin = 0.1f);
 
 // Top-view height profile: the points binned into `cell` x `cell` columns on the floor plane,
 // each column's highest point taken as a share of `top` (its height above the ground / top,

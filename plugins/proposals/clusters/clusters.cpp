@@ -265,6 +265,10 @@ class ClusterProposer : public Proposer {
       e.how += "+ext";
       out.items.push_back(std::move(e));
     }
+    if (spdlog::should_log(spdlog::level::trace))
+      for (const auto& p : out.items)
+        spdlog::trace("proposals.clusters: {} {} points, box ({:.3f} {:.3f} {:.3f})-({:.3f} {:.3f} {:.3f})", p.how, p.indices.size(),
+                      p.box.min().x(), p.box.min().y(), p.box.min().z(), p.box.max().x(), p.box.max().y(), p.box.max().z());
     // Surround: the occupied area in a shell around the box relative to the area inside. A
     // proposal cut out of a larger structure (a wall's leftovers, half a bed) has a high one.
     tbb::parallel_for(size_t(0), out.items.size(), [&](size_t k) {
@@ -343,30 +347,42 @@ class ClusterProposer : public Proposer {
         rmin = std::min(rmin, rho[k]);
         rmax = std::max(rmax, rho[k]);
       }
-      const int RB = std::min(100000, int((rmax - rmin) / 0.04f) + 1);
+      // Bins on the lattice of multiples of 4 cm about c0, rho in [-K, K) bins: the line space
+      // wraps like a Moebius strip (theta just below 180 deg is theta just above 0 with rho
+      // negated), so a wall whose normal lies near the x axis is one peak across the wrap, as
+      // it is when the scan comes turned by a quarter and its normal lies near the y axis.
+      const int K = std::min(50000, int(std::ceil(std::max(std::abs(rmin), std::abs(rmax)) / 0.04f)) + 1);
+      const int RB = 2 * K;
       std::vector<int> hist(size_t(TB) * RB, 0);
       for (size_t k = 0; k < idx.size(); ++k) {
-        rb[k] = std::min(RB - 1, int((rho[k] - rmin) / 0.04f));
+        rb[k] = std::clamp(int(std::floor(rho[k] / 0.04f)) + K, 0, RB - 1);
         ++hist[size_t(tb[k]) * RB + rb[k]];
       }
       int best = -1, bt = 0, br = 0;
       for (int t = 0; t < TB; ++t)
         for (int r = 0; r < RB; ++r) {
           int s = 0;
-          for (int dt = -1; dt <= 1; ++dt)
+          for (int dt = -1; dt <= 1; ++dt) {
+            const int tt = t + dt;
+            const bool wrap = tt < 0 || tt >= TB;
             for (int dr = -1; dr <= 1; ++dr) {
-              const int rr = r + dr;
+              const int rr = wrap ? RB - 1 - (r + dr) : r + dr;
               if (rr < 0 || rr >= RB) continue;
-              s += hist[size_t((t + dt + TB) % TB) * RB + rr];
+              s += hist[size_t((tt + TB) % TB) * RB + rr];
             }
+          }
           if (s > best) best = s, bt = t, br = r;
         }
       if (best < 150) break;
-      // The peak's members: within one bin in theta (wrapping) and rho.
+      // The peak's members: within one bin in theta (across the wrap: rho negated) and rho.
       std::vector<uint32_t> members;
       for (size_t k = 0; k < idx.size(); ++k) {
-        const int dt = std::abs(((tb[k] - bt + TB / 2) % TB + TB) % TB - TB / 2);
-        if (dt <= 1 && std::abs(rb[k] - br) <= 1) members.push_back(idx[k]);
+        int dt = tb[k] - bt;
+        bool wrap = false;
+        if (dt > TB / 2) dt -= TB, wrap = true;
+        else if (dt < -TB / 2) dt += TB, wrap = true;
+        const int r = wrap ? RB - 1 - rb[k] : rb[k];
+        if (std::abs(dt) <= 1 && std::abs(r - br) <= 1) members.push_back(idx[k]);
       }
       Eigen::Vector2d c = Eigen::Vector2d::Zero();
       for (uint32_t i : members) c += P[i].head<2>().cast<double>();
@@ -440,6 +456,9 @@ class ClusterProposer : public Proposer {
         alo = std::min(alo, al[k]), ahi = std::max(ahi, al[k]);
         hlo = std::min(hlo, hz[w.inliers[k]]), hhi = std::max(hhi, hz[w.inliers[k]]);
       }
+      // On the lattice of multiples of the cell (a line's direction may come out either way).
+      alo = std::floor(alo / cell) * cell;
+      hlo = std::floor(hlo / cell) * cell;
       const int W = int((ahi - alo) / cell) + 3, H = int((hhi - hlo) / cell) + 3;
       if (W <= 0 || H <= 0 || size_t(W) * size_t(H) > 4000000) continue;
       std::vector<uint8_t> occ(size_t(W) * H, 0);
@@ -594,18 +613,30 @@ class ClusterProposer : public Proposer {
       vmin = std::min(vmin, v[k]);
     }
     const float u0 = Quantile(u, 0.01), u1 = Quantile(u, 0.99);
+    // Slices on the lattice of multiples of 5 cm about the footprint's centre, the outer 1 %
+    // clamped into the end slices at both ends: the same slices when the footprint's axis
+    // comes out the other way (a turned scan).
     constexpr float bin = 0.05f;
-    int nb = 0;
+    const int B0 = int(std::floor(u0 / bin)), nb = std::max(1, int(std::floor(u1 / bin)) - B0 + 1);
+    const int V0 = int(std::floor(vmin / bin));
     std::vector<int> iu(idx.size()), iv(idx.size());
     int vmax_bin = 0;
     for (size_t k = 0; k < idx.size(); ++k) {
-      iu[k] = std::max(0, int((u[k] - u0) / bin));
-      iv[k] = int((v[k] - vmin) / bin);
-      nb = std::max(nb, iu[k] + 1);
+      iu[k] = std::clamp(int(std::floor(u[k] / bin)) - B0, 0, nb - 1);
+      iv[k] = int(std::floor(v[k] / bin)) - V0;
       vmax_bin = std::max(vmax_bin, iv[k]);
     }
-    std::vector<int> count(nb, 0);
-    for (int b : iu) ++count[b];
+    // Points per slice, each shared linearly between the two nearest slice centres: a point
+    // moved by a rounding error moves the counts by as little, so the sparsest slice does not
+    // jump 5 cm when the scan comes in another frame.
+    std::vector<double> count(nb, 0.0);
+    for (size_t k = 0; k < idx.size(); ++k) {
+      const double t = std::clamp(double(u[k]) / bin - 0.5 - B0, 0.0, double(nb - 1));
+      const int b = std::min(int(t), nb - 1);
+      const double f = t - b;
+      count[b] += 1.0 - f;
+      if (b + 1 < nb) count[b + 1] += f;
+    }
     // Per 5 cm slice: the median of its columns' top heights (above the cluster's ground).
     std::vector<float> g;
     for (int i : idx) g.push_back(P[i].z() - hz[i]);
@@ -625,28 +656,17 @@ class ClusterProposer : public Proposer {
       if (!slice[b].empty()) prof[b] = Quantile(slice[b], 0.5);
     std::vector<int> ks = {2};
     if (f.length >= 1.7f * o_.split_length) ks.push_back(3);
-    for (int k : ks) {
-      std::vector<float> cuts;
-      for (int j = 1; j < k; ++j) {
-        const float c = u0 + (u1 - u0) * float(j) / float(k), w = (u1 - u0) / float(3 * k);
-        const int b0 = std::max(int((c - w - u0) / bin), 0), b1 = std::min(int((c + w - u0) / bin) + 1, nb);
-        if (b1 <= b0) {
-          cuts.push_back(c);
-          continue;
-        }
-        const int at = b0 + int(std::min_element(count.begin() + b0, count.begin() + b1) - (count.begin() + b0));
-        cuts.push_back(u0 + (float(at) + 0.5f) * bin);
-      }
-      bool ok = true;
-      for (float c : cuts) {
-        const int b = int((c - u0) / bin);
-        if (b < 0 || b >= nb || !std::isfinite(prof[b])) continue;
-        std::vector<float> side;
-        for (int x : {b - 5, b - 4, b + 4, b + 5})
-          if (x >= 0 && x < nb && std::isfinite(prof[x])) side.push_back(prof[x]);
-        if (!side.empty() && std::abs(prof[b] - Quantile(side, 0.5)) < o_.split_flatness) ok = false;
-      }
-      if (!ok) continue;
+    auto mid = [&](int b) { return (float(b + B0) + 0.5f) * bin; };
+    // A cut is kept only where the top-view profile steps (a gap, valley or ridge).
+    auto steps = [&](float c) {
+      const int b = int(std::floor(c / bin)) - B0;
+      if (b < 0 || b >= nb || !std::isfinite(prof[b])) return true;
+      std::vector<float> side;
+      for (int x : {b - 5, b - 4, b + 4, b + 5})
+        if (x >= 0 && x < nb && std::isfinite(prof[x])) side.push_back(prof[x]);
+      return side.empty() || std::abs(prof[b] - Quantile(side, 0.5)) >= o_.split_flatness;
+    };
+    auto emit = [&](const std::vector<float>& cuts, int k) {
       std::vector<float> edges = {-INFINITY};
       edges.insert(edges.end(), cuts.begin(), cuts.end());
       edges.push_back(INFINITY);
@@ -655,6 +675,46 @@ class ClusterProposer : public Proposer {
         for (size_t q = 0; q < idx.size(); ++q)
           if (u[q] >= edges[e] && u[q] < edges[e + 1]) part.push_back(idx[q]);
         if (part.size() >= 30) out.emplace_back(std::move(part), k);
+      }
+    };
+    for (int k : ks) {
+      // Per nominal cut (j / k of the length), the sparse slices within a third of a part of
+      // it: the sparsest, and for a cut in two also the next sparse local minimum when it is
+      // nearly as sparse (within 25 % + 2 points): of two near-equal gaps either may be the
+      // one between the objects, and which is the sparser is decided by a few points.
+      std::vector<std::vector<float>> options(size_t(k - 1));
+      for (int j = 1; j < k; ++j) {
+        const float c = u0 + (u1 - u0) * float(j) / float(k), w = (u1 - u0) / float(3 * k);
+        const int b0 = std::max(int(std::floor((c - w) / bin)) - B0, 0);
+        const int b1 = std::min(int(std::floor((c + w) / bin)) - B0 + 1, nb);
+        if (b1 <= b0) {
+          options[size_t(j - 1)].push_back(c);
+          continue;
+        }
+        std::vector<int> minima;
+        for (int b = b0; b < b1; ++b)
+          if ((b == b0 || count[b] <= count[b - 1]) && (b + 1 == b1 || count[b] <= count[b + 1])) minima.push_back(b);
+        // Sparsest first; of equally sparse ones the nearest to the nominal cut.
+        std::sort(minima.begin(), minima.end(), [&](int a, int b) {
+          if (count[a] != count[b]) return count[a] < count[b];
+          return std::abs(mid(a) - c) < std::abs(mid(b) - c);
+        });
+        auto& opt = options[size_t(j - 1)];
+        opt.push_back(mid(minima.front()));
+        if (k == 2)
+          for (size_t m = 1; m < minima.size(); ++m)
+            if (count[minima[m]] <= 1.25 * count[minima.front()] + 2.0 && std::abs(minima[m] - minima.front()) >= 2) {
+              opt.push_back(mid(minima[m]));
+              break;
+            }
+      }
+      if (k == 2) {
+        for (float c : options[0])
+          if (steps(c)) emit({c}, k);
+      } else {
+        std::vector<float> cuts;
+        for (const auto& o : options) cuts.push_back(o.front());
+        if (std::all_of(cuts.begin(), cuts.end(), steps)) emit(cuts, k);
       }
     }
     return out;
@@ -666,6 +726,6 @@ class ClusterProposer : public Proposer {
 }  // namespace
 }  // namespace furnihost
 
-FURNIHOST_PLUGIN(furnihost::ClusterProposer, "proposals.clusters", "1.0.0",
+FURNIHOST_PLUGIN(furnihost::ClusterProposer, "proposals.clusters", "1.1.0",
                  "object proposals: ground, walls and ceiling removed, Euclidean clusters at radii scaled to the scan's "
                  "point spacing, long clusters split, floating ones extended to the ground")

@@ -119,8 +119,13 @@ template <class F>
 void ForEachInnerCell(const Eigen::Vector2f& c, float length, float width, float yaw, F&& f) {
   const float l = std::max(length - 2 * kFloorCell, kFloorCell), w = std::max(width - 2 * kFloorCell, kFloorCell);
   const float co = std::cos(yaw), si = std::sin(yaw);
-  for (float u = -l / 2 + kFloorCell / 2; u < l / 2; u += kFloorCell)
-    for (float v = -w / 2 + kFloorCell / 2; v < w / 2; v += kFloorCell) f(Eigen::Vector2f(c.x() + u * co - v * si, c.y() + u * si + v * co));
+  // Cells centred on the footprint (symmetric: the same cells when its axes come out reversed).
+  const int nu = std::max(1, int(std::lround(l / kFloorCell))), nv = std::max(1, int(std::lround(w / kFloorCell)));
+  for (int i = 0; i < nu; ++i)
+    for (int j = 0; j < nv; ++j) {
+      const float u = (float(i) - 0.5f * float(nu - 1)) * kFloorCell, v = (float(j) - 0.5f * float(nv - 1)) * kFloorCell;
+      f(Eigen::Vector2f(c.x() + u * co - v * si, c.y() + u * si + v * co));
+    }
 }
 
 // The floor cells of a scan that hold ground-level points (within 3 cm of the ground).
@@ -558,5 +563,5 @@ class CatalogShapeVoter : public Voter {
 }  // namespace
 }  // namespace furnihost
 
-FURNIHOST_PLUGIN(furnihost::CatalogShapeVoter, "voters.catalog_shape", "1.0.0",
+FURNIHOST_PLUGIN(furnihost::CatalogShapeVoter, "voters.catalog_shape", "1.1.0",
                  "recognises object proposals by the catalog models' metric sizes and top-view height profiles")
