@@ -388,6 +388,7 @@ Pipeline::Result Pipeline::Detect(const std::vector<SceneInput>& scenes, const T
     d.proposal = h.proposal;
     d.proposal_scene = h.scene;
     d.model = h.model;
+    d.evidence = h.evidence;
     if (h.model_pose) d.model_pose = *h.model_pose;
     if (h.accepted) {
       d.verified = *h.accepted;
@@ -519,6 +520,7 @@ nlohmann::json DetectionToJson(const Detection& d, const Scan* scan) {
                 {"aabb", {{"min", Vec(aabb.min())}, {"max", Vec(aabb.max())}}}};
     if (scan && scan->ground) j["box"]["bottom_above_ground"] = scan->HeightAboveGround(b.center) - 0.5f * b.size.z();
   }
+  if (!d.evidence.empty()) j["evidence"] = d.evidence;
   nlohmann::json sup = nlohmann::json::array();
   for (const auto& s : d.support) sup.push_back({{"scene", s.scene}, {"part", s.part}, {"weight", s.weight}});
   j["supporting_parts"] = sup;

@@ -242,6 +242,9 @@ struct Hypothesis {
   // when the voter knows (e.g. by size and shape); no fitter has refined it.
   std::string model;
   std::optional<Eigen::Isometry3f> model_pose;
+  // What the voter measured to score it (name -> value, e.g. "length_m", "profile_emd"), for
+  // the user and for tuning; copied into Detection::evidence.
+  std::map<std::string, float> evidence;
 };
 
 struct VoteResult {
@@ -273,6 +276,7 @@ struct Detection {
   std::optional<OrientedBox> box;
   std::string box_source;
   int proposal = -1, proposal_scene = 0;  // the proposal it was made from (Hypothesis::proposal)
+  std::map<std::string, float> evidence;   // Hypothesis::evidence
 };
 
 }  // namespace furnihost

@@ -24,6 +24,7 @@
 // floor of each model's mesh as a sensor around it sees them (views without a mesh: of their
 // simulated views fused).
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <map>
 #include <set>
@@ -206,7 +207,11 @@ float OpenFloor(const std::vector<const TrainingView*>& views, const Eigen::Vect
 // beyond its footprint): dense surface samples, the visible ones for the profile; the floor
 // under a cell is seen when the segment to an eye passes no sample within 3 cm. Noiseless, so
 // a column's top is the surface's, not a range error above it.
-std::pair<shape::Profile, float> FromMesh(const CatalogModel& m, float cell) {
+struct MeshShape {
+  shape::Profile profile;
+  float open = 0.f;
+};
+MeshShape FromMesh(const CatalogModel& m, float cell) {
   double area = 0;
   const int nv = int(m.mesh.vertices.size());
   for (const auto& t : m.mesh.triangles)
@@ -350,19 +355,19 @@ class CatalogShapeVoter : public Voter {
           h.push_back(v->scan.HeightAboveGround(w));
         }
       const Eigen::Vector3f s = first->object_size;
-      shape::Profile prof;
-      float open = 0.f;
+      MeshShape ms;
       if (first->model && !first->model->mesh.triangles.empty()) {
-        std::tie(prof, open) = FromMesh(*first->model, o_.cell);
+        ms = FromMesh(*first->model, o_.cell);
       } else {  // views without their mesh: what the views saw
-        prof = shape::TopViewProfile(xy, h, s.z(), o_.cell);
-        open = OpenFloor(vs, s);
+        ms.profile = shape::TopViewProfile(xy, h, s.z(), o_.cell);
+        ms.open = OpenFloor(vs, s);
       }
+      const shape::Profile& prof = ms.profile;
       models.push_back({{"id", id},
                         {"class", first->cls},
                         {"size", {s.x(), s.y(), s.z()}},
                         {"profile", std::vector<float>(prof.begin(), prof.end())},
-                        {"open", open}});
+                        {"open", ms.open}});
     }
     return {{"format", "catalog_shape/1"}, {"profile_cell_m", o_.cell}, {"models", models}};
   }
@@ -430,6 +435,7 @@ class CatalogShapeVoter : public Voter {
       const size_t C = classes_.size();
       std::vector<std::vector<float>> score(C, std::vector<float>(n, 0.f));
       std::vector<std::vector<int>> best_model(C, std::vector<int>(n, -1));
+      std::vector<std::vector<std::map<std::string, float>>> evidence(C, std::vector<std::map<std::string, float>>(n));
       std::vector<shape::Footprint> foot(n);
       for (size_t i = 0; i < n; ++i) {
         const Proposal& p = items[i];
@@ -449,18 +455,27 @@ class CatalogShapeVoter : public Voter {
         for (size_t c = 0; c < C; ++c) {
           const ClassParams& cp = o_.Of(classes_[c]);
           float best = INFINITY;
+          std::array<float, 6> terms{};  // of the best model: length, width, top, bottom, profile, floor
           for (size_t m = 0; m < models_.size(); ++m) {
             const Model& md = models_[m];
             if (md.cls != classes_[c]) continue;
             const float emd = shape::ProfileDistance(prof, md.profile);
-            const float E = Pen(std::log(L / md.length), cp.long_small, cp.long_big) +
-                            Pen(std::log(W / md.width), cp.short_small, cp.short_big) +
-                            Pen(std::log(T / md.height), cp.top_small, cp.top_big) +
-                            0.5f * (B / cp.bottom) * (B / cp.bottom) + emd * emd / (2 * cp.profile * cp.profile) +
-                            (o_.floor_term ? Pen(seen - md.open, cp.floor_under, cp.floor_over) : 0.f);
-            if (E < best) best = E, best_model[c][i] = int(m);
+            const std::array<float, 6> t = {Pen(std::log(L / md.length), cp.long_small, cp.long_big),
+                                            Pen(std::log(W / md.width), cp.short_small, cp.short_big),
+                                            Pen(std::log(T / md.height), cp.top_small, cp.top_big),
+                                            0.5f * (B / cp.bottom) * (B / cp.bottom),
+                                            emd * emd / (2 * cp.profile * cp.profile),
+                                            o_.floor_term ? Pen(seen - md.open, cp.floor_under, cp.floor_over) : 0.f};
+            const float E = t[0] + t[1] + t[2] + t[3] + t[4] + t[5];
+            if (E < best) best = E, best_model[c][i] = int(m), terms = t;
           }
           score[c][i] = std::exp(-best - p.surround / cp.surround);
+          evidence[c][i] = {{"length_m", L},          {"width_m", W},         {"top_m", T},
+                            {"bottom_m", B},          {"surround", p.surround}, {"floor_seen", seen},
+                            {"points", float(p.indices.size())},
+                            {"e_length", terms[0]},   {"e_width", terms[1]},  {"e_top", terms[2]},
+                            {"e_bottom", terms[3]},   {"e_profile", terms[4]}, {"e_floor", terms[5]},
+                            {"e_surround", p.surround / cp.surround}};
           if (spdlog::should_log(spdlog::level::trace) && score[c][i] >= o_.min_score)
             spdlog::trace("catalog_shape: {} {} box ({:.2f} {:.2f} {:.2f})-({:.2f} {:.2f} {:.2f}) L {:.3f} W {:.3f} T {:.3f} "
                           "B {:.3f} surround {:.3f} floor seen {:.3f} -> {} {:.4f}",
@@ -482,6 +497,7 @@ class CatalogShapeVoter : public Voter {
         if (a > 0.f)
           for (size_t i = 0; i < n; ++i) {
             const float b = std::max(group_best[items[i].group], 1e-12f);
+            evidence[c][i]["compete_factor"] = std::pow(score[c][i] / b, a);
             score[c][i] *= std::pow(score[c][i] / b, a);
           }
         const std::string& src = source_.at(classes_[c]);
@@ -507,6 +523,7 @@ class CatalogShapeVoter : public Voter {
           kept.push_back(i);
           out.hypotheses.push_back(MakeHypothesis(classes_[c], score[c][i], items[i], int(i), int(s), foot[i],
                                                   models_[size_t(best_model[c][i])], scan.pose));
+          out.hypotheses.back().evidence = std::move(evidence[c][i]);
         }
       }
     }

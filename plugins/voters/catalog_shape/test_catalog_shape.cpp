@@ -149,6 +149,10 @@ TEST(CatalogShape, FindsEachObjectAsItsClass) {
   ASSERT_TRUE(t->box && c->box);
   EXPECT_NEAR(t->box->center.z() - 0.5f * t->box->size.z(), floor_z, 0.06f);
   EXPECT_NEAR(c->box->size.z(), 1.2f, 0.06f);
+  // The evidence says what was measured: the cabinet's top 1.2 m, its best model's terms.
+  ASSERT_TRUE(c->evidence.count("top_m") && c->evidence.count("e_length"));
+  EXPECT_NEAR(c->evidence.at("top_m"), 1.2f, 0.06f);
+  EXPECT_GE(c->evidence.at("e_length"), 0.f);
   // Each object scores its own class above the other one.
   auto score_at = [&](const std::string& cls, const Eigen::Vector2f& at) {
     float s = 0.f;
