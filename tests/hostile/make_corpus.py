@@ -172,6 +172,14 @@ def main():
     write("scans/pcd_all_nan.pcd", pcd_ascii([(math.nan,) * 3, (math.inf, 0.0, 0.0), (0.0, -math.inf, 1.0)]))
     write("scans/pcd_1e30.pcd", pcd_binary([(1e30, 1e30, 1e30), (-1e30, 5.0, 1.0), (3e38, 3e38, 3e38)]))
     write("scans/pcd_1e30_and_good.pcd", pcd_binary(GOOD + [(1e30, 0.0, 0.0), (0.0, 0.0, -1e30)]))
+    # fuzz_scan_readers finding (issue 21): a second header inside the first, DATA
+    # binary_compressed, made PCL's readBodyBinary read through a null pointer (SIGSEGV). The
+    # own reader refuses a repeated keyword, and a header nested in the compressed body does
+    # not decode to the declared size.
+    inner = pcd_compressed(GOOD)
+    write("scans/fuzz_pcd_nested_header.pcd", pcd_header(4, "binary_compressed").split("VIEWPOINT")[0].encode() + inner)
+    write("scans/fuzz_pcd_nested_header_body.pcd",
+          pcd_header(4, "binary_compressed").encode() + struct.pack("<II", 50, 48) + inner[:200])
     write("scans/ply_count_exceeds_data.ply", ply_binary(GOOD, n=1000))
     write("scans/ply_ascii_count_exceeds_data.ply", ply_ascii(GOOD, n=1000))
     write("scans/ply_negative_count.ply", ply_binary(GOOD, n=-3))
