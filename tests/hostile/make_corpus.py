@@ -321,6 +321,12 @@ def main():
     write("catalogs/fuzz_ply_no_end_header/truncated.ply",
           "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\n")
     write("catalogs/fuzz_ply_no_end_header/catalog.json", catalog([entry("truncated.ply")]))
+    # fuzz_catalog finding (issue 21 run): "ply" and garbage on the first line; assimp takes the
+    # file for PLY by its token and never returns.
+    write("catalogs/fuzz_ply_garbage_magic/garbage.ply",
+          b"ply\xb4\xb4\xb4\xb4\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+          b"properx 0 1 1\nendloop\nendfacet\nendsolid t\n")
+    write("catalogs/fuzz_ply_garbage_magic/catalog.json", catalog([entry("garbage.ply")]))
     # fuzz_catalog finding: assimp's OFF importer reads vertices by unchecked face indices
     # (heap overflow, then a crash under ASan or with a far index).
     write("catalogs/fuzz_off_index/far.off", "OFF\n4 2 0\n0 0 0\n1 0 0\n1 1 0\n0 1 1\n3 0 1 2\n3 5 2 3\n")
