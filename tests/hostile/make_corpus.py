@@ -172,6 +172,14 @@ def main():
     write("scans/pcd_all_nan.pcd", pcd_ascii([(math.nan,) * 3, (math.inf, 0.0, 0.0), (0.0, -math.inf, 1.0)]))
     write("scans/pcd_1e30.pcd", pcd_binary([(1e30, 1e30, 1e30), (-1e30, 5.0, 1.0), (3e38, 3e38, 3e38)]))
     write("scans/pcd_1e30_and_good.pcd", pcd_binary(GOOD + [(1e30, 0.0, 0.0), (0.0, 0.0, -1e30)]))
+    # fuzz_scan_readers finding (issue 21): a second header inside the first, DATA
+    # binary_compressed, made PCL's readBodyBinary read through a null pointer (SIGSEGV). The
+    # own reader refuses a repeated keyword, and a header nested in the compressed body does
+    # not decode to the declared size.
+    inner = pcd_compressed(GOOD)
+    write("scans/fuzz_pcd_nested_header.pcd", pcd_header(4, "binary_compressed").split("VIEWPOINT")[0].encode() + inner)
+    write("scans/fuzz_pcd_nested_header_body.pcd",
+          pcd_header(4, "binary_compressed").encode() + struct.pack("<II", 50, 48) + inner[:200])
     write("scans/ply_count_exceeds_data.ply", ply_binary(GOOD, n=1000))
     write("scans/ply_ascii_count_exceeds_data.ply", ply_ascii(GOOD, n=1000))
     write("scans/ply_negative_count.ply", ply_binary(GOOD, n=-3))
@@ -313,6 +321,12 @@ def main():
     write("catalogs/fuzz_ply_no_end_header/truncated.ply",
           "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\n")
     write("catalogs/fuzz_ply_no_end_header/catalog.json", catalog([entry("truncated.ply")]))
+    # fuzz_catalog finding (issue 21 run): "ply" and garbage on the first line; assimp takes the
+    # file for PLY by its token and never returns.
+    write("catalogs/fuzz_ply_garbage_magic/garbage.ply",
+          b"ply\xb4\xb4\xb4\xb4\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+          b"properx 0 1 1\nendloop\nendfacet\nendsolid t\n")
+    write("catalogs/fuzz_ply_garbage_magic/catalog.json", catalog([entry("garbage.ply")]))
     # fuzz_catalog finding: assimp's OFF importer reads vertices by unchecked face indices
     # (heap overflow, then a crash under ASan or with a far index).
     write("catalogs/fuzz_off_index/far.off", "OFF\n4 2 0\n0 0 0\n1 0 0\n1 1 0\n0 1 1\n3 0 1 2\n3 5 2 3\n")

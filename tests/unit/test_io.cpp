@@ -48,7 +48,7 @@ TEST(Io, PcdRoundTripKeepsViewpoint) {
   EXPECT_TRUE(r.origin->isApprox(*s.origin));
 }
 
-TEST(Io, PcdAsciiAndCompressedViaPcl) {
+TEST(Io, PcdAsciiDropsNaNAndKnowsPclsDefaultViewpoint) {
   auto dir = furnihost::testing::TempDir("io");
   const std::string p = dir + "/ascii.pcd";
   WriteText(p, "VERSION .7\nFIELDS x y z rgb\nSIZE 4 4 4 4\nTYPE F F F F\nCOUNT 1 1 1 1\nWIDTH 3\nHEIGHT 1\n"

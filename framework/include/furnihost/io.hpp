@@ -15,10 +15,13 @@ struct ReadStats {
   size_t non_finite = 0;   // dropped NaN/inf points
 };
 
-// Reads .pcd (ascii/binary/binary_compressed, via PCL; VIEWPOINT becomes the sensor origin
-// unless it is the PCL default of 0,0,0 with identity rotation), .ply (ascii / binary little
-// or big endian; x y z required, red green blue / label / instance kept) and .xyz/.txt
-// (x y z [more columns]). Non-finite points are dropped and counted.
+// Reads .pcd (ascii/binary/binary_compressed with the project's own reader: the header is
+// checked whole against itself and the file before any data is read; VIEWPOINT becomes the
+// sensor origin unless it is PCL's default of 0,0,0 with identity rotation; packed rgb/rgba
+// and integer fields such as label / instance kept; organised clouds' NaN padding dropped),
+// .ply (ascii / binary little or big endian; x y z required, red green blue / label /
+// instance kept) and .xyz/.txt (x y z [more columns]). Non-finite points are dropped and
+// counted.
 // `max_points` refuses larger scans with an InputError (0 = no cap).
 // Throws InputError "<path>: <what is wrong>".
 // Coordinates are read in double and the global shift (ShiftOption) subtracted before they

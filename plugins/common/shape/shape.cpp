@@ -6,6 +6,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <nanoflann.hpp>
 #include <unordered_map>
 
@@ -20,12 +21,67 @@ struct Adaptor {
   bool kdtree_get_bbox(B&) const { return false; }
 };
 using Tree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, Adaptor>, Adaptor, 3, uint32_t>;
+
+// Bit pattern of a coordinate with -0 folded onto +0, so equal values share a key.
+uint32_t Bits(float v) {
+  v += 0.f;
+  uint32_t b;
+  std::memcpy(&b, &v, 4);
+  return b;
+}
+uint64_t HashOf(const Eigen::Vector3f& p) {
+  uint64_t h = Bits(p.x()) * 0x9E3779B97F4A7C15ull;
+  h ^= (h >> 29) + Bits(p.y()) * 0xC2B2AE3D27D4EB4Full;
+  h ^= (h >> 31) + Bits(p.z()) * 0x165667B19E3779F9ull;
+  return h ^ (h >> 32);
+}
+bool Same(const Eigen::Vector3f& a, const Eigen::Vector3f& b) {
+  return Bits(a.x()) == Bits(b.x()) && Bits(a.y()) == Bits(b.y()) && Bits(a.z()) == Bits(b.z());
+}
+
+// Groups equal points (an open-addressing hash table over their bits: linear time). Fills
+// `start` / `members` and returns the distinct positions in order of first appearance; returns
+// nothing (and leaves the others empty) when every point is distinct.
+Points GroupDuplicates(const Points& p, std::vector<uint32_t>& start, std::vector<uint32_t>& members) {
+  size_t cap = 16;
+  while (cap < 2 * p.size()) cap <<= 1;
+  std::vector<uint32_t> slot(cap, UINT32_MAX);  // distinct index held by each table slot
+  std::vector<uint32_t> which(p.size());        // distinct index of each point
+  Points distinct;
+  for (size_t i = 0; i < p.size(); ++i) {
+    size_t h = HashOf(p[i]) & (cap - 1);
+    while (slot[h] != UINT32_MAX && !Same(distinct[slot[h]], p[i])) h = (h + 1) & (cap - 1);
+    if (slot[h] == UINT32_MAX) {
+      slot[h] = uint32_t(distinct.size());
+      distinct.push_back(p[i]);
+    }
+    which[i] = slot[h];
+  }
+  if (distinct.size() == p.size()) return {};
+  start.assign(distinct.size() + 1, 0);
+  for (uint32_t u : which) ++start[u + 1];
+  for (size_t u = 0; u < distinct.size(); ++u) start[u + 1] += start[u];
+  members.resize(p.size());
+  std::vector<uint32_t> fill(start.begin(), start.end() - 1);
+  for (size_t i = 0; i < p.size(); ++i) members[fill[which[i]]++] = uint32_t(i);
+  return distinct;
+}
 }  // namespace
 
+// A k-d tree leaf of identical points cannot split, so a cloud of N copies (a driver's
+// (0, 0, 0) for every invalid return) put all N in one leaf that every query scanned: N^2.
+// The tree is built over the distinct positions instead, each listing the points at it. A
+// cloud without duplicates gets the tree it always had (same points, same order).
 struct KnnIndex::Impl {
+  std::vector<uint32_t> start;    // the points at distinct position u: members[start[u] .. start[u+1])
+  std::vector<uint32_t> members;  // ascending point indices within a position
+  Points distinct;                // empty when every point is distinct (the tree is over the cloud)
   Adaptor adaptor;
   Tree tree;
-  explicit Impl(const Points& p) : adaptor{p}, tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(16)) {
+  explicit Impl(const Points& p)
+      : distinct(GroupDuplicates(p, start, members)),
+        adaptor{distinct.empty() ? p : distinct},
+        tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(16)) {
     tree.buildIndex();
   }
 };
@@ -35,14 +91,27 @@ KnnIndex::~KnnIndex() = default;
 
 void KnnIndex::Query(const Eigen::Vector3f& q, int k, std::vector<uint32_t>& index, std::vector<float>& dist2) const {
   const size_t want = std::min<size_t>(size_t(std::max(k, 1)), points_.size());
-  index.resize(want);
-  dist2.resize(want);
-  if (want == 0) return;
-  nanoflann::KNNResultSet<float, uint32_t> rs(want);
+  const size_t positions = impl_->distinct.empty() ? points_.size() : impl_->distinct.size();
+  // The k nearest points lie at the k nearest positions (fewer when some are shared).
+  const size_t look = std::min(want, positions);
+  index.resize(look);
+  dist2.resize(look);
+  if (look == 0) return;
+  nanoflann::KNNResultSet<float, uint32_t> rs(look);
   rs.init(index.data(), dist2.data());
   impl_->tree.findNeighbors(rs, q.data(), nanoflann::SearchParams());
   index.resize(rs.size());
   dist2.resize(rs.size());
+  if (impl_->distinct.empty()) return;
+  std::vector<uint32_t> at;
+  std::vector<float> d;
+  for (size_t j = 0; j < index.size() && at.size() < want; ++j)
+    for (uint32_t m = impl_->start[index[j]]; m < impl_->start[index[j] + 1] && at.size() < want; ++m) {
+      at.push_back(impl_->members[m]);
+      d.push_back(dist2[j]);
+    }
+  index.swap(at);
+  dist2.swap(d);
 }
 
 LocalShape EstimateLocalShape(const KnnIndex& index, int k) {

@@ -40,6 +40,63 @@ TEST(KnnIndex, AgreesWithBruteForce) {
   }
 }
 
+// Copies of points (a driver's (0, 0, 0) for every invalid return) answer as the cloud would:
+// the k nearest distances of brute force, each point once, copies counted.
+TEST(KnnIndex, CopiesAgreeWithBruteForce) {
+  Points cloud = RandomCloud(800, 5);
+  for (int i = 0; i < 800; i += 5)
+    for (int c = 0; c < 3; ++c) cloud.push_back(cloud[size_t(i)]);
+  cloud.insert(cloud.end(), 3000, Eigen::Vector3f::Zero());
+  KnnIndex index(cloud);
+  std::vector<uint32_t> idx;
+  std::vector<float> d2;
+  for (int q = 0; q < 60; ++q) {
+    const Eigen::Vector3f p = q < 50 ? cloud[size_t(q * 53)] : Eigen::Vector3f(0.01f * float(q - 50), 0.f, 0.f);
+    index.Query(p, 20, idx, d2);
+    ASSERT_EQ(idx.size(), 20u);
+    std::vector<float> all;
+    for (const auto& c : cloud) all.push_back((c - p).squaredNorm());
+    std::sort(all.begin(), all.end());
+    for (int k = 0; k < 20; ++k) {
+      EXPECT_NEAR(d2[k], all[k], 1e-6f) << "query " << q << " rank " << k;
+      EXPECT_NEAR(d2[k], (cloud[idx[k]] - p).squaredNorm(), 1e-6f);
+    }
+    std::vector<uint32_t> sorted = idx;
+    std::sort(sorted.begin(), sorted.end());
+    EXPECT_EQ(std::unique(sorted.begin(), sorted.end()), sorted.end()) << "a point returned twice";
+  }
+}
+
+// A million copies of one point: spacing 0 and a unit normal for each, in linear time (a tree
+// leaf holding all copies made this 10^12 steps, beyond ctest's timeout).
+TEST(LocalShape, AMillionCopiesOfOnePoint) {
+  const Points same(1000000, Eigen::Vector3f(1.f, 1.f, 0.5f));
+  KnnIndex index(same);
+  const LocalShape s = EstimateLocalShape(index, 16);
+  ASSERT_EQ(s.nn.size(), same.size());
+  EXPECT_EQ(*std::max_element(s.nn.begin(), s.nn.end()), 0.f);
+  EXPECT_EQ(*std::max_element(s.nn4.begin(), s.nn4.end()), 0.f);
+  for (size_t i = 0; i < same.size(); i += 9973) EXPECT_NEAR(s.normals[i].norm(), 1.f, 1e-5f);
+  EXPECT_EQ(MedianSpacing(s.nn), 0.f);
+}
+
+// A (0, 0, 0) flood beside a view leaves the view's normals and spacing as they were.
+TEST(LocalShape, ZeroFloodLeavesTheViewAlone) {
+  Points view;
+  for (int i = 0; i < 40; ++i)
+    for (int j = 0; j < 40; ++j) view.emplace_back(0.02f * float(i), 0.02f * float(j), 1.f);
+  Points flooded(200000, Eigen::Vector3f::Zero());
+  flooded.insert(flooded.end(), view.begin(), view.end());
+  KnnIndex a(view), b(flooded);
+  const LocalShape sa = EstimateLocalShape(a, 16), sb = EstimateLocalShape(b, 16);
+  for (size_t i = 0; i < view.size(); ++i) {
+    EXPECT_GT(std::abs(sb.normals[200000 + i].z()), 0.9999f) << i;
+    EXPECT_EQ(sb.nn[200000 + i], sa.nn[i]) << i;
+    EXPECT_EQ(sb.nn4[200000 + i], sa.nn4[i]) << i;
+  }
+  EXPECT_EQ(sb.nn[0], 0.f);
+}
+
 TEST(LocalShape, PlaneNormalsAndGridSpacing) {
   // A 2 cm grid on a plane tilted 30 degrees about x.
   const Eigen::Vector3f n(0.f, -std::sin(kPi / 6), std::cos(kPi / 6));

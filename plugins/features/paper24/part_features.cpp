@@ -6,6 +6,9 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <numeric>
+#include <tuple>
+#include <utility>
 
 #include "furnihost/voxel_index.hpp"
 #include "tbb_for.hpp"
@@ -111,11 +114,31 @@ float BoundaryRatio(const Points& q, const Points& normals, const Eigen::Vector3
   tbb::parallel_for(tbb::blocked_range<int>(0, grid.NumCells(), 32), [&](const tbb::blocked_range<int>& range) {
     std::vector<Dir> dirs;
     std::vector<float> cx, cy, cz, pa, pb, keys;
+    std::vector<int> slots;
     int count = 0;
     for (int c = range.begin(); c != range.end(); ++c) {
       grid.GatherNeighbourhood(c, cx, cy, cz);
       const int m = int(cx.size());
-      for (int s = grid.cell_start[c]; s < grid.cell_start[c + 1]; ++s) {
+      // Copies of one point (with one normal) have one answer: test it once, or N copies (a
+      // (0, 0, 0) flood) cost N tests of N neighbours each. Only cells that could hold many
+      // copies are sorted; a small cell costs at most its size times its neighbourhood.
+      slots.resize(size_t(grid.cell_start[c + 1] - grid.cell_start[c]));
+      std::iota(slots.begin(), slots.end(), grid.cell_start[c]);
+      const bool copies = slots.size() > 32;
+      auto key = [&](int t) {
+        const Eigen::Vector3f& n = slot_normal[t];
+        return std::make_tuple(grid.x[t], grid.y[t], grid.z[t], n.x(), n.y(), n.z());
+      };
+      if (copies)
+        std::sort(slots.begin(), slots.end(),
+                  [&](int a, int b) { return std::make_pair(key(a), a) < std::make_pair(key(b), b); });
+      bool last = false;  // the answer for the previous slot in `slots`
+      for (size_t t = 0; t < slots.size(); ++t) {
+        const int s = slots[t];
+        if (copies && t > 0 && key(slots[t - 1]) == key(s)) {
+          count += last;
+          continue;
+        }
         const Eigen::Vector3f& n = slot_normal[s];
         // Any tangent basis: the gap test is rotation invariant in the plane.
         const Eigen::Vector3f u =
@@ -137,12 +160,13 @@ float BoundaryRatio(const Points& q, const Points& normals, const Eigen::Vector3
         if (wide) {
           unsigned sectors = 0;
           for (int j = 0; j < cnt; ++j) sectors |= 1u << Octant(pa[j], pb[j]);
-          if (sectors != 0xffu && GapAtEmptySectors(pa.data(), pb.data(), cnt, sectors, cos_t, keys)) ++count;
-          continue;
+          last = sectors != 0xffu && GapAtEmptySectors(pa.data(), pb.data(), cnt, sectors, cos_t, keys);
+        } else {
+          dirs.clear();
+          for (int j = 0; j < cnt; ++j) dirs.push_back({PseudoAngle(pa[j], pb[j]), pa[j], pb[j]});
+          last = HasGap(dirs, cos_t);
         }
-        dirs.clear();
-        for (int j = 0; j < cnt; ++j) dirs.push_back({PseudoAngle(pa[j], pb[j]), pa[j], pb[j]});
-        if (HasGap(dirs, cos_t)) ++count;
+        count += last;
       }
     }
     boundary += count;

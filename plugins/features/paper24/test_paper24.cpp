@@ -174,6 +174,42 @@ TEST(Paper24, BoundarySectorPathMatchesSortedPath) {
   EXPECT_LT(b, 0.3);
 }
 
+// Copies of points: every point of a holed square stored 40 times, the copies scattered
+// through the part, gives the boundary ratio of the square itself (a copy is no neighbour
+// direction, its neighbours' copies add none), and a million copies of one point are one
+// boundary point each, in linear time (a test per copy over every copy: beyond ctest's timeout).
+TEST(Paper24, CopiesKeepTheBoundaryRatioAndStayLinear) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<float> u(-0.3f, 0.3f);
+  Scan once;
+  while (once.points.size() < 2000) {
+    const Eigen::Vector3f p(u(rng), u(rng), 0.f);
+    if (p.head<2>().norm() > 0.08f) once.points.push_back(p);
+  }
+  auto part_of = [](const furnihost::Points& pts) {
+    Segmentation seg;
+    furnihost::Part part;
+    for (size_t i = 0; i < pts.size(); ++i) part.indices.push_back(int(i));
+    seg.parts.push_back(part);
+    seg.normals.assign(pts.size(), Eigen::Vector3f::UnitZ());
+    seg.curvature.assign(pts.size(), 0.f);
+    return seg;
+  };
+  Scan copies;
+  for (int c = 0; c < 40; ++c) copies.points.insert(copies.points.end(), once.points.begin(), once.points.end());
+  for (double angle : {90.0, 60.0}) {
+    const nlohmann::json params = {{"boundary_radius_m", 0.03}, {"boundary_angle_deg", angle}};
+    const auto a = Compute(once, part_of(once.points), params), b = Compute(copies, part_of(copies.points), params);
+    const double ratio = a.values(0, Col(a, "boundary_ratio"));
+    EXPECT_GT(ratio, 0.02);
+    EXPECT_FLOAT_EQ(b.values(0, Col(b, "boundary_ratio")), float(ratio)) << angle;
+  }
+  Scan same;
+  same.points.assign(1000000, Eigen::Vector3f(1.f, 1.f, 1.f));
+  const auto f = Compute(same, part_of(same.points), nlohmann::json::object());
+  EXPECT_FLOAT_EQ(f.values(0, Col(f, "boundary_ratio")), 1.f);
+}
+
 TEST(Paper24, DegeneratePartsGiveFiniteValues) {
   Scan scan;
   scan.points = {{1, 1, 1}, {1, 1, 1}, {1, 1, 1}, {2, 0, 0}};

@@ -22,6 +22,7 @@
 #include <limits>
 #include <tuple>
 
+#include "../common/copies.hpp"
 #include "../common/cgal_normals.hpp"
 #include "furnihost/log.hpp"
 #include "furnihost/plugin.hpp"
@@ -99,6 +100,14 @@ class CgalEfficientRansac : public furnihost::Segmenter {
 
   furnihost::Segmentation Segment(const furnihost::Scan& scan,
                                   const furnihost::RunContext& ctx) override {
+    // Copies of a point would make the library's k-d tree quadratic (see copies.hpp).
+    const furnihost::ScanCopies copies = furnihost::FindCopies(scan);
+    if (copies.any) return furnihost::SpreadOverCopies(SegmentDistinct(copies.distinct, ctx), copies, scan);
+    return SegmentDistinct(scan, ctx);
+  }
+
+ private:
+  furnihost::Segmentation SegmentDistinct(const furnihost::Scan& scan, const furnihost::RunContext& ctx) {
     const size_t n = scan.points.size();
     const float nan = std::numeric_limits<float>::quiet_NaN();
     furnihost::Segmentation seg;
@@ -262,7 +271,6 @@ class CgalEfficientRansac : public furnihost::Segmenter {
     return seg;
   }
 
- private:
   CgalEfficientRansacOptions o_;
 };
 

@@ -29,6 +29,7 @@
 #include <limits>
 #include <numeric>
 
+#include "../common/copies.hpp"
 #include "../common/cgal_normals.hpp"
 #include "furnihost/log.hpp"
 #include "furnihost/plugin.hpp"
@@ -133,6 +134,14 @@ class CgalRegionGrowing : public furnihost::Segmenter {
 
   furnihost::Segmentation Segment(const furnihost::Scan& scan,
                                   const furnihost::RunContext& ctx) override {
+    // Copies of a point would make the library's k-d tree quadratic (see copies.hpp).
+    const furnihost::ScanCopies copies = furnihost::FindCopies(scan);
+    if (copies.any) return furnihost::SpreadOverCopies(SegmentDistinct(copies.distinct, ctx), copies, scan);
+    return SegmentDistinct(scan, ctx);
+  }
+
+ private:
+  furnihost::Segmentation SegmentDistinct(const furnihost::Scan& scan, const furnihost::RunContext& ctx) {
     const size_t n = scan.points.size();
     const float nan = std::numeric_limits<float>::quiet_NaN();
     furnihost::Segmentation seg;
@@ -204,7 +213,6 @@ class CgalRegionGrowing : public furnihost::Segmenter {
     return seg;
   }
 
- private:
   CgalRegionGrowingOptions o_;
 };
 

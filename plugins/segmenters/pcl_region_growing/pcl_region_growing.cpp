@@ -24,6 +24,7 @@
 #include <limits>
 #include <thread>
 
+#include "../common/copies.hpp"
 #include "furnihost/log.hpp"
 #include "furnihost/plugin.hpp"
 
@@ -82,6 +83,14 @@ class PclRegionGrowing : public furnihost::Segmenter {
 
   furnihost::Segmentation Segment(const furnihost::Scan& scan,
                                   const furnihost::RunContext& ctx) override {
+    // Copies of a point would make the library's k-d tree quadratic (see copies.hpp).
+    const furnihost::ScanCopies copies = furnihost::FindCopies(scan);
+    if (copies.any) return furnihost::SpreadOverCopies(SegmentDistinct(copies.distinct, ctx), copies, scan);
+    return SegmentDistinct(scan, ctx);
+  }
+
+ private:
+  furnihost::Segmentation SegmentDistinct(const furnihost::Scan& scan, const furnihost::RunContext& ctx) {
     const size_t n = scan.points.size();
     furnihost::Segmentation seg;
     const float nan = std::numeric_limits<float>::quiet_NaN();
@@ -203,7 +212,6 @@ class PclRegionGrowing : public furnihost::Segmenter {
     return seg;
   }
 
- private:
   PclRegionGrowingOptions o_;
 };
 

@@ -112,6 +112,41 @@ TEST(PclRegionGrowing, DeterministicAndEmptyInput) {
   EXPECT_EQ(e.discarded_points, 0);
 }
 
+// Copies of points are segmented as their distinct positions and spread back (PCL's k-d tree
+// would take N^2 on them): the box scene with every point stored 3 times gives each copy its
+// point's part and normal, and a million copies of one point finish (one position: too small
+// for a part, all discarded).
+TEST(PclRegionGrowing, CopiesTakeTheirPointsPartAndNormal) {
+  auto reg = MakeRegistry();
+  auto seg = Make(*reg);
+  const BoxScene s = MakeBoxScene(0.02f);
+  Scan copies = s.scan;
+  for (int c = 0; c < 2; ++c) copies.points.insert(copies.points.end(), s.scan.points.begin(), s.scan.points.end());
+  const Segmentation a = seg->Segment(s.scan, RunContext{}), b = seg->Segment(copies, RunContext{});
+  const size_t n = s.scan.points.size();
+  ExpectWellFormed(copies, b);
+  ASSERT_EQ(b.parts.size(), a.parts.size());
+  for (size_t p = 0; p < a.parts.size(); ++p) {
+    std::vector<int> expect;
+    for (int c = 0; c < 3; ++c)
+      for (int i : a.parts[p].indices) expect.push_back(i + int(c * n));
+    EXPECT_EQ(b.parts[p].indices, expect) << "part " << p;
+    EXPECT_LT((b.parts[p].centroid - a.parts[p].centroid).norm(), 1e-4f) << "part " << p;
+  }
+  for (size_t i = 0; i < copies.points.size(); ++i) {
+    const Eigen::Vector3f& x = a.normals[i % n];
+    if (x.allFinite()) {
+      EXPECT_EQ(b.normals[i], x) << i;
+    }
+  }
+  EXPECT_EQ(b.discarded_points, 3 * a.discarded_points);
+  Scan same;
+  same.points.assign(1000000, Eigen::Vector3f(0.f, 0.f, 0.f));
+  const Segmentation f = seg->Segment(same, RunContext{});
+  EXPECT_TRUE(f.parts.empty());
+  EXPECT_EQ(f.discarded_points, 1000000);
+}
+
 TEST(PclRegionGrowing, RejectsMaxBelowMin) {
   auto reg = MakeRegistry();
   EXPECT_ANY_THROW(Make(*reg, {{"min_points", 50}, {"max_points", 20}}));

@@ -8,6 +8,8 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <numeric>
+#include <tuple>
 
 #include "../common/tbb_for.hpp"
 #include "furnihost/log.hpp"
@@ -18,6 +20,8 @@ namespace furnihost::rg {
 namespace {
 
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+// Cells with more points than this are checked for copies of one point (NormalsLocal).
+constexpr size_t kCopiesCheckedFrom = 32;
 
 // The finite points of a scan shifted by the centre of their bounding box, computed in double:
 // float coordinates of a scan in map coordinates (1e5 m) would leave ~8 mm of resolution for
@@ -186,11 +190,32 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
   tbb::parallel_for(tbb::blocked_range<int>(0, grid.NumCells(), 16), [&](const tbb::blocked_range<int>& range) {
     Neighbours nb;
     std::vector<float> cx, cy, cz;
+    std::vector<int> slots;
     for (int c = range.begin(); c != range.end(); ++c) {
       grid.GatherNeighbourhood(c, cx, cy, cz);
       const int m = int(cx.size());
-      for (int s = grid.cell_start[c]; s < grid.cell_start[c + 1]; ++s) {
+      // Copies of one point have the same neighbourhood, so one fit serves them all: without
+      // this, N identical points (a (0, 0, 0) flood) cost N fits of N neighbours each. Only
+      // cells that could hold many copies are sorted; a small cell costs at most its size
+      // times its neighbourhood, which the neighbourhood's own points pay for.
+      slots.resize(size_t(grid.cell_start[c + 1] - grid.cell_start[c]));
+      std::iota(slots.begin(), slots.end(), grid.cell_start[c]);
+      const bool copies = slots.size() > kCopiesCheckedFrom;
+      if (copies)
+        std::sort(slots.begin(), slots.end(), [&](int a, int b) {
+          return std::make_tuple(grid.x[a], grid.y[a], grid.z[a], a) < std::make_tuple(grid.x[b], grid.y[b], grid.z[b], b);
+        });
+      for (size_t t = 0; t < slots.size(); ++t) {
+        const int s = slots[t];
         const float px = grid.x[s], py = grid.y[s], pz = grid.z[s];
+        if (copies && t > 0) {
+          const int prev = slots[t - 1];
+          if (grid.x[prev] == px && grid.y[prev] == py && grid.z[prev] == pz) {
+            normals[grid.order[s]] = normals[grid.order[prev]];
+            curvature[grid.order[s]] = curvature[grid.order[prev]];
+            continue;
+          }
+        }
         // Branch-free compaction: every candidate is written, only hits advance the cursor.
         nb.reserve(m);
         int cnt = 0;

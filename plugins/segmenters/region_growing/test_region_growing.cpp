@@ -423,4 +423,38 @@ TEST(RegionGrowing, EmptyAndNonFiniteScans) {
   EXPECT_FALSE(s1.normals.back().allFinite());
 }
 
+// Copies of one point share a neighbourhood, so one fit serves them all: a million copies
+// (a driver's (0, 0, 0) for every invalid return) are one part, in linear time (with a fit
+// per copy over every copy, 10^12 steps, this test would not end within ctest's timeout).
+TEST(RegionGrowing, AMillionCopiesOfOnePointAreOnePart) {
+  Scan scan;
+  scan.points.assign(1000000, Eigen::Vector3f(0.f, 0.f, 0.f));
+  const auto seg = RunSeg(scan);
+  ASSERT_EQ(seg.parts.size(), 1u);
+  EXPECT_EQ(seg.parts[0].indices.size(), scan.points.size());
+  ASSERT_EQ(seg.normals.size(), scan.points.size());
+  EXPECT_EQ(seg.normals.front(), seg.normals.back());
+}
+
+// A sphere whose every point is stored 40 times, the copies scattered through the cloud: each
+// copy gets the normal and curvature the single point gets (the fit's weights scale alike; the
+// sphere is dense enough that every neighbourhood has min_fit_points without its copies).
+TEST(RegionGrowing, CopiesGetTheNormalOfTheirPoint) {
+  std::mt19937_64 rng(4);
+  Scan once;
+  once.points = Sphere(Eigen::Vector3f(0.f, 0.f, 1.f), 0.3f, 10000.f, rng);
+  once.origin = Eigen::Vector3f(0.f, 0.f, 1.f);
+  Scan copies = once;
+  copies.points.clear();
+  for (int c = 0; c < 40; ++c) copies.points.insert(copies.points.end(), once.points.begin(), once.points.end());
+  const auto a = RunSeg(once), b = RunSeg(copies);
+  ASSERT_EQ(b.normals.size(), copies.points.size());
+  const size_t n = once.points.size();
+  for (size_t i = 0; i < copies.points.size(); ++i) {
+    ASSERT_TRUE(b.normals[i].allFinite()) << i;
+    EXPECT_LT(AngleDeg(b.normals[i], a.normals[i % n]), 0.05) << i;
+    EXPECT_NEAR(b.curvature[i], a.curvature[i % n], 1e-4f) << i;
+  }
+}
+
 }  // namespace
