@@ -283,13 +283,24 @@ def main():
 
     print("\nleave-one-group-out (held-out detections pooled), AP25 / AP50 / paper-rule AP, P / R at the "
           f"training folds' thresholds (precision >= {args.min_precision}):")
+    heldout = {"graph": args.graph, "dataset": args.dataset, "grid": args.grid, "group": args.group,
+               "groups": groups, "scenes": len(stems), "min_precision": args.min_precision, "classes": []}
     for c in ds.classes:
         h, n = held[c], npos[c]
         tp, fp = op[c]
         p = tp / (tp + fp) if tp + fp else float("nan")
         r = tp / n if n else float("nan")
-        print(f"  {c:8s} ({n:3d} gt)  AP25 {average_precision(h['iou25'], n):.3f}  AP50 {average_precision(h['iou50'], n):.3f}"
-              f"  AP {average_precision(h['paper'], n):.3f}   P {p:.2f} R {r:.2f}")
+        figures = {k: average_precision(h[k], n) for k in ("iou25", "iou50", "paper")}
+        print(f"  {c:8s} ({n:3d} gt)  AP25 {figures['iou25']:.3f}  AP50 {figures['iou50']:.3f}"
+              f"  AP {figures['paper']:.3f}   P {p:.2f} R {r:.2f}")
+        heldout["classes"].append({"class": c, "gt": n, "ap25": figures["iou25"], "ap50": figures["iou50"],
+                                   "ap": figures["paper"], "precision": p, "recall": r})
+    # What update_results.sh puts in the README's held-out row (NaN -> null: JSON has no NaN).
+    clean = json.loads(json.dumps(heldout).replace("NaN", "null"))
+    tmp = os.path.join(args.out, "heldout.json.tmp")
+    with open(tmp, "w") as f:
+        json.dump(clean, f, indent=1)
+    os.replace(tmp, os.path.join(args.out, "heldout.json"))
 
     # 4. in-sample choice
     ship, thresholds = {}, {}
