@@ -11,7 +11,7 @@
 #include <utility>
 
 #include "furnihost/voxel_index.hpp"
-#include "tbb_for.hpp"
+#include "parallel/tbb_for.hpp"
 
 namespace furnihost::features {
 

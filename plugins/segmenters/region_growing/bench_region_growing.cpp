@@ -30,10 +30,10 @@
 #include <random>
 #include <string>
 
-#include "../common/tbb_for.hpp"
 #include "furnihost/io.hpp"
 #include "furnihost/log.hpp"
 #include "furnihost/voxel_index.hpp"
+#include "parallel/tbb_for.hpp"
 #include "part_features.hpp"
 #include "region_growing_core.hpp"
 
