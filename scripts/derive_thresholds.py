@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Re-derives a graph's per-class voter thresholds from a dataset (the procedure documented in
-plugins/voters/hough_vocabulary/hough_common.hpp).
+plugins/common/voting/voting.hpp).
 
 1. Runs `furnihost` on every scene of the manifest with the graph's voter thresholds set to 0
    and without fitters (selection at threshold t equals selection at 0 filtered to score >= t).

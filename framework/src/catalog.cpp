@@ -30,6 +30,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "furnihost/hash.hpp"
 #include "furnihost/io.hpp"
 
 namespace fs = std::filesystem;
@@ -50,16 +51,6 @@ namespace furnihost {
 
 namespace {
 
-constexpr uint64_t kFnvOffset = 1469598103934665603ull;
-constexpr uint64_t kFnvPrime = 1099511628211ull;
-
-void Fnv1a(uint64_t& h, const char* data, size_t n) {
-  for (size_t i = 0; i < n; ++i) {
-    h ^= static_cast<unsigned char>(data[i]);
-    h *= kFnvPrime;
-  }
-}
-
 // Hashes a whole file; returns false when it cannot be read.
 bool HashFile(uint64_t& h, const std::string& path) {
   std::error_code ec;
@@ -69,7 +60,7 @@ bool HashFile(uint64_t& h, const std::string& path) {
   char buf[1 << 16];
   while (in) {
     in.read(buf, sizeof(buf));
-    Fnv1a(h, buf, static_cast<size_t>(in.gcount()));
+    h = Fnv1a(buf, static_cast<size_t>(in.gcount()), h);
   }
   return true;
 }
@@ -468,7 +459,7 @@ Catalog LoadCatalog(const std::string& path, bool strict) {
   tbb::parallel_for(size_t(0), entries.size(),
                     [&](size_t i) { results[i] = LoadEntry(entries[i], i, dir); });
 
-  uint64_t h = kFnvOffset;
+  uint64_t h = kFnvOffsetTruncated;
   if (!HashFile(h, path)) throw InputError(path + ": cannot read the file");
   std::map<std::string, size_t> first_index;
   for (size_t i = 0; i < results.size(); ++i) {

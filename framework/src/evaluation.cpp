@@ -354,15 +354,6 @@ Dataset LoadDataset(const std::string& path) {
   return d;
 }
 
-uint64_t Fnv1a(const void* data, size_t size, uint64_t h) {
-  const auto* p = static_cast<const unsigned char*>(data);
-  for (size_t i = 0; i < size; ++i) {
-    h ^= p[i];
-    h *= 1099511628211ull;
-  }
-  return h;
-}
-
 std::string HashDataset(const Dataset& d) {
   uint64_t h = kFnvOffset;
   auto add = [&](const std::string& file) {

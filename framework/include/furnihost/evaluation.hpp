@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "furnihost/frame.hpp"
+#include "furnihost/hash.hpp"
 #include "furnihost/types.hpp"
 
 namespace furnihost {
@@ -56,9 +57,6 @@ struct Dataset {
 // scan or gt files that are missing. Unknown keys are errors (a typo must not pass silently).
 FURNIHOST_API Dataset LoadDataset(const std::string& path);
 
-// 64-bit FNV-1a, continuing from `h` (start with kFnvOffset).
-constexpr uint64_t kFnvOffset = 14695981039346656037ull;
-FURNIHOST_API uint64_t Fnv1a(const void* data, size_t size, uint64_t h = kFnvOffset);
 // "fnv1a64:<16 hex digits>" over the bytes of the manifest, then each scene's scan and gt
 // file in manifest order. InputError when a file cannot be read.
 FURNIHOST_API std::string HashDataset(const Dataset& dataset);

@@ -26,7 +26,7 @@
 //   pfor(size_t begin, size_t end, size_t grain, body)   calling body(size_t b, size_t e)
 // over disjoint sub-ranges covering [begin, end). SerialFor (the default) runs it in place; a
 // caller with TBB passes an adaptor over tbb::parallel_for (see
-// plugins/segmenters/common/tbb_for.hpp). The result never depends on the partition.
+// plugins/common/parallel/tbb_for.hpp). The result never depends on the partition.
 #pragma once
 #include <Eigen/Core>
 #include <algorithm>

@@ -1,27 +1,27 @@
 // features.paper24 — the 24 part features of paper Sect. V-A (the column table and every
-// interpretation of the paper's text are documented in part_features.hpp).
+// interpretation of the paper's text are documented in parts/part_features.hpp).
 #include <tbb/task_arena.h>
 
 #include "furnihost/plugin.hpp"
-#include "part_features.hpp"
-#include "part_features_schema.hpp"
+#include "parts/part_features.hpp"
+#include "parts/part_features_schema.hpp"
 
 namespace furnihost {
 
 class Paper24Features : public Features {
  public:
-  static ParamSchema Schema() { return features::PartFeatureSchema(); }
-  explicit Paper24Features(const nlohmann::json& p) : o_(features::PartFeatureOptionsFrom(p)) {}
+  static ParamSchema Schema() { return parts::PartFeatureSchema(); }
+  explicit Paper24Features(const nlohmann::json& p) : o_(parts::PartFeatureOptionsFrom(p)) {}
 
   FeatureMatrix Compute(const Scan& scan, const Segmentation& seg, const RunContext& ctx) override {
     tbb::task_arena arena(ctx.threads > 0 ? ctx.threads : tbb::task_arena::automatic);
     FeatureMatrix f;
-    arena.execute([&] { f = features::ComputePaper24(scan, seg, o_); });
+    arena.execute([&] { f = parts::ComputePaper24(scan, seg, o_); });
     return f;
   }
 
  private:
-  features::PartFeatureOptions o_;
+  parts::PartFeatureOptions o_;
 };
 
 }  // namespace furnihost

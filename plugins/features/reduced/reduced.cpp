@@ -1,28 +1,28 @@
 // features.reduced — the paper's "Re" ablation: the features of Sect. V-A without features 4
 // (eigenvalue ratios), 7 (extents) and 8 (variance/extent ratios), i.e. 9 of the 24 columns
-// (see part_features.hpp, shared with features.paper24).
+// (see parts/part_features.hpp, shared with features.paper24).
 #include <tbb/task_arena.h>
 
 #include "furnihost/plugin.hpp"
-#include "part_features.hpp"
-#include "part_features_schema.hpp"
+#include "parts/part_features.hpp"
+#include "parts/part_features_schema.hpp"
 
 namespace furnihost {
 
 class ReducedFeatures : public Features {
  public:
-  static ParamSchema Schema() { return features::PartFeatureSchema(); }
-  explicit ReducedFeatures(const nlohmann::json& p) : o_(features::PartFeatureOptionsFrom(p)) {}
+  static ParamSchema Schema() { return parts::PartFeatureSchema(); }
+  explicit ReducedFeatures(const nlohmann::json& p) : o_(parts::PartFeatureOptionsFrom(p)) {}
 
   FeatureMatrix Compute(const Scan& scan, const Segmentation& seg, const RunContext& ctx) override {
     tbb::task_arena arena(ctx.threads > 0 ? ctx.threads : tbb::task_arena::automatic);
     FeatureMatrix f;
-    arena.execute([&] { f = features::ComputeReduced(scan, seg, o_); });
+    arena.execute([&] { f = parts::ComputeReduced(scan, seg, o_); });
     return f;
   }
 
  private:
-  features::PartFeatureOptions o_;
+  parts::PartFeatureOptions o_;
 };
 
 }  // namespace furnihost

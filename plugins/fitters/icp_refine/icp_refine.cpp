@@ -33,6 +33,7 @@
 #include <set>
 
 #include "furnihost/geometry.hpp"
+#include "furnihost/hash.hpp"
 #include "furnihost/log.hpp"
 #include "furnihost/plugin.hpp"
 
@@ -92,12 +93,6 @@ class UprightGicp : public pcl::GeneralizedIterativeClosestPoint<pcl::PointXYZ, 
     };
   }
 };
-
-uint64_t Fnv1a(const std::string& s) {
-  uint64_t h = 1469598103934665603ull;
-  for (unsigned char c : s) h = (h ^ c) * 1099511628211ull;
-  return h;
-}
 
 class IcpRefine : public furnihost::Fitter {
  public:
@@ -178,7 +173,7 @@ class IcpRefine : public furnihost::Fitter {
     auto it = cache_.find(key);
     if (it != cache_.end()) return it->second;
     auto pts = std::make_shared<const furnihost::Points>(
-        furnihost::SampleSurface(m.mesh, float(o_.sample_density_per_m2), seed ^ Fnv1a(m.id)));
+        furnihost::SampleSurface(m.mesh, float(o_.sample_density_per_m2), seed ^ furnihost::Fnv1a(m.id, furnihost::kFnvOffsetTruncated)));
     if (pts->size() < 3) throw furnihost::StageError("model \"" + m.id + "\" has no surface to sample");
     cache_.emplace(key, pts);
     return pts;

@@ -1,6 +1,7 @@
 #include "model_cloud.hpp"
 
 #include "furnihost/geometry.hpp"
+#include "furnihost/hash.hpp"
 
 #include <nanoflann.hpp>
 
@@ -18,15 +19,6 @@
 #include <unistd.h>
 
 namespace furnihost::ransac_upright {
-
-uint64_t Fnv1a(const void* data, size_t bytes, uint64_t h) {
-  const unsigned char* c = static_cast<const unsigned char*>(data);
-  for (size_t i = 0; i < bytes; ++i) {
-    h ^= c[i];
-    h *= 1099511628211ull;
-  }
-  return h;
-}
 
 void SamplingOptions::Check() const {
   if (!(density_per_m2 > 0)) throw StageError("model_density_per_m2 must be > 0");
@@ -249,7 +241,7 @@ bool GetVec(std::istream& in, uint64_t left, std::vector<T>* v) {
 }  // namespace
 
 uint64_t ModelCloud::CacheKey(const CatalogModel& model, const SamplingOptions& o, uint64_t seed) {
-  uint64_t h = Fnv1a(kCacheMagic, sizeof(kCacheMagic));
+  uint64_t h = Fnv1a(kCacheMagic, sizeof(kCacheMagic), kFnvOffsetTruncated);
   h = Fnv1a(model.id, h);
   const double opts[5] = {o.density_per_m2, double(o.min_points), double(o.max_points), double(o.inlier_distance),
                           double(o.min_horizontal_normal)};

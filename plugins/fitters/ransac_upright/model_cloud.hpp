@@ -118,9 +118,6 @@ class ModelCloud {
   std::unique_ptr<PointIndex> kd_;
 };
 
-// Stable 64-bit FNV-1a hash (sampling seeds and cache keys must not depend on std::hash).
-uint64_t Fnv1a(const void* data, size_t bytes, uint64_t h = 1469598103934665603ull);
-inline uint64_t Fnv1a(const std::string& s, uint64_t h = 1469598103934665603ull) { return Fnv1a(s.data(), s.size(), h); }
 // SplitMix64 finaliser: derives independent seeds from related ones (x, x + 1, a hash).
 uint64_t SplitMix(uint64_t x);
 

@@ -35,6 +35,7 @@
 #include <set>
 
 #include "furnihost/geometry.hpp"
+#include "furnihost/hash.hpp"
 #include "furnihost/log.hpp"
 #include "furnihost/plugin.hpp"
 #include "model_cloud.hpp"
@@ -131,7 +132,8 @@ std::string Fixed2(double v) {
 // the same whatever else the voter found (an A/B change of one class's threshold leaves the
 // other classes' fits alone; with list-index seeds it re-drew all of them).
 uint64_t HypothesisSeed(uint64_t run_seed, const Detection& d) {
-  return SplitMix(run_seed ^ SplitMix(Fnv1a(d.center.data(), sizeof(float) * 3, Fnv1a(d.cls))));
+  const uint64_t cls = Fnv1a(d.cls, kFnvOffsetTruncated);
+  return SplitMix(run_seed ^ SplitMix(Fnv1a(d.center.data(), sizeof(float) * 3, cls)));
 }
 
 // Identifies a scan's grid in the cache: the pointer alone could be reused by a later scan.
@@ -143,7 +145,7 @@ struct GridKey {
 };
 
 GridKey KeyOf(const Scan& s, double resolution) {
-  GridKey k{&s, s.points.size(), 1469598103934665603ull};
+  GridKey k{&s, s.points.size(), kFnvOffsetTruncated};
   auto mix = [&](const void* p, size_t len) {
     std::string bytes(static_cast<const char*>(p), len);
     k.fingerprint = Fnv1a(bytes, k.fingerprint);
@@ -506,7 +508,7 @@ class RansacUprightFitter : public Fitter {
     }
     tbb::parallel_for(size_t(0), missing.size(), [&](size_t k) {
       const CatalogModel& m = *models[missing[k]];
-      const uint64_t seed = Fnv1a(m.id);
+      const uint64_t seed = Fnv1a(m.id, kFnvOffsetTruncated);
       if (o_.cloud_cache.empty()) {
         out[missing[k]] = std::make_shared<const ModelCloud>(m, o_.sampling, seed);
         return;

@@ -5,7 +5,7 @@
 // the paper's 5 cm) and groups of at least `min_points` become parts too, so legs and other
 // small pieces are not lost. Smaller groups are counted in Segmentation::discarded_points.
 //
-// Normals as in segmenters.cgal_region_growing, same code (../common/cgal_normals.hpp: jet
+// Normals as in segmenters.cgal_region_growing, same code (segmentation/cgal_normals.hpp: jet
 // order 2 or PCA in a radius; NaN output where the radius holds fewer than 3 points);
 // curvature is the surface variation lambda0 / (lambda0 + lambda1 + lambda2) in the same radius.
 // Deterministic: CGAL draws from its thread-local default generator, which is reseeded from
@@ -22,10 +22,10 @@
 #include <limits>
 #include <tuple>
 
-#include "../common/copies.hpp"
-#include "../common/cgal_normals.hpp"
 #include "furnihost/log.hpp"
 #include "furnihost/plugin.hpp"
+#include "segmentation/cgal_normals.hpp"
+#include "segmentation/copies.hpp"
 
 namespace {
 

@@ -4,7 +4,7 @@
 // Coded against the CGAL 5.5 API (Region_growing<InputRange, NeighborQuery, RegionType,
 // SeedMap> with index-based queries); CGAL 5.6 replaced it with item-based queries.
 //
-// Normals (shared with segmenters.cgal_efficient_ransac, ../common/cgal_normals.hpp):
+// Normals (shared with segmenters.cgal_efficient_ransac, segmentation/cgal_normals.hpp):
 // CGAL::jet_estimate_normals (2nd-order jet = the paper's bivariate polynomial
 // fitted over the tangent plane, unweighted) or pca_estimate_normals, in a radius. Where the
 // radius holds fewer than 3 points the output normal/curvature is NaN like PCL's (CGAL
@@ -29,10 +29,10 @@
 #include <limits>
 #include <numeric>
 
-#include "../common/copies.hpp"
-#include "../common/cgal_normals.hpp"
 #include "furnihost/log.hpp"
 #include "furnihost/plugin.hpp"
+#include "segmentation/cgal_normals.hpp"
+#include "segmentation/copies.hpp"
 
 namespace {
 

@@ -5,7 +5,7 @@
 #include <cstdio>
 #include <numeric>
 
-#include "../common/cgal_test_scene.hpp"
+#include "segmentation/cgal_test_scene.hpp"
 
 namespace furnihost::testing {
 namespace {

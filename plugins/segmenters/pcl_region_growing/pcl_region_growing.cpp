@@ -24,9 +24,9 @@
 #include <limits>
 #include <thread>
 
-#include "../common/copies.hpp"
 #include "furnihost/log.hpp"
 #include "furnihost/plugin.hpp"
+#include "segmentation/copies.hpp"
 
 namespace {
 

@@ -30,11 +30,11 @@
 #include <random>
 #include <string>
 
-#include "../common/tbb_for.hpp"
 #include "furnihost/io.hpp"
 #include "furnihost/log.hpp"
 #include "furnihost/voxel_index.hpp"
-#include "part_features.hpp"
+#include "parallel/tbb_for.hpp"
+#include "parts/part_features.hpp"
 #include "region_growing_core.hpp"
 
 namespace {
@@ -194,7 +194,7 @@ void BM_Ours(benchmark::State& state, std::string key, const Scan* (*get)(), Par
   furnihost::rg::RegionGrowingOptions o;
   o.normal_radius_m = prm.normal_radius;
   o.distance_m = prm.distance;
-  furnihost::features::PartFeatureOptions fo;
+  furnihost::parts::PartFeatureOptions fo;
   fo.boundary_radius_m = prm.boundary_radius;
   fo.voxel_m = prm.voxel;
   Row acc;
@@ -205,7 +205,7 @@ void BM_Ours(benchmark::State& state, std::string key, const Scan* (*get)(), Par
     furnihost::rg::SegmentTimings t;
     auto seg = furnihost::rg::Segment(scan, o, &t);
     const double seg_ms = w.Ms();
-    auto f = furnihost::features::ComputePaper24(scan, seg, fo);
+    auto f = furnihost::parts::ComputePaper24(scan, seg, fo);
     benchmark::DoNotOptimize(f.values.data());
     acc.normals += t.normals_ms;
     acc.growing += seg_ms - t.normals_ms;

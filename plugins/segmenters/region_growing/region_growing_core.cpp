@@ -11,9 +11,9 @@
 #include <numeric>
 #include <tuple>
 
-#include "../common/tbb_for.hpp"
 #include "furnihost/log.hpp"
 #include "furnihost/voxel_index.hpp"
+#include "parallel/tbb_for.hpp"
 
 namespace furnihost::rg {
 

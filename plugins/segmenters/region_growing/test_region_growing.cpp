@@ -8,9 +8,9 @@
 #include <random>
 #include <set>
 
-#include "../common/tbb_for.hpp"
 #include "furnihost/stage.hpp"
 #include "furnihost/voxel_index.hpp"
+#include "parallel/tbb_for.hpp"
 #include "test_support.hpp"
 
 namespace {

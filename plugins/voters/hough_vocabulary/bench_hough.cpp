@@ -11,7 +11,7 @@
 
 #include "furnihost/geometry.hpp"
 #include "furnihost/registry.hpp"
-#include "synthetic_views.hpp"
+#include "voting/synthetic_views.hpp"
 
 namespace {
 

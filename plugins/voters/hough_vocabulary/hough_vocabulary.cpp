@@ -1,13 +1,14 @@
 // voters.hough_vocabulary — the paper's voter (Sect. V-B, VI-A, VI-B): a k-means vocabulary of
 // part features, a shape model per training part, probabilistic Hough voting on the floor
-// plane and hypothesis selection. See hough_common.hpp for frames, weights and the score.
+// plane and hypothesis selection. See plugins/common/voting/voting.hpp for frames, weights and
+// the score.
 #include <spdlog/spdlog.h>
 
 #include <chrono>
 #include <memory>
 
 #include "furnihost/plugin.hpp"
-#include "hough_common.hpp"
+#include "voting/voting.hpp"
 
 namespace furnihost::voters {
 
@@ -24,11 +25,11 @@ class HoughVocabularyVoter : public Voter {
         .Int("restarts", 3, 1, 1000, "k-means runs from different k-means++ seeds; the lowest inertia wins")
         .Int("activations", 2, 1, 1000, "words activated per scene part (paper: 2)")
         .DetectionOnly();
-    SelectionOptions::Declare(s);
+    voting::SelectionOptions::Declare(s);
     return s;
   }
 
-  explicit HoughVocabularyVoter(const nlohmann::json& p) : opt_(SelectionOptions::FromParams(p)) {
+  explicit HoughVocabularyVoter(const nlohmann::json& p) : opt_(voting::SelectionOptions::FromParams(p)) {
     km_.k = p.at("k").get<int>();
     km_.max_iterations = p.at("max_iterations").get<int>();
     km_.restarts = p.at("restarts").get<int>();
@@ -38,9 +39,9 @@ class HoughVocabularyVoter : public Voter {
 
   nlohmann::json Train(const std::vector<TrainingView>& views, const RunContext& ctx) override {
     const auto t0 = std::chrono::steady_clock::now();
-    const TrainingParts parts = CollectTrainingParts(views);
-    const KMeansResult km = KMeans(parts.features, km_, ctx.seed);
-    nlohmann::json model = BuildCodebook(parts, km.centers, km.labels).ToJson(kFormat);
+    const voting::TrainingParts parts = voting::CollectTrainingParts(views);
+    const voting::KMeansResult km = voting::KMeans(parts.features, km_, ctx.seed);
+    nlohmann::json model = voting::BuildCodebook(parts, km.centers, km.labels).ToJson(kFormat);
     const double ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     spdlog::info("hough_vocabulary: {} words from {} parts of {} views ({} iterations, inertia {:.3f}, {:.0f} ms)",
@@ -51,22 +52,22 @@ class HoughVocabularyVoter : public Voter {
   }
 
   void Load(const nlohmann::json& model) override {
-    auto book = std::make_unique<Codebook>(Codebook::FromJson(model, kFormat));
-    index_ = std::make_unique<WordIndex>(book->words);
+    auto book = std::make_unique<voting::Codebook>(voting::Codebook::FromJson(model, kFormat));
+    index_ = std::make_unique<voting::WordIndex>(book->words);
     book_ = std::move(book);
   }
 
   VoteResult Vote(const std::vector<SceneParts>& scenes, const RunContext& ctx) override {
     (void)ctx;
     if (!book_) throw StageError("voter has no model: Train or Load it first", false);
-    return VoteAndSelect(*book_, *index_, scenes, opt_);
+    return voting::VoteAndSelect(*book_, *index_, scenes, opt_);
   }
 
  private:
-  KMeansOptions km_;
-  SelectionOptions opt_;
-  std::unique_ptr<Codebook> book_;
-  std::unique_ptr<WordIndex> index_;
+  voting::KMeansOptions km_;
+  voting::SelectionOptions opt_;
+  std::unique_ptr<voting::Codebook> book_;
+  std::unique_ptr<voting::WordIndex> index_;
 };
 
 }  // namespace furnihost::voters

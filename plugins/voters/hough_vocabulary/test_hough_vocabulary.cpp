@@ -6,8 +6,8 @@
 #include <cmath>
 #include <functional>
 
-#include "synthetic_views.hpp"
 #include "test_support.hpp"
+#include "voting/synthetic_views.hpp"
 
 namespace furnihost {
 namespace {

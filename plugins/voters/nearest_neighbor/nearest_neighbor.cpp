@@ -1,7 +1,7 @@
 // voters.nearest_neighbor — the paper's "NN" baseline (Sect. VII-A): every scene part votes
 // only with its nearest training part (kd-tree over all training part features), weight 1
 // (or 1 / (1 + feature distance) with weighting = inverse_distance). Accumulation, maxima,
-// thresholds and the footprint check are those of voters.hough_vocabulary (hough_common).
+// thresholds and the footprint check are those of voters.hough_vocabulary (plugins/common/voting).
 // Implemented as a codebook with one word per training part and one activation, for which
 // eq. 4 and 5 give exactly weight 1.
 #include <spdlog/spdlog.h>
@@ -10,7 +10,7 @@
 #include <numeric>
 
 #include "furnihost/plugin.hpp"
-#include "hough_common.hpp"
+#include "voting/voting.hpp"
 
 namespace furnihost::voters {
 
@@ -25,43 +25,43 @@ class NearestNeighborVoter : public Voter {
     s.Enum("weighting", "unit", {"unit", "inverse_distance"},
            "vote weight: 1, or 1 / (1 + feature distance to the nearest training part)")
         .DetectionOnly();
-    SelectionOptions::Declare(s);
+    voting::SelectionOptions::Declare(s);
     return s;
   }
 
-  explicit NearestNeighborVoter(const nlohmann::json& p) : opt_(SelectionOptions::FromParams(p)) {
+  explicit NearestNeighborVoter(const nlohmann::json& p) : opt_(voting::SelectionOptions::FromParams(p)) {
     opt_.activations = 1;
     opt_.inverse_distance = p.at("weighting").get<std::string>() == "inverse_distance";
   }
 
   nlohmann::json Train(const std::vector<TrainingView>& views, const RunContext& ctx) override {
     (void)ctx;  // nothing random
-    const TrainingParts parts = CollectTrainingParts(views);
+    const voting::TrainingParts parts = voting::CollectTrainingParts(views);
     std::vector<int> labels(parts.d.size());
     std::iota(labels.begin(), labels.end(), 0);
-    nlohmann::json model = BuildCodebook(parts, parts.features, labels).ToJson(kFormat);
+    nlohmann::json model = voting::BuildCodebook(parts, parts.features, labels).ToJson(kFormat);
     spdlog::info("nearest_neighbor: {} training parts of {} views", parts.d.size(), views.size());
     Load(model);
     return model;
   }
 
   void Load(const nlohmann::json& model) override {
-    auto book = std::make_unique<Codebook>(Codebook::FromJson(model, kFormat));
+    auto book = std::make_unique<voting::Codebook>(voting::Codebook::FromJson(model, kFormat));
     // One word per training part (~6000 x 24): bigger leaves search faster in 24-D.
-    index_ = std::make_unique<WordIndex>(book->words, 32);
+    index_ = std::make_unique<voting::WordIndex>(book->words, 32);
     book_ = std::move(book);
   }
 
   VoteResult Vote(const std::vector<SceneParts>& scenes, const RunContext& ctx) override {
     (void)ctx;
     if (!book_) throw StageError("voter has no model: Train or Load it first", false);
-    return VoteAndSelect(*book_, *index_, scenes, opt_);
+    return voting::VoteAndSelect(*book_, *index_, scenes, opt_);
   }
 
  private:
-  SelectionOptions opt_;
-  std::unique_ptr<Codebook> book_;
-  std::unique_ptr<WordIndex> index_;
+  voting::SelectionOptions opt_;
+  std::unique_ptr<voting::Codebook> book_;
+  std::unique_ptr<voting::WordIndex> index_;
 };
 
 }  // namespace furnihost::voters

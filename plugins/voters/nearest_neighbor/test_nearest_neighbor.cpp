@@ -4,8 +4,8 @@
 
 #include <algorithm>
 
-#include "synthetic_views.hpp"
 #include "test_support.hpp"
+#include "voting/synthetic_views.hpp"
 
 namespace furnihost {
 namespace {

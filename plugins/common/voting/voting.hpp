@@ -1,4 +1,5 @@
-// Code shared by voters.hough_vocabulary and voters.nearest_neighbor (compiled into both
+// furnihost::voting — the vocabulary, shape model, Hough voting and hypothesis selection that
+// voters.hough_vocabulary and voters.nearest_neighbor share (a static library linked into both
 // modules; hidden visibility keeps the two copies apart).
 //
 // Frames and units: metres, z up. A training shape vector d = p - s is computed in the
@@ -48,7 +49,7 @@
 #include "furnihost/stage.hpp"
 #include "furnihost/types.hpp"
 
-namespace furnihost::voters {
+namespace furnihost::voting {
 
 using RowMatrixXf = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
@@ -182,4 +183,4 @@ class WordIndex {
 VoteResult VoteAndSelect(const Codebook& book, const WordIndex& index,
                          const std::vector<SceneParts>& scenes, const SelectionOptions& opt);
 
-}  // namespace furnihost::voters
+}  // namespace furnihost::voting

@@ -1,4 +1,4 @@
-#include "part_features.hpp"
+#include "parts/part_features.hpp"
 
 #include <tbb/parallel_for.h>
 
@@ -11,9 +11,9 @@
 #include <utility>
 
 #include "furnihost/voxel_index.hpp"
-#include "tbb_for.hpp"
+#include "parallel/tbb_for.hpp"
 
-namespace furnihost::features {
+namespace furnihost::parts {
 
 namespace {
 
@@ -329,4 +329,4 @@ FeatureMatrix ComputeReduced(const Scan& scan, const Segmentation& seg, const Pa
   return Compute(scan, seg, o, &ReducedColumns());
 }
 
-}  // namespace furnihost::features
+}  // namespace furnihost::parts

@@ -1,7 +1,7 @@
 // What segmenters.cgal_region_growing and segmenters.cgal_efficient_ransac share: the local
 // frame, CGAL's normal estimation, the surface-variation curvature and the normal orientation.
-// Internal to plugins/segmenters (it includes CGAL, which the framework headers must not);
-// each plugin stays one translation unit.
+// Header-only in furnihost::segmentation (it includes CGAL, which the framework headers must
+// not, and each CGAL plugin stays one translation unit).
 //
 // Frames: LocalFrame holds the finite points of a scan shifted by the centre of their bounding
 // box (computed in double), so map-coordinate scans keep their precision; every quantity below
@@ -20,7 +20,7 @@
 
 #include "furnihost/types.hpp"
 #include "furnihost/voxel_index.hpp"
-#include "tbb_for.hpp"
+#include "parallel/tbb_for.hpp"
 
 namespace furnihost::cgal_common {
 

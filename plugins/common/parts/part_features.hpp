@@ -62,7 +62,7 @@
 
 #include "furnihost/types.hpp"
 
-namespace furnihost::features {
+namespace furnihost::parts {
 
 constexpr int kPaper24Columns = 24;
 
@@ -84,4 +84,4 @@ FeatureMatrix ComputePaper24(const Scan& scan, const Segmentation& seg, const Pa
 // The same restricted to ReducedColumns().
 FeatureMatrix ComputeReduced(const Scan& scan, const Segmentation& seg, const PartFeatureOptions& o);
 
-}  // namespace furnihost::features
+}  // namespace furnihost::parts

@@ -1,9 +1,9 @@
 // Parameters of the part features, declared once for features.paper24 and features.reduced.
 #pragma once
 #include "furnihost/params.hpp"
-#include "part_features.hpp"
+#include "parts/part_features.hpp"
 
-namespace furnihost::features {
+namespace furnihost::parts {
 
 inline ParamSchema PartFeatureSchema() {
   ParamSchema s;
@@ -25,4 +25,4 @@ inline PartFeatureOptions PartFeatureOptionsFrom(const nlohmann::json& p) {
   return o;
 }
 
-}  // namespace furnihost::features
+}  // namespace furnihost::parts

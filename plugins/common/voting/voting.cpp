@@ -1,4 +1,4 @@
-#include "hough_common.hpp"
+#include "voting/voting.hpp"
 
 #include <spdlog/spdlog.h>
 
@@ -14,7 +14,7 @@
 #include "furnihost/error.hpp"
 #include "furnihost/geometry.hpp"
 
-namespace furnihost::voters {
+namespace furnihost::voting {
 
 namespace {
 
@@ -1099,4 +1099,4 @@ VoteResult VoteAndSelect(const Codebook& book, const WordIndex& index,
   return res;
 }
 
-}  // namespace furnihost::voters
+}  // namespace furnihost::voting

@@ -1,0 +1,28 @@
+// The one FNV-1a helper (furnihost/hash.hpp): both offsets give the values the former copies
+// gave, so cache keys and seeds derived from them do not change.
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "furnihost/hash.hpp"
+
+using namespace furnihost;
+
+TEST(Hash, StandardOffsetMatchesTheReferenceValue) {
+  EXPECT_EQ(Fnv1a("a", 1), 0xaf63dc4c8601ec8cull);  // FNV-1a 64 reference value of "a"
+  EXPECT_EQ(Fnv1a(std::string("a")), 0xaf63dc4c8601ec8cull);
+  EXPECT_EQ(Fnv1a("", 0), kFnvOffset);
+}
+
+TEST(Hash, TruncatedOffsetKeepsTheFormerValues) {
+  // Values of the former copies in catalog.cpp, ransac_upright and icp_refine.
+  EXPECT_EQ(Fnv1a("a", 1, kFnvOffsetTruncated), 0x44bd8ad473cd9906ull);
+  EXPECT_EQ(Fnv1a(std::string("chair"), kFnvOffsetTruncated), 0x0206f0812b49bc4cull);
+}
+
+TEST(Hash, ContinuesFromTheGivenState) {
+  const std::string ab = "ab";
+  EXPECT_EQ(Fnv1a(ab.data() + 1, 1, Fnv1a(ab.data(), 1)), Fnv1a(ab));
+  EXPECT_EQ(Fnv1a(std::string("b"), Fnv1a(std::string("a"), kFnvOffsetTruncated)),
+            Fnv1a(ab, kFnvOffsetTruncated));
+}
