@@ -41,7 +41,7 @@ int RunPlugins(const std::vector<std::string>& args) {
           for (const auto& c : s.choices) std::cout << " " << c;
         }
         std::cout << ", default " << s.default_value.dump() << (s.training ? "" : ", detection only") << ")  "
-                  << s.help << "\n";
+                  << s.help << (s.unit.empty() ? "" : " [" + s.unit + "]") << "\n";
       }
     }
   }

@@ -14,6 +14,7 @@ const char* ToString(ParamType t) {
     case ParamType::String: return "string";
     case ParamType::Enum: return "enum";
     case ParamType::NumberList: return "number[]";
+    case ParamType::NumberMap: return "{name: number}";
     case ParamType::Object: return "object";
   }
   return "?";
@@ -48,38 +49,44 @@ std::string RangeText(const ParamSpec& s) {
 }
 
 ParamSchema& ParamSchema::Bool(const std::string& name, bool def, const std::string& help) {
-  specs_.push_back({name, ParamType::Bool, def, {}, {}, {}, help});
+  specs_.push_back({name, ParamType::Bool, def, {}, {}, {}, help, true, ""});
   return *this;
 }
 ParamSchema& ParamSchema::Int(const std::string& name, long long def, std::optional<double> min,
                               std::optional<double> max, const std::string& help) {
-  specs_.push_back({name, ParamType::Int, def, min, max, {}, help});
+  specs_.push_back({name, ParamType::Int, def, min, max, {}, help, true, ""});
   return *this;
 }
 ParamSchema& ParamSchema::Number(const std::string& name, double def, std::optional<double> min,
                                  std::optional<double> max, const std::string& help) {
-  specs_.push_back({name, ParamType::Number, def, min, max, {}, help});
+  specs_.push_back({name, ParamType::Number, def, min, max, {}, help, true, ""});
   return *this;
 }
 ParamSchema& ParamSchema::String(const std::string& name, const std::string& def,
                                  const std::string& help) {
-  specs_.push_back({name, ParamType::String, def, {}, {}, {}, help});
+  specs_.push_back({name, ParamType::String, def, {}, {}, {}, help, true, ""});
   return *this;
 }
 ParamSchema& ParamSchema::Enum(const std::string& name, const std::string& def,
                                std::vector<std::string> choices, const std::string& help) {
-  specs_.push_back({name, ParamType::Enum, def, {}, {}, std::move(choices), help});
+  specs_.push_back({name, ParamType::Enum, def, {}, {}, std::move(choices), help, true, ""});
   return *this;
 }
 ParamSchema& ParamSchema::NumberList(const std::string& name, std::vector<double> def,
                                      std::optional<double> min, std::optional<double> max,
                                      const std::string& help) {
-  specs_.push_back({name, ParamType::NumberList, def, min, max, {}, help});
+  specs_.push_back({name, ParamType::NumberList, def, min, max, {}, help, true, ""});
+  return *this;
+}
+ParamSchema& ParamSchema::NumberMap(const std::string& name, std::map<std::string, double> def,
+                                    std::optional<double> min, std::optional<double> max,
+                                    const std::string& help) {
+  specs_.push_back({name, ParamType::NumberMap, def, min, max, {}, help, true, ""});
   return *this;
 }
 ParamSchema& ParamSchema::Object(const std::string& name, nlohmann::json def,
                                  const std::string& help) {
-  specs_.push_back({name, ParamType::Object, std::move(def), {}, {}, {}, help});
+  specs_.push_back({name, ParamType::Object, std::move(def), {}, {}, {}, help, true, ""});
   return *this;
 }
 
@@ -90,20 +97,21 @@ const ParamSpec* ParamSchema::Find(const std::string& name) const {
 }
 
 nlohmann::json ParamSchema::Resolve(const nlohmann::json& given, const std::string& where) const {
+  const std::string prefix = where.empty() ? "" : where + "/";
   if (!given.is_null() && !given.is_object())
-    throw InputError(where + ": expected an object of parameters, got " + Shown(given));
+    throw InputError((where.empty() ? std::string("params") : where) + ": expected an object of parameters, got " + Shown(given));
   nlohmann::json out = nlohmann::json::object();
   if (given.is_object()) {
     for (auto it = given.begin(); it != given.end(); ++it) {
       if (Find(it.key())) continue;
       std::string valid;
       for (const auto& s : specs_) valid += (valid.empty() ? "" : ", ") + s.name;
-      throw InputError(where + "/" + it.key() + ": unknown parameter; valid: " +
+      throw InputError(prefix + it.key() + ": unknown parameter; valid: " +
                        (valid.empty() ? "(none)" : valid));
     }
   }
   for (const auto& s : specs_) {
-    const std::string at = where + "/" + s.name;
+    const std::string at = prefix + s.name;
     if (!given.is_object() || !given.contains(s.name)) {
       out[s.name] = s.default_value;
       continue;
@@ -145,6 +153,14 @@ nlohmann::json ParamSchema::Resolve(const nlohmann::json& given, const std::stri
           throw InputError(at + ": expected a list of numbers" + RangeText(s) + ", got " + Shown(v));
         break;
       }
+      case ParamType::NumberMap: {
+        if (!v.is_object())
+          throw InputError(at + ": expected an object of name: number" + RangeText(s) + ", got " + Shown(v));
+        for (auto it = v.begin(); it != v.end(); ++it)
+          if (!it->is_number() || !InRange(s, it->get<double>()))
+            throw InputError(at + "/" + it.key() + ": expected a number" + RangeText(s) + ", got " + Shown(*it));
+        break;
+      }
       case ParamType::Object:
         if (!v.is_object()) throw InputError(at + ": expected an object, got " + Shown(v));
         break;
@@ -157,6 +173,12 @@ nlohmann::json ParamSchema::Resolve(const nlohmann::json& given, const std::stri
 ParamSchema& ParamSchema::DetectionOnly() {
   if (specs_.empty()) throw std::logic_error("ParamSchema::DetectionOnly() before any parameter");
   specs_.back().training = false;
+  return *this;
+}
+
+ParamSchema& ParamSchema::Unit(const std::string& unit) {
+  if (specs_.empty()) throw std::logic_error("ParamSchema::Unit() before any parameter");
+  specs_.back().unit = unit;
   return *this;
 }
 
@@ -177,6 +199,7 @@ nlohmann::json ParamSchema::ToJson() const {
     if (s.max) p["max"] = *s.max;
     if (!s.choices.empty()) p["choices"] = s.choices;
     if (!s.training) p["detection_only"] = true;
+    if (!s.unit.empty()) p["unit"] = s.unit;
     a.push_back(p);
   }
   return a;

@@ -110,6 +110,41 @@ TEST(Cli, BadInputsExitTwoWithOneLine) {
   }
 }
 
+// `validate` constructs every stage, so rules between parameters (ParamBinding::Rule) and
+// per-value checks (a NumberMap's numbers) fail there: exit 2, one line naming the parameter.
+TEST(Cli, ValidateRunsCrossFieldRules) {
+  auto dir = furnihost::testing::TempDir("cli_rules");
+  struct Case {
+    std::string graph, needle;
+  } cases[] = {
+      {R"({"stages": {"input": {"type": "sensors.scan_file", "params": {"origin": [1, 2]}}}})",
+       "origin: expected 3 numbers, got 2"},
+      {R"({"stages": {"input": {"type": "sensors.scan_file"},
+          "seg": {"type": "segmenters.pcl_region_growing", "inputs": ["input"],
+                  "params": {"min_points": 50, "max_points": 20}}}})",
+       "max_points must be 0 (no limit) or >= min_points"},
+      {R"({"stages": {"input": {"type": "sensors.simulated_laser", "params": {"tilt_min_deg": 40}}}})",
+       "tilt_min_deg (40.000000) > tilt_max_deg (30.000000)"},
+      {R"({"stages": {"input": {"type": "sensors.scan_file"},
+          "prop": {"type": "proposals.clusters", "inputs": ["input"], "params": {"radii": []}}}})",
+       "radii: give at least one clustering radius"},
+      {R"({"stages": {"input": {"type": "sensors.scan_file"},
+          "prop": {"type": "proposals.clusters", "inputs": ["input"]},
+          "vote": {"type": "voters.catalog_shape", "inputs": ["prop"], "params": {"thresholds": {"chair": -1}}}}})",
+       "/stages/vote/params/thresholds/chair: expected a number in [0, inf], got -1"},
+  };
+  int i = 0;
+  for (const auto& c : cases) {
+    const std::string path = dir + "/g" + std::to_string(i++) + ".json";
+    furnihost::AtomicWriteText(path, c.graph);
+    auto r = Furnihost("validate --graph " + path);
+    EXPECT_EQ(r.code, 2) << c.graph << "\n" << r.err;
+    auto lines = ErrorLines(r.err);
+    ASSERT_EQ(lines.size(), 1u) << c.graph << "\n" << r.err;
+    EXPECT_NE(lines[0].find(c.needle), std::string::npos) << lines[0];
+  }
+}
+
 TEST(Cli, StageExceptionNamesTagAndType) {
   auto dir = furnihost::testing::TempDir("cli_throw");
   furnihost::AtomicWriteText(dir + "/g.json", kGraph);

@@ -53,12 +53,28 @@ struct IcpRefineOptions {
   int min_points = 20;                // fewer scene points: detection left unchanged
   double max_move_m = 0.3;            // larger corrections are refused (ICP diverged)
   double max_turn_deg = 30.0;
-
-  void Check() const {
-    if (method != "icp" && method != "gicp")
-      throw furnihost::StageError("method: expected \"icp\" or \"gicp\", got \"" + method + "\"");
-  }
 };
+
+// Each parameter declared once; its default is IcpRefineOptions{}'s.
+const furnihost::ParamBinding<IcpRefineOptions>& Binding() {
+  using O = IcpRefineOptions;
+  static const auto b =
+      furnihost::ParamBinding<O>()
+          .Enum("method", &O::method, {"icp", "gicp"},
+                "PCL point-to-point ICP with an (x, y, yaw) estimator, or Generalized-ICP projected upright each step")
+          .Number("max_correspondence_m", &O::max_correspondence_m, 1e-4, 10.0, "m", "point pairs farther apart are ignored")
+          .Int("max_iterations", &O::max_iterations, 1, 10000, "", "ICP iterations at most")
+          .Number("sample_density_per_m2", &O::sample_density_per_m2, 1.0, 1e7, "", "model surface samples per square metre")
+          .Int("seed", &O::seed, 0, 9.2e18, "", "model sampling seed; 0 = the run's seed")
+          .Number("nearby_radius_m", &O::nearby_radius_m, 0.0, 1.0, "",
+                  "also align scan points within this distance of the placed model, not only the supporting parts; 0 = off")
+          .Number("floor_margin_m", &O::floor_margin_m, 0.0, 1.0, "",
+                  "nearby points less than this above the model's bottom are ignored (keeps the floor out)")
+          .Int("min_points", &O::min_points, 3, 1e9, "", "detections with fewer scene points are left unchanged")
+          .Number("max_move_m", &O::max_move_m, 0.0, 10.0, "m", "a correction moving the model farther is refused")
+          .Number("max_turn_deg", &O::max_turn_deg, 0.0, 180.0, "deg", "a correction turning the model more is refused");
+  return b;
+}
 
 // Rotation about +z by the yaw of `m` and translation (x, y, 0) of `m`.
 Eigen::Matrix4f ProjectUpright(const Eigen::Matrix4f& m) {
@@ -96,37 +112,8 @@ class UprightGicp : public pcl::GeneralizedIterativeClosestPoint<pcl::PointXYZ, 
 
 class IcpRefine : public furnihost::Fitter {
  public:
-  static ParamSchema Schema() {
-    ParamSchema s;
-    s.Enum("method", "icp", {"icp", "gicp"},
-           "PCL point-to-point ICP with an (x, y, yaw) estimator, or Generalized-ICP projected upright each step");
-    s.Number("max_correspondence_m", 0.1, 1e-4, 10.0, "point pairs farther apart are ignored [m]");
-    s.Int("max_iterations", 50, 1, 10000, "ICP iterations at most");
-    s.Number("sample_density_per_m2", 10000.0, 1.0, 1e7, "model surface samples per square metre");
-    s.Int("seed", 0, 0, 9.2e18, "model sampling seed; 0 = the run's seed");
-    s.Number("nearby_radius_m", 0.0, 0.0, 1.0,
-             "also align scan points within this distance of the placed model, not only the supporting parts; 0 = off");
-    s.Number("floor_margin_m", 0.02, 0.0, 1.0,
-             "nearby points less than this above the model's bottom are ignored (keeps the floor out)");
-    s.Int("min_points", 20, 3, 1e9, "detections with fewer scene points are left unchanged");
-    s.Number("max_move_m", 0.3, 0.0, 10.0, "a correction moving the model farther is refused [m]");
-    s.Number("max_turn_deg", 30.0, 0.0, 180.0, "a correction turning the model more is refused [deg]");
-    return s;
-  }
-
-  explicit IcpRefine(const nlohmann::json& p) {
-    o_.method = p.at("method").get<std::string>();
-    o_.max_correspondence_m = p.at("max_correspondence_m").get<double>();
-    o_.max_iterations = p.at("max_iterations").get<int>();
-    o_.sample_density_per_m2 = p.at("sample_density_per_m2").get<double>();
-    o_.seed = p.at("seed").get<long long>();
-    o_.nearby_radius_m = p.at("nearby_radius_m").get<double>();
-    o_.floor_margin_m = p.at("floor_margin_m").get<double>();
-    o_.min_points = p.at("min_points").get<int>();
-    o_.max_move_m = p.at("max_move_m").get<double>();
-    o_.max_turn_deg = p.at("max_turn_deg").get<double>();
-    o_.Check();
-  }
+  static ParamSchema Schema() { return Binding().Schema(); }
+  explicit IcpRefine(const nlohmann::json& p) : o_(Binding().Parse(p)) {}
 
   std::vector<furnihost::Detection> Fit(const std::vector<furnihost::Detection>& input,
                                         const furnihost::FitContext& ctx) override {

@@ -74,52 +74,105 @@ struct RansacUprightOptions {
   float reach_margin = 0.3f;
   float part_inside_fraction = 0.8f;
   bool crop_parts = true;
-  std::string cloud_cache;  // folder of sampled model clouds; empty = none
+  std::string cloud_cache_setting = "auto";  // as given: "auto", "off" or a folder
+  std::string cloud_cache;  // folder of sampled model clouds (from cloud_cache_setting); empty = none
 
-  static RansacUprightOptions FromJson(const nlohmann::json& p) {
-    RansacUprightOptions o;
-    o.sampling.density_per_m2 = p.at("model_density_per_m2").get<double>();
-    o.sampling.min_points = p.at("min_model_points").get<int>();
-    o.sampling.max_points = p.at("max_model_points").get<int>();
-    o.sampling.inlier_distance = p.at("inlier_distance_m").get<float>();
-    o.sampling.min_horizontal_normal = p.at("min_horizontal_normal").get<float>();
-    o.cloud_cache = CloudCacheDir(p.at("cloud_cache").get<std::string>());
-    RansacOptions& r = o.ransac;
-    r.height_tolerance = p.at("height_tolerance_m").get<float>();
-    r.correspondence_fraction = p.at("correspondence_fraction").get<float>();
-    r.max_correspondences = p.at("max_correspondences").get<int>();
-    r.min_horizontal_normal = o.sampling.min_horizontal_normal;
-    r.normal_z_tolerance = p.at("normal_z_tolerance").get<float>();
-    r.normal_sign_ambiguous = p.at("normal_sign_ambiguous").get<bool>();
-    r.score_fraction = p.at("score_fraction").get<float>();
-    r.p_success = p.at("p_success").get<double>();
-    r.max_iterations = p.at("max_iterations").get<int>();
-    r.min_iterations = p.at("min_iterations").get<int>();
-    r.model_tie_tolerance = p.at("model_tie_tolerance").get<float>();
-    r.refine_iterations = p.at("refine_iterations").get<int>();
-    r.refine_plane = p.at("refine_metric").get<std::string>() == "plane";
-    r.max_shift = p.at("max_shift_m").get<float>();
-    o.min_coverage = r.min_coverage = p.at("min_coverage").get<float>();
-    o.max_free_space_ratio = p.at("max_free_space_ratio").get<float>();
-    o.grid.resolution = p.at("grid_resolution_m").get<double>();
-    o.grid.max_range = p.at("grid_max_range_m").get<double>();
-    o.grid_cache_size = p.at("grid_cache_size").get<int>();
-    o.min_point_height = p.at("min_point_height_m").get<float>();
-    o.reach_margin = p.at("reach_margin_m").get<float>();
-    o.part_inside_fraction = p.at("part_inside_fraction").get<float>();
-    o.crop_parts = p.at("crop_parts").get<bool>();
-    o.free_space.free_margin = p.at("free_space_margin_m").get<float>();
-    o.free_space.visibility_margin = p.at("visibility_margin_m").get<float>();
-    o.free_space.erosion = p.at("free_space_erosion").get<int>();
-    o.Check();
-    return o;
-  }
   void Check() const {
     sampling.Check();
     ransac.Check();
     grid.Check();
   }
 };
+
+// Each parameter declared once; its default is RansacUprightOptions{}'s (the nested option
+// structs' defaults: model_cloud.hpp, upright_ransac.hpp, occupancy.hpp).
+const ParamBinding<RansacUprightOptions>& Binding() {
+  using O = RansacUprightOptions;
+  static const auto b =
+      ParamBinding<O>()
+          .Number("model_density_per_m2", [](O& o) -> double& { return o.sampling.density_per_m2; }, 100, 1e6, "",
+                  "model cloud density [points/m² of outer face area] (1 cm spacing; paper's models: 5k-15k points)")
+          .Int("min_model_points", [](O& o) -> int& { return o.sampling.min_points; }, 100, 1e6, "",
+               "small models are sampled denser up to this count")
+          .Int("max_model_points", [](O& o) -> int& { return o.sampling.max_points; }, 100, 1e6, "",
+               "large models are sampled sparser down to this count (40k keeps big cabinets near 2 cm spacing)")
+          .Number("height_tolerance_m", [](O& o) -> float& { return o.ransac.height_tolerance; }, 0.001, 0.2, "",
+                  "candidate correspondences: model points within this height [m] of the sampled scan point")
+          .Number("correspondence_fraction", [](O& o) -> float& { return o.ransac.correspondence_fraction; }, 0.01, 1,
+                  "", "share of the candidate correspondences tried per sample (paper: ~50 %)")
+          .Int("max_correspondences", [](O& o) -> int& { return o.ransac.max_correspondences; }, 0, 1e6, "",
+               "cap on the candidates tried per sample; 0 = no cap")
+          // Also RansacOptions::min_horizontal_normal: copied in ParseOptions.
+          .Number("min_horizontal_normal", [](O& o) -> float& { return o.sampling.min_horizontal_normal; }, 0, 1, "",
+                  "|n_xy| above this: the yaw comes from the normals, else a random yaw (paper: tables)")
+          .Number("normal_z_tolerance", [](O& o) -> float& { return o.ransac.normal_z_tolerance; }, 0, 1, "",
+                  "candidates need a normal tilt |n_z| within this of the scan point's")
+          .Bool("normal_sign_ambiguous", [](O& o) -> bool& { return o.ransac.normal_sign_ambiguous; },
+                "normals' signs are arbitrary: try yaw and yaw + 180°")
+          .Number("inlier_distance_m", [](O& o) -> float& { return o.sampling.inlier_distance; }, 0.001, 0.5, "m",
+                  "a scan point is covered when a model point is this close")
+          .Number("score_fraction", [](O& o) -> float& { return o.ransac.score_fraction; }, 0.01, 1, "",
+                  "share of the part points each candidate is scored on (paper: ~50 %)")
+          .Number("p_success", [](O& o) -> double& { return o.ransac.p_success; }, 0.5, 0.999999, "",
+                  "RANSAC success probability of eq. 7")
+          .Int("max_iterations", [](O& o) -> int& { return o.ransac.max_iterations; }, 1, 100000, "",
+               "cap on the samples per model (eq. 7 starts at infinity)")
+          .Int("min_iterations", [](O& o) -> int& { return o.ransac.min_iterations; }, 0, 100000, "",
+               "samples per model at least: eq. 7 assumes every covered scan point yields the pose, which noisy "
+               "normals do not")
+          .Number("model_tie_tolerance", [](O& o) -> float& { return o.ransac.model_tie_tolerance; }, 0, 1, "",
+                  "models covering within this share of the best are ranked by explained model surface")
+          .Int("refine_iterations", [](O& o) -> int& { return o.ransac.refine_iterations; }, 0, 100, "",
+               "upright ICP steps after RANSAC (not in the paper; 0 = off)")
+          // refine_plane = index of the choice: point 0 (false), plane 1 (true).
+          .Enum("refine_metric", [](O& o) -> bool& { return o.ransac.refine_plane; }, {"point", "plane"},
+                "ICP distance: 'point' to the nearest model sample, 'plane' along the model's horizontal normal there")
+          .Number("max_shift_m", [](O& o) -> float& { return o.ransac.max_shift; }, 0, 10, "",
+                  "poses that move the centre farther than this [m] from the voter's centre are not tried (the "
+                  "voter's centre error; keeps a fit from sliding onto a neighbouring object); 0 = no limit (paper)")
+          .String("cloud_cache", &O::cloud_cache_setting,
+                  "folder where sampled model clouds are kept between runs (they cost ~75 % of a single-scan "
+                  "detection); 'auto': $FURNIHOST_CACHE_DIR, else $XDG_CACHE_HOME/furnihost, else "
+                  "~/.cache/furnihost (+ /model_clouds); 'off': sample every run. Keyed by mesh, sampling parameters "
+                  "and format")
+          .Number("min_point_height_m", &O::min_point_height, 0, 1, "m",
+                  "part points less than this above floor_z are not fitted (floor points; no model explains them)")
+          .Number("reach_margin_m", &O::reach_margin, 0, 10, "m",
+                  "reach of a hypothesis: its class's largest footprint half-diagonal plus this (the voter's centre "
+                  "error)")
+          .Number("part_inside_fraction", &O::part_inside_fraction, 0, 1, "",
+                  "a supporting part is fitted only if this share of its points is within reach (drops floor, wall "
+                  "and neighbours' parts); 0 = every part")
+          .Bool("crop_parts", &O::crop_parts,
+                "a part mostly out of reach contributes its points within reach (true) or nothing (false)")
+          // Also RansacOptions::min_coverage: copied in ParseOptions.
+          .Number("min_coverage", &O::min_coverage, 0, 1, "",
+                  "reject when the model covers less than this share of the part points (paper: 0.5)")
+          .Number("max_free_space_ratio", &O::max_free_space_ratio, 0, 1, "",
+                  "reject when more than this share of the visible model surface is in free space")
+          .Number("grid_resolution_m", [](O& o) -> double& { return o.grid.resolution; }, 0.005, 1, "",
+                  "OctoMap voxel edge [m] of the per-scan occupancy grids")
+          .Number("grid_max_range_m", [](O& o) -> double& { return o.grid.max_range; }, 0, 1000, "",
+                  "rays longer than this only clear space [m]; 0 = unlimited")
+          .Int("grid_cache_size", &O::grid_cache_size, 1, 1000, "",
+               "occupancy grids kept between calls (least recently used dropped)")
+          .Number("free_space_margin_m", [](O& o) -> float& { return o.free_space.free_margin; }, 0, 1, "m",
+                  "model points are pushed this far from the sensor before the free-space look-up")
+          .Number("visibility_margin_m", [](O& o) -> float& { return o.free_space.visibility_margin; }, 0, 1, "m",
+                  "model points this far behind the model's own front surface count as self-occluded")
+          .Int("free_space_erosion", [](O& o) -> int& { return o.free_space.erosion; }, 0, 1, "",
+               "1: a model point is in free space only if its voxel and the 6 neighbours are free; 0: its voxel");
+  return b;
+}
+
+RansacUprightOptions ParseOptions(const nlohmann::json& p) {
+  RansacUprightOptions o = Binding().Parse(p);
+  o.ransac.min_horizontal_normal = o.sampling.min_horizontal_normal;
+  o.ransac.min_coverage = o.min_coverage;
+  o.cloud_cache = CloudCacheDir(o.cloud_cache_setting);
+  o.Check();  // the library structs' own checks (they are also used without this plugin)
+  return o;
+}
 
 std::string Fixed2(double v) {
   char buf[32];
@@ -160,63 +213,9 @@ GridKey KeyOf(const Scan& s, double resolution) {
 
 class RansacUprightFitter : public Fitter {
  public:
-  static ParamSchema Schema() {
-    ParamSchema s;
-    s.Number("model_density_per_m2", 10000, 100, 1e6,
-             "model cloud density [points/m² of outer face area] (1 cm spacing; paper's models: 5k-15k points)")
-        .Int("min_model_points", 5000, 100, 1e6, "small models are sampled denser up to this count")
-        .Int("max_model_points", 40000, 100, 1e6,
-             "large models are sampled sparser down to this count (40k keeps big cabinets near 2 cm spacing)")
-        .Number("height_tolerance_m", 0.01, 0.001, 0.2,
-                "candidate correspondences: model points within this height [m] of the sampled scan point")
-        .Number("correspondence_fraction", 0.5, 0.01, 1, "share of the candidate correspondences tried per sample (paper: ~50 %)")
-        .Int("max_correspondences", 0, 0, 1e6, "cap on the candidates tried per sample; 0 = no cap")
-        .Number("min_horizontal_normal", 0.5, 0, 1,
-                "|n_xy| above this: the yaw comes from the normals, else a random yaw (paper: tables)")
-        .Number("normal_z_tolerance", 0.3, 0, 1, "candidates need a normal tilt |n_z| within this of the scan point's")
-        .Bool("normal_sign_ambiguous", true, "normals' signs are arbitrary: try yaw and yaw + 180°")
-        .Number("inlier_distance_m", 0.02, 0.001, 0.5, "a scan point is covered when a model point is this close [m]")
-        .Number("score_fraction", 0.5, 0.01, 1, "share of the part points each candidate is scored on (paper: ~50 %)")
-        .Number("p_success", 0.99, 0.5, 0.999999, "RANSAC success probability of eq. 7")
-        .Int("max_iterations", 200, 1, 100000, "cap on the samples per model (eq. 7 starts at infinity)")
-        .Int("min_iterations", 10, 0, 100000,
-             "samples per model at least: eq. 7 assumes every covered scan point yields the pose, which noisy normals do not")
-        .Number("model_tie_tolerance", 0.02, 0, 1,
-                "models covering within this share of the best are ranked by explained model surface")
-        .Int("refine_iterations", 0, 0, 100, "upright ICP steps after RANSAC (not in the paper; 0 = off)")
-        .Enum("refine_metric", "plane", {"point", "plane"},
-              "ICP distance: 'point' to the nearest model sample, 'plane' along the model's horizontal normal there")
-        .Number("max_shift_m", 0.0, 0, 10,
-                "poses that move the centre farther than this [m] from the voter's centre are not tried (the voter's "
-                "centre error; keeps a fit from sliding onto a neighbouring object); 0 = no limit (paper)")
-        .String("cloud_cache", "auto",
-                "folder where sampled model clouds are kept between runs (they cost ~75 % of a single-scan "
-                "detection); 'auto': $FURNIHOST_CACHE_DIR, else $XDG_CACHE_HOME/furnihost, else ~/.cache/furnihost "
-                "(+ /model_clouds); 'off': sample every run. Keyed by mesh, sampling parameters and format")
-        .Number("min_point_height_m", 0.02, 0, 1,
-                "part points less than this above floor_z are not fitted (floor points; no model explains them) [m]")
-        .Number("reach_margin_m", 0.3, 0, 10,
-                "reach of a hypothesis: its class's largest footprint half-diagonal plus this (the voter's centre error) [m]")
-        .Number("part_inside_fraction", 0.8, 0, 1,
-                "a supporting part is fitted only if this share of its points is within reach (drops floor, wall and "
-                "neighbours' parts); 0 = every part")
-        .Bool("crop_parts", true,
-              "a part mostly out of reach contributes its points within reach (true) or nothing (false)")
-        .Number("min_coverage", 0.5, 0, 1, "reject when the model covers less than this share of the part points (paper: 0.5)")
-        .Number("max_free_space_ratio", 0.2, 0, 1, "reject when more than this share of the visible model surface is in free space")
-        .Number("grid_resolution_m", 0.05, 0.005, 1, "OctoMap voxel edge [m] of the per-scan occupancy grids")
-        .Number("grid_max_range_m", 0.0, 0, 1000, "rays longer than this only clear space [m]; 0 = unlimited")
-        .Int("grid_cache_size", 4, 1, 1000, "occupancy grids kept between calls (least recently used dropped)")
-        .Number("free_space_margin_m", 0.05, 0, 1,
-                "model points are pushed this far from the sensor before the free-space look-up [m]")
-        .Number("visibility_margin_m", 0.03, 0, 1,
-                "model points this far behind the model's own front surface count as self-occluded [m]")
-        .Int("free_space_erosion", 1, 0, 1,
-             "1: a model point is in free space only if its voxel and the 6 neighbours are free; 0: its voxel");
-    return s;
-  }
+  static ParamSchema Schema() { return Binding().Schema(); }
 
-  explicit RansacUprightFitter(const nlohmann::json& p) : o_(RansacUprightOptions::FromJson(p)) {}
+  explicit RansacUprightFitter(const nlohmann::json& p) : o_(ParseOptions(p)) {}
 
   // Samples (or loads from cloud_cache) every catalog model once, in parallel. Nothing is
   // returned for the model file (see the file comment).

@@ -53,24 +53,39 @@ struct ClustersOptions {
   std::string adaptive = "auto";  // radius per local spacing: "auto" (with a sensor origin), "on", "off"
   int neighbours = 16;            // for normals and local spacing
 
-  static ClustersOptions FromJson(const nlohmann::json& p) {
-    ClustersOptions o;
-    o.radii = p.at("radii").get<std::vector<double>>();
-    o.min_points = p.at("min_points").get<int>();
-    o.floor_cut = p.at("floor_cut_m").get<float>();
-    o.floor_flat_cut = p.at("floor_flat_cut_m").get<float>();
-    o.max_height = p.at("max_height_m").get<float>();
-    o.split_length = p.at("split_length_m").get<float>();
-    o.split_flatness = p.at("split_flatness_m").get<float>();
-    o.extend_gap = p.at("extend_gap_m").get<float>();
-    o.ground_snap = p.at("ground_snap_m").get<float>();
-    o.leak_shell = p.at("surround_shell_m").get<float>();
-    o.adaptive = p.at("adaptive_radius").get<std::string>();
-    o.neighbours = p.at("neighbours").get<int>();
-    if (o.radii.empty()) throw InputError("radii: give at least one clustering radius");
-    return o;
-  }
 };
+
+// Each parameter declared once; its default is ClustersOptions{}'s.
+const ParamBinding<ClustersOptions>& Binding() {
+  using O = ClustersOptions;
+  static const auto b =
+      ParamBinding<O>()
+          .NumberList("radii", &O::radii, 0.5, 20, "",
+                      "Euclidean clustering radii in units of the scan's median point spacing; every radius gives "
+                      "its own proposals (a small radius separates touching objects, a large one joins sparse ones)")
+          .Int("min_points", &O::min_points, 3, 1e7, "", "clusters with fewer points are dropped")
+          .Number("floor_cut_m", &O::floor_cut, 0, 1, "m", "points less than this above the ground are floor")
+          .Number("floor_flat_cut_m", &O::floor_flat_cut, 0, 1, "m",
+                  "horizontal points (|n_z| > 0.9) less than this above the ground are floor")
+          .Number("max_height_m", &O::max_height, 0.5, 20, "",
+                  "points higher above the ground are not furniture [m]; lowered to 8 cm under a ceiling when one is seen")
+          .Number("split_length_m", &O::split_length, 0.2, 20, "m",
+                  "clusters whose footprint is longer (longer than any catalog chair) are also cut in 2 (and 3 past 1.7x)")
+          .Number("split_flatness_m", &O::split_flatness, 0, 1, "m",
+                  "a cut is kept only where the top-view height profile steps by this much (a gap, valley or ridge)")
+          .Number("extend_gap_m", &O::extend_gap, 0, 2, "m",
+                  "proposals whose bottom is this far above the ground get a variant down to the points under them")
+          .Number("ground_snap_m", &O::ground_snap, 0, 1, "m",
+                  "a bottom this close to the ground is put on it (floor contacts are not scanned)")
+          .Number("surround_shell_m", &O::leak_shell, 0.01, 1, "m",
+                  "shell around each box whose occupied area, relative to the box's, is the proposal's surround measure")
+          .Enum("adaptive_radius", &O::adaptive, {"auto", "on", "off"},
+                "scale the radius by each point's local spacing (single views thin out with range): 'auto' = when the "
+                "scan has a sensor origin")
+          .Int("neighbours", &O::neighbours, 4, 64, "", "neighbours of the normal and local-spacing estimates")
+          .Rule([](const O& o) { return o.radii.empty() ? "radii: give at least one clustering radius" : ""; });
+  return b;
+}
 
 // A vertical plane found by the Hough transform: unit normal nv and direction d on the floor
 // plane, offset r (nv . p = r), extents of its inliers along d and in height.
@@ -143,31 +158,8 @@ struct UnionFind {
 
 class ClusterProposer : public Proposer {
  public:
-  static ParamSchema Schema() {
-    return ParamSchema()
-        .NumberList("radii", {2.0, 2.5, 3.5}, 0.5, 20,
-                    "Euclidean clustering radii in units of the scan's median point spacing; every radius gives "
-                    "its own proposals (a small radius separates touching objects, a large one joins sparse ones)")
-        .Int("min_points", 40, 3, 1e7, "clusters with fewer points are dropped")
-        .Number("floor_cut_m", 0.04, 0, 1, "points less than this above the ground are floor [m]")
-        .Number("floor_flat_cut_m", 0.08, 0, 1, "horizontal points (|n_z| > 0.9) less than this above the ground are floor [m]")
-        .Number("max_height_m", 2.6, 0.5, 20,
-                "points higher above the ground are not furniture [m]; lowered to 8 cm under a ceiling when one is seen")
-        .Number("split_length_m", 1.1, 0.2, 20,
-                "clusters whose footprint is longer (longer than any catalog chair) are also cut in 2 (and 3 past 1.7x) [m]")
-        .Number("split_flatness_m", 0.05, 0, 1,
-                "a cut is kept only where the top-view height profile steps by this much (a gap, valley or ridge) [m]")
-        .Number("extend_gap_m", 0.10, 0, 2,
-                "proposals whose bottom is this far above the ground get a variant down to the points under them [m]")
-        .Number("ground_snap_m", 0.15, 0, 1, "a bottom this close to the ground is put on it (floor contacts are not scanned) [m]")
-        .Number("surround_shell_m", 0.10, 0.01, 1,
-                "shell around each box whose occupied area, relative to the box's, is the proposal's surround measure [m]")
-        .Enum("adaptive_radius", "auto", {"auto", "on", "off"},
-              "scale the radius by each point's local spacing (single views thin out with range): 'auto' = when the scan "
-              "has a sensor origin")
-        .Int("neighbours", 16, 4, 64, "neighbours of the normal and local-spacing estimates");
-  }
-  explicit ClusterProposer(const nlohmann::json& p) : o_(ClustersOptions::FromJson(p)) {}
+  static ParamSchema Schema() { return Binding().Schema(); }
+  explicit ClusterProposer(const nlohmann::json& p) : o_(Binding().Parse(p)) {}
 
   Proposals Propose(const Scan& scan, const Segmentation*, const RunContext&) override {
     Proposals out;

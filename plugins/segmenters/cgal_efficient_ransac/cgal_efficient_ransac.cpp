@@ -56,47 +56,38 @@ struct CgalEfficientRansacOptions {
   bool attach_leftovers = true;       // leftover points on an adjacent shape join it
   double distance_m = 0.05;           // grouping distance of the leftover points [m] (paper: 5 cm)
   int min_points = 10;                // smaller leftover groups are discarded (paper: 10)
-
-  void Check() const {
-    if (!(normal_radius_m > 0) || !(epsilon_m > 0) || !(cluster_epsilon_m > 0) || !(distance_m > 0))
-      throw furnihost::StageError("normal_radius_m, epsilon_m, cluster_epsilon_m and distance_m must be > 0");
-  }
 };
+
+// Each parameter declared once; its default is CgalEfficientRansacOptions{}'s. (The schema's
+// ranges keep every radius and distance > 0.)
+const furnihost::ParamBinding<CgalEfficientRansacOptions>& Binding() {
+  using O = CgalEfficientRansacOptions;
+  static const auto b =
+      furnihost::ParamBinding<O>()
+          .Enum("normals", &O::normals, {"jet", "pca"},
+                "normal estimator: CGAL jet fitting (order 2, the paper's polynomial) or PCA")
+          .Number("normal_radius_m", &O::normal_radius_m, 0.001, 10.0, "",
+                  "radius of the normal and curvature neighbourhood [m] (paper: 0.03)")
+          .Enum("shapes", &O::shapes, {"planes", "planes_cylinders"}, "shape types RANSAC looks for")
+          .Number("probability", &O::probability, 1e-6, 1.0, "",
+                  "probability of missing the largest candidate (lower = more thorough)")
+          .Int("min_shape_points", &O::min_shape_points, 3, 1e9, "", "smallest shape RANSAC accepts")
+          .Number("epsilon_m", &O::epsilon_m, 1e-5, 1.0, "m", "max distance of a point to its shape")
+          .Number("cluster_epsilon_m", &O::cluster_epsilon_m, 1e-5, 1.0, "m",
+                  "max gap between neighbouring points of one shape")
+          .Number("angle_deg", &O::angle_deg, 0.0, 90.0, "deg", "max angle between a point's normal and its shape's normal")
+          .Bool("attach_leftovers", &O::attach_leftovers,
+                "a leftover point within epsilon_m of a shape that has points within cluster_epsilon_m joins it")
+          .Number("distance_m", &O::distance_m, 1e-4, 10.0, "",
+                  "points no shape explains are grouped at this distance [m] (paper: 0.05)")
+          .Int("min_points", &O::min_points, 1, 1e9, "", "leftover groups with fewer points are discarded (paper: 10)");
+  return b;
+}
 
 class CgalEfficientRansac : public furnihost::Segmenter {
  public:
-  static ParamSchema Schema() {
-    ParamSchema s;
-    s.Enum("normals", "jet", {"jet", "pca"},
-           "normal estimator: CGAL jet fitting (order 2, the paper's polynomial) or PCA");
-    s.Number("normal_radius_m", 0.03, 0.001, 10.0, "radius of the normal and curvature neighbourhood [m] (paper: 0.03)");
-    s.Enum("shapes", "planes_cylinders", {"planes", "planes_cylinders"}, "shape types RANSAC looks for");
-    s.Number("probability", 0.05, 1e-6, 1.0, "probability of missing the largest candidate (lower = more thorough)");
-    s.Int("min_shape_points", 100, 3, 1e9, "smallest shape RANSAC accepts");
-    s.Number("epsilon_m", 0.01, 1e-5, 1.0, "max distance of a point to its shape [m]");
-    s.Number("cluster_epsilon_m", 0.03, 1e-5, 1.0, "max gap between neighbouring points of one shape [m]");
-    s.Number("angle_deg", 25.0, 0.0, 90.0, "max angle between a point's normal and its shape's normal [deg]");
-    s.Bool("attach_leftovers", true,
-           "a leftover point within epsilon_m of a shape that has points within cluster_epsilon_m joins it");
-    s.Number("distance_m", 0.05, 1e-4, 10.0, "points no shape explains are grouped at this distance [m] (paper: 0.05)");
-    s.Int("min_points", 10, 1, 1e9, "leftover groups with fewer points are discarded (paper: 10)");
-    return s;
-  }
-
-  explicit CgalEfficientRansac(const nlohmann::json& p) {
-    o_.normals = p.at("normals").get<std::string>();
-    o_.normal_radius_m = p.at("normal_radius_m").get<double>();
-    o_.shapes = p.at("shapes").get<std::string>();
-    o_.probability = p.at("probability").get<double>();
-    o_.min_shape_points = p.at("min_shape_points").get<int>();
-    o_.epsilon_m = p.at("epsilon_m").get<double>();
-    o_.cluster_epsilon_m = p.at("cluster_epsilon_m").get<double>();
-    o_.angle_deg = p.at("angle_deg").get<double>();
-    o_.attach_leftovers = p.at("attach_leftovers").get<bool>();
-    o_.distance_m = p.at("distance_m").get<double>();
-    o_.min_points = p.at("min_points").get<int>();
-    o_.Check();
-  }
+  static ParamSchema Schema() { return Binding().Schema(); }
+  explicit CgalEfficientRansac(const nlohmann::json& p) : o_(Binding().Parse(p)) {}
 
   furnihost::Segmentation Segment(const furnihost::Scan& scan,
                                   const furnihost::RunContext& ctx) override {

@@ -57,14 +57,33 @@ struct CgalRegionGrowingOptions {
   double angle_deg = 40.0;               // max angle between normal and region plane [deg]
   int min_points = 10;                   // smaller regions are dropped (paper: 10)
   std::string seed_order = "curvature";  // "curvature" (paper: flattest first) | "plane_fit" (CGAL)
-
-  void Check() const {
-    if (!(normal_radius_m > 0) || !(distance_m > 0))
-      throw furnihost::StageError("normal_radius_m and distance_m must be > 0");
-    if (angle_deg < 0 || angle_deg > 90)
-      throw furnihost::StageError("angle_deg must be in [0, 90] (CGAL compares |cos|)");
-  }
 };
+
+// Each parameter declared once; its default is CgalRegionGrowingOptions{}'s. (The schema's
+// ranges keep the radii > 0 and angle_deg in [0, 90], which CGAL's |cos| test needs.)
+const furnihost::ParamBinding<CgalRegionGrowingOptions>& Binding() {
+  using O = CgalRegionGrowingOptions;
+  static const auto b =
+      furnihost::ParamBinding<O>()
+          .Enum("normals", &O::normals, {"jet", "pca"},
+                "normal estimator: CGAL jet fitting (order 2, the paper's polynomial) or PCA")
+          .Number("normal_radius_m", &O::normal_radius_m, 0.001, 10.0, "",
+                  "radius of the normal and curvature neighbourhood [m] (paper: 0.03)")
+          .Int("normal_max_neighbours", &O::normal_max_neighbours, 0, 100000, "",
+               "cap on the points of a normal neighbourhood (0 = no cap)")
+          .Enum("neighbourhood", &O::neighbourhood, {"radius", "knn"},
+                "growing neighbourhood: all points within distance_m, or the `neighbours` nearest")
+          .Number("distance_m", &O::distance_m, 0.001, 10.0, "", "growing radius [m] (paper: 0.05)")
+          .Int("neighbours", &O::neighbours, 1, 10000, "", "k of the knn growing neighbourhood")
+          .Number("max_plane_distance_m", &O::max_plane_distance_m, 0.0, 10.0, "m",
+                  "max distance of a member to the region's fitted plane")
+          .Number("angle_deg", &O::angle_deg, 0.0, 90.0, "",
+                  "max angle between a member's normal and the region's plane normal [deg] (paper: 40)")
+          .Int("min_points", &O::min_points, 1, 1e9, "", "regions with fewer points are dropped (paper: 10)")
+          .Enum("seed_order", &O::seed_order, {"curvature", "plane_fit"},
+                "seeds by lowest curvature (paper) or by CGAL's local plane-fit quality");
+  return b;
+}
 
 template <class Query>
 std::vector<std::vector<std::size_t>> Grow(const PwnVector& pwn, Query& query,
@@ -100,37 +119,8 @@ std::vector<std::vector<std::size_t>> Grow(const PwnVector& pwn, Query& query,
 
 class CgalRegionGrowing : public furnihost::Segmenter {
  public:
-  static ParamSchema Schema() {
-    ParamSchema s;
-    s.Enum("normals", "jet", {"jet", "pca"},
-           "normal estimator: CGAL jet fitting (order 2, the paper's polynomial) or PCA");
-    s.Number("normal_radius_m", 0.03, 0.001, 10.0, "radius of the normal and curvature neighbourhood [m] (paper: 0.03)");
-    s.Int("normal_max_neighbours", 0, 0, 100000, "cap on the points of a normal neighbourhood (0 = no cap)");
-    s.Enum("neighbourhood", "radius", {"radius", "knn"},
-           "growing neighbourhood: all points within distance_m, or the `neighbours` nearest");
-    s.Number("distance_m", 0.05, 0.001, 10.0, "growing radius [m] (paper: 0.05)");
-    s.Int("neighbours", 12, 1, 10000, "k of the knn growing neighbourhood");
-    s.Number("max_plane_distance_m", 0.02, 0.0, 10.0, "max distance of a member to the region's fitted plane [m]");
-    s.Number("angle_deg", 40.0, 0.0, 90.0, "max angle between a member's normal and the region's plane normal [deg] (paper: 40)");
-    s.Int("min_points", 10, 1, 1e9, "regions with fewer points are dropped (paper: 10)");
-    s.Enum("seed_order", "curvature", {"curvature", "plane_fit"},
-           "seeds by lowest curvature (paper) or by CGAL's local plane-fit quality");
-    return s;
-  }
-
-  explicit CgalRegionGrowing(const nlohmann::json& p) {
-    o_.normals = p.at("normals").get<std::string>();
-    o_.normal_radius_m = p.at("normal_radius_m").get<double>();
-    o_.normal_max_neighbours = p.at("normal_max_neighbours").get<int>();
-    o_.neighbourhood = p.at("neighbourhood").get<std::string>();
-    o_.distance_m = p.at("distance_m").get<double>();
-    o_.neighbours = p.at("neighbours").get<int>();
-    o_.max_plane_distance_m = p.at("max_plane_distance_m").get<double>();
-    o_.angle_deg = p.at("angle_deg").get<double>();
-    o_.min_points = p.at("min_points").get<int>();
-    o_.seed_order = p.at("seed_order").get<std::string>();
-    o_.Check();
-  }
+  static ParamSchema Schema() { return Binding().Schema(); }
+  explicit CgalRegionGrowing(const nlohmann::json& p) : o_(Binding().Parse(p)) {}
 
   furnihost::Segmentation Segment(const furnihost::Scan& scan,
                                   const furnihost::RunContext& ctx) override {

@@ -41,45 +41,39 @@ struct PclRegionGrowingOptions {
   int min_points = 10;               // smaller regions are dropped (paper: 10)
   int max_points = 0;                // larger regions are dropped; 0 = no limit
   int neighbours = 30;               // k of the k-NN growing neighbourhood
-
-  void Check() const {
-    if (normals != "omp" && normals != "mls")
-      throw furnihost::StageError("normals: expected \"omp\" or \"mls\", got \"" + normals + "\"");
-    if (!(normal_radius_m > 0)) throw furnihost::StageError("normal_radius_m must be > 0");
-    if (max_points != 0 && max_points < min_points)
-      throw furnihost::StageError("max_points must be 0 (no limit) or >= min_points");
-  }
 };
+
+// Each parameter declared once; its default is PclRegionGrowingOptions{}'s.
+const furnihost::ParamBinding<PclRegionGrowingOptions>& Binding() {
+  using O = PclRegionGrowingOptions;
+  static const auto b =
+      furnihost::ParamBinding<O>()
+          .Enum("normals", &O::normals, {"omp", "mls"},
+                "normal estimator: PCA in a radius (NormalEstimationOMP) or MovingLeastSquares order 2")
+          .Number("normal_radius_m", &O::normal_radius_m, 0.001, 10.0, "",
+                  "radius of the normal neighbourhood [m] (paper: 0.03)")
+          .Number("angle_deg", &O::angle_deg, 0.0, 180.0, "",
+                  "smoothness: max angle between normals [deg] (paper: 40)")
+          .Enum("compare_to", &O::compare_to, {"seed", "neighbour"},
+                "angle measured to the region's seed normal (paper) or to the growing point's (PCL default)")
+          .Number("curvature_threshold", &O::curvature_threshold, 0.0, 1.0, "",
+                  "a member keeps growing the region only if its curvature is below this (1 = no test)")
+          .Int("min_points", &O::min_points, 1, 1e9, "", "regions with fewer points are dropped (paper: 10)")
+          .Int("max_points", &O::max_points, 0, 2147483647.0, "", "regions with more points are dropped; 0 = no limit")
+          .Int("neighbours", &O::neighbours, 3, 10000, "",
+               "k of the k-NN neighbourhood of the growing step (PCL uses k-NN)")
+          .Rule([](const O& o) {
+            return o.max_points == 0 || o.max_points >= o.min_points
+                       ? ""
+                       : "max_points must be 0 (no limit) or >= min_points";
+          });
+  return b;
+}
 
 class PclRegionGrowing : public furnihost::Segmenter {
  public:
-  static ParamSchema Schema() {
-    ParamSchema s;
-    s.Enum("normals", "omp", {"omp", "mls"},
-           "normal estimator: PCA in a radius (NormalEstimationOMP) or MovingLeastSquares order 2");
-    s.Number("normal_radius_m", 0.03, 0.001, 10.0, "radius of the normal neighbourhood [m] (paper: 0.03)");
-    s.Number("angle_deg", 40.0, 0.0, 180.0, "smoothness: max angle between normals [deg] (paper: 40)");
-    s.Enum("compare_to", "seed", {"seed", "neighbour"},
-           "angle measured to the region's seed normal (paper) or to the growing point's (PCL default)");
-    s.Number("curvature_threshold", 1.0, 0.0, 1.0,
-             "a member keeps growing the region only if its curvature is below this (1 = no test)");
-    s.Int("min_points", 10, 1, 1e9, "regions with fewer points are dropped (paper: 10)");
-    s.Int("max_points", 0, 0, 2147483647.0, "regions with more points are dropped; 0 = no limit");
-    s.Int("neighbours", 30, 3, 10000, "k of the k-NN neighbourhood of the growing step (PCL uses k-NN)");
-    return s;
-  }
-
-  explicit PclRegionGrowing(const nlohmann::json& p) {
-    o_.normals = p.at("normals").get<std::string>();
-    o_.normal_radius_m = p.at("normal_radius_m").get<double>();
-    o_.angle_deg = p.at("angle_deg").get<double>();
-    o_.compare_to = p.at("compare_to").get<std::string>();
-    o_.curvature_threshold = p.at("curvature_threshold").get<double>();
-    o_.min_points = p.at("min_points").get<int>();
-    o_.max_points = p.at("max_points").get<int>();
-    o_.neighbours = p.at("neighbours").get<int>();
-    o_.Check();
-  }
+  static ParamSchema Schema() { return Binding().Schema(); }
+  explicit PclRegionGrowing(const nlohmann::json& p) : o_(Binding().Parse(p)) {}
 
   furnihost::Segmentation Segment(const furnihost::Scan& scan,
                                   const furnihost::RunContext& ctx) override {

@@ -8,20 +8,41 @@
 
 namespace furnihost {
 
+namespace {
+
+struct ScanFileOptions {
+  float voxel_m = 0.f;             // voxel-grid edge [m]; 0 keeps every point
+  size_t max_points = 20000000;    // memory guard
+  std::vector<double> origin;      // sensor origin [x, y, z] when the file has none; empty = unknown
+};
+
+// Each parameter declared once; its default is ScanFileOptions{}'s.
+const ParamBinding<ScanFileOptions>& Binding() {
+  using O = ScanFileOptions;
+  static const auto b =
+      ParamBinding<O>()
+          .Number("voxel_m", &O::voxel_m, 0.0, 1.0, "", "voxel-grid downsampling edge [m]; 0 keeps every point")
+          .Int("max_points", &O::max_points, 1, 2e9, "", "refuse scans with more points than this (memory guard)")
+          .NumberList("origin", &O::origin, -1e6, 1e6, "",
+                      "sensor origin [x, y, z] in the scan frame when the file has none (empty = unknown)")
+          .Rule([](const O& o) {
+            return o.origin.empty() || o.origin.size() == 3
+                       ? std::string()
+                       : "origin: expected 3 numbers, got " + std::to_string(o.origin.size());
+          });
+  return b;
+}
+
+}  // namespace
+
 class ScanFile : public Sensor {
  public:
-  static ParamSchema Schema() {
-    return ParamSchema()
-        .Number("voxel_m", 0.0, 0.0, 1.0, "voxel-grid downsampling edge [m]; 0 keeps every point")
-        .Int("max_points", 20000000, 1, 2e9, "refuse scans with more points than this (memory guard)")
-        .NumberList("origin", {}, -1e6, 1e6,
-                    "sensor origin [x, y, z] in the scan frame when the file has none (empty = unknown)");
-  }
-  explicit ScanFile(const nlohmann::json& p)
-      : voxel_(p.at("voxel_m").get<float>()), max_points_(p.at("max_points").get<size_t>()) {
-    auto o = p.at("origin").get<std::vector<double>>();
-    if (!o.empty() && o.size() != 3) throw InputError("origin: expected 3 numbers, got " + std::to_string(o.size()));
-    if (o.size() == 3) origin_ = Eigen::Vector3f(o[0], o[1], o[2]);
+  static ParamSchema Schema() { return Binding().Schema(); }
+  explicit ScanFile(const nlohmann::json& p) {
+    const ScanFileOptions o = Binding().Parse(p);
+    voxel_ = o.voxel_m;
+    max_points_ = o.max_points;
+    if (o.origin.size() == 3) origin_ = Eigen::Vector3f(o.origin[0], o.origin[1], o.origin[2]);
   }
 
   std::vector<Scan> Acquire(const SensorRequest& req, const RunContext&) override {

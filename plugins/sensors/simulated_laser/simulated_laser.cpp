@@ -54,44 +54,62 @@ struct SimulatedLaserOptions {
   double noise_b = 0.0005;
   double dropout = 0.0;          // probability that a return is lost
   double voxel_m = 0.0;          // voxel-grid downsampling edge [m], 0 = off
-
-  static SimulatedLaserOptions FromJson(const nlohmann::json& p) {
-    SimulatedLaserOptions o;
-    o.pattern = p.at("pattern").get<std::string>();
-    o.angular_resolution_deg = p.at("angular_resolution_deg").get<double>();
-    o.tilt_resolution_deg = p.at("tilt_resolution_deg").get<double>();
-    o.horizontal_fov_deg = p.at("horizontal_fov_deg").get<double>();
-    o.tilt_min_deg = p.at("tilt_min_deg").get<double>();
-    o.tilt_max_deg = p.at("tilt_max_deg").get<double>();
-    o.min_range_m = p.at("min_range_m").get<double>();
-    o.max_range_m = p.at("max_range_m").get<double>();
-    o.width = p.at("width").get<int>();
-    o.height = p.at("height").get<int>();
-    o.focal_px = p.at("focal_px").get<double>();
-    o.camera_min_range_m = p.at("camera_min_range_m").get<double>();
-    o.camera_max_range_m = p.at("camera_max_range_m").get<double>();
-    o.sensor_height_m = p.at("sensor_height_m").get<double>();
-    o.distance_m = p.at("distance_m").get<double>();
-    o.views = p.at("views").get<int>();
-    o.fuse = p.at("fuse").get<int>();
-    o.noise_a = p.at("noise_a").get<double>();
-    o.noise_b = p.at("noise_b").get<double>();
-    o.dropout = p.at("dropout").get<double>();
-    o.voxel_m = p.at("voxel_m").get<double>();
-    o.Check();
-    return o;
-  }
-
-  // Cross-field checks (single-field ranges are enforced by the schema).
-  void Check() const {
-    if (tilt_min_deg > tilt_max_deg)
-      throw StageError("tilt_min_deg (" + std::to_string(tilt_min_deg) + ") > tilt_max_deg (" +
-                       std::to_string(tilt_max_deg) + ")");
-    if (min_range_m >= max_range_m) throw StageError("min_range_m must be < max_range_m");
-    if (camera_min_range_m >= camera_max_range_m)
-      throw StageError("camera_min_range_m must be < camera_max_range_m");
-  }
 };
+
+// Each parameter declared once; its default is SimulatedLaserOptions{}'s.
+const ParamBinding<SimulatedLaserOptions>& Binding() {
+  using O = SimulatedLaserOptions;
+  static const auto b =
+      ParamBinding<O>()
+          .Enum("pattern", &O::pattern, {"pan_tilt", "depth_camera"},
+                "pan_tilt: Hokuyo line scanner on a pan-tilt unit (the paper's); depth_camera: "
+                "Kinect-style pinhole camera")
+          .Number("angular_resolution_deg", &O::angular_resolution_deg, 0.01, 10.0, "",
+                  "pan_tilt: azimuth step between rays [deg] (Hokuyo UTM-30LX: 0.25)")
+          .Number("tilt_resolution_deg", &O::tilt_resolution_deg, 0.01, 10.0, "deg",
+                  "pan_tilt: elevation step between scan lines of the tilt sweep")
+          .Number("horizontal_fov_deg", &O::horizontal_fov_deg, 0.1, 360.0, "",
+                  "pan_tilt: azimuth field of view centred on the sensor's +x [deg]; 360 = all around")
+          .Number("tilt_min_deg", &O::tilt_min_deg, -90.0, 90.0, "",
+                  "pan_tilt: lowest elevation of the sweep [deg] (negative = below the horizon)")
+          .Number("tilt_max_deg", &O::tilt_max_deg, -90.0, 90.0, "deg", "pan_tilt: highest elevation of the sweep")
+          .Number("min_range_m", &O::min_range_m, 0.0, 100.0, "m", "pan_tilt: returns closer than this are lost")
+          .Number("max_range_m", &O::max_range_m, 0.1, 1000.0, "", "pan_tilt: maximum range [m] (UTM-30LX: 30)")
+          .Int("width", &O::width, 1, 8192, "px", "depth_camera: image width")
+          .Int("height", &O::height, 1, 8192, "px", "depth_camera: image height")
+          .Number("focal_px", &O::focal_px, 1.0, 1e5, "", "depth_camera: focal length [px] (Kinect v1: 525)")
+          .Number("camera_min_range_m", &O::camera_min_range_m, 0.0, 100.0, "m", "depth_camera: minimum depth range")
+          .Number("camera_max_range_m", &O::camera_max_range_m, 0.1, 1000.0, "m", "depth_camera: maximum range")
+          .Number("sensor_height_m", &O::sensor_height_m, 0.0, 10.0, "",
+                  "default training views: sensor height above the floor [m] (paper: ~1.5)")
+          .Number("distance_m", &O::distance_m, 0.1, 100.0, "m",
+                  "default training views: horizontal distance from the objects' bbox centre")
+          .Int("views", &O::views, 1, 720, "",
+               "default training views: number of views evenly around the up axis (paper: 16)")
+          .Int("fuse", &O::fuse, 1, 64, "",
+               "default training views: each view is the union of this many casts evenly around the up axis, "
+               "starting at the view's own position (its origin and viewing frame), voxelised once: what a "
+               "reconstruction from a walk around the object holds (not in the paper; 1 = single views, paper)")
+          .Number("noise_a", &O::noise_a, 0.0, 1.0, "",
+                  "range noise sigma = noise_a + noise_b * r^2: constant part [m] (Hokuyo ~1 cm at 2 m)")
+          .Number("noise_b", &O::noise_b, 0.0, 1.0, "1/m",
+                  "range noise sigma = noise_a + noise_b * r^2: quadratic part")
+          .Number("dropout", &O::dropout, 0.0, 0.999, "", "probability that a return is lost")
+          .Number("voxel_m", &O::voxel_m, 0.0, 1.0, "",
+                  "voxel-grid downsampling edge [m], grid anchored at the world origin; 0 = off. "
+                  "Use the same value for the scans you detect in (density matching)")
+          // Rules between fields (single-field ranges are enforced by the schema).
+          .Rule([](const O& o) {
+            return o.tilt_min_deg <= o.tilt_max_deg ? std::string()
+                                                    : "tilt_min_deg (" + std::to_string(o.tilt_min_deg) +
+                                                          ") > tilt_max_deg (" + std::to_string(o.tilt_max_deg) + ")";
+          })
+          .Rule([](const O& o) { return o.min_range_m < o.max_range_m ? "" : "min_range_m must be < max_range_m"; })
+          .Rule([](const O& o) {
+            return o.camera_min_range_m < o.camera_max_range_m ? "" : "camera_min_range_m must be < camera_max_range_m";
+          });
+  return b;
+}
 
 // ---- counter-based random numbers --------------------------------------------------------
 inline uint64_t SplitMix(uint64_t x) {
@@ -271,48 +289,9 @@ Eigen::Isometry3f LookAt(const Eigen::Vector3f& pos, const Eigen::Vector3f& targ
 
 class SimulatedLaser : public Sensor {
  public:
-  static ParamSchema Schema() {
-    ParamSchema s;
-    s.Enum("pattern", "pan_tilt", {"pan_tilt", "depth_camera"},
-           "pan_tilt: Hokuyo line scanner on a pan-tilt unit (the paper's); depth_camera: "
-           "Kinect-style pinhole camera");
-    s.Number("angular_resolution_deg", 0.25, 0.01, 10.0,
-             "pan_tilt: azimuth step between rays [deg] (Hokuyo UTM-30LX: 0.25)");
-    s.Number("tilt_resolution_deg", 0.25, 0.01, 10.0,
-             "pan_tilt: elevation step between scan lines of the tilt sweep [deg]");
-    s.Number("horizontal_fov_deg", 180.0, 0.1, 360.0,
-             "pan_tilt: azimuth field of view centred on the sensor's +x [deg]; 360 = all around");
-    s.Number("tilt_min_deg", -60.0, -90.0, 90.0,
-             "pan_tilt: lowest elevation of the sweep [deg] (negative = below the horizon)");
-    s.Number("tilt_max_deg", 30.0, -90.0, 90.0, "pan_tilt: highest elevation of the sweep [deg]");
-    s.Number("min_range_m", 0.1, 0.0, 100.0, "pan_tilt: returns closer than this are lost [m]");
-    s.Number("max_range_m", 30.0, 0.1, 1000.0, "pan_tilt: maximum range [m] (UTM-30LX: 30)");
-    s.Int("width", 640, 1, 8192, "depth_camera: image width [px]");
-    s.Int("height", 480, 1, 8192, "depth_camera: image height [px]");
-    s.Number("focal_px", 525.0, 1.0, 1e5, "depth_camera: focal length [px] (Kinect v1: 525)");
-    s.Number("camera_min_range_m", 0.45, 0.0, 100.0, "depth_camera: minimum depth range [m]");
-    s.Number("camera_max_range_m", 4.5, 0.1, 1000.0, "depth_camera: maximum range [m]");
-    s.Number("sensor_height_m", 1.5, 0.0, 10.0,
-             "default training views: sensor height above the floor [m] (paper: ~1.5)");
-    s.Number("distance_m", 2.0, 0.1, 100.0,
-             "default training views: horizontal distance from the objects' bbox centre [m]");
-    s.Int("views", 16, 1, 720, "default training views: number of views evenly around the up axis (paper: 16)");
-    s.Int("fuse", 1, 1, 64,
-          "default training views: each view is the union of this many casts evenly around the up axis, "
-          "starting at the view's own position (its origin and viewing frame), voxelised once: what a "
-          "reconstruction from a walk around the object holds (not in the paper; 1 = single views, paper)");
-    s.Number("noise_a", 0.008, 0.0, 1.0,
-             "range noise sigma = noise_a + noise_b * r^2: constant part [m] (Hokuyo ~1 cm at 2 m)");
-    s.Number("noise_b", 0.0005, 0.0, 1.0,
-             "range noise sigma = noise_a + noise_b * r^2: quadratic part [1/m]");
-    s.Number("dropout", 0.0, 0.0, 0.999, "probability that a return is lost");
-    s.Number("voxel_m", 0.0, 0.0, 1.0,
-             "voxel-grid downsampling edge [m], grid anchored at the world origin; 0 = off. "
-             "Use the same value for the scans you detect in (density matching)");
-    return s;
-  }
+  static ParamSchema Schema() { return Binding().Schema(); }
 
-  explicit SimulatedLaser(const nlohmann::json& p) : opt_(SimulatedLaserOptions::FromJson(p)) {
+  explicit SimulatedLaser(const nlohmann::json& p) : opt_(Binding().Parse(p)) {
     device_.reset(rtcNewDevice("verbose=0"));
     if (!device_) throw StageError("embree: cannot create a device", false);
   }

@@ -109,6 +109,87 @@ ClassParams ParseClassParams(const nlohmann::json& j, ClassParams p, const std::
   return p;
 }
 
+// Each parameter declared once; its default is Options{}'s (the shared spreads: ClassParams{}'s).
+const ParamBinding<Options>& Binding() {
+  using O = Options;
+  // The shared spread of ClassParams field `f`, bound through Options::base.
+  auto base = [](float ClassParams::*f) { return [f](O& o) -> float& { return o.base.*f; }; };
+  static const auto b =
+      ParamBinding<O>()
+          .Object("class_map", nlohmann::json::object(),
+                  "catalog class -> detected class, e.g. {\"armchair\": \"chair\", \"desk\": \"table\"}: the models "
+                  "of merged classes compete as one class (one detection per object)",
+                  [](O& o, const nlohmann::json& j) {
+                    for (auto it = j.begin(); it != j.end(); ++it) {
+                      if (!it->is_string() || it->get<std::string>().empty())
+                        throw InputError("class_map/" + it.key() + ": expected a class name");
+                      o.class_map[it.key()] = it->get<std::string>();
+                    }
+                  })
+          .DetectionOnly()
+          .Object("class_params", nlohmann::json::object(),
+                  "per detected class, spreads overriding the shared ones below ({\"table\": {\"sig_long_big\": 0.5}}); "
+                  "also 'source': which proposals a class is scored on ('catalog' = segs for classes whose models are "
+                  "mostly taller than tall_class_m, else all; 'any'; or a proposer rule name)",
+                  // Runs after the shared spreads are parsed: a class's spreads start from them.
+                  [](O& o, const nlohmann::json& j) {
+                    for (auto it = j.begin(); it != j.end(); ++it)
+                      o.per_class[it.key()] = ParseClassParams(*it, o.base, "class_params/" + it.key());
+                  })
+          .DetectionOnly()
+          .Number("sig_long_small", base(&ClassParams::long_small), 1e-3, 100, "",
+                  "spread of ln(length / model length) when shorter than the model")
+          .DetectionOnly()
+          .Number("sig_long_big", base(&ClassParams::long_big), 1e-3, 100, "", "... when longer")
+          .DetectionOnly()
+          .Number("sig_short_small", base(&ClassParams::short_small), 1e-3, 100, "",
+                  "spread of ln(width / model width) when narrower")
+          .DetectionOnly()
+          .Number("sig_short_big", base(&ClassParams::short_big), 1e-3, 100, "", "... when wider")
+          .DetectionOnly()
+          .Number("sig_top_small", base(&ClassParams::top_small), 1e-3, 100, "",
+                  "spread of ln(top height / model height) when lower")
+          .DetectionOnly()
+          .Number("sig_top_big", base(&ClassParams::top_big), 1e-3, 100, "", "... when higher")
+          .DetectionOnly()
+          .Number("sig_bottom", base(&ClassParams::bottom), 1e-3, 100, "m", "spread of the bottom's height above the ground")
+          .DetectionOnly()
+          .Number("sig_profile", base(&ClassParams::profile), 1e-3, 100, "",
+                  "spread of the top-view height profile's distance to the model's")
+          .DetectionOnly()
+          .Number("sig_surround", base(&ClassParams::surround), 1e-3, 100, "", "score factor exp(-surround / this)")
+          .DetectionOnly()
+          .Bool("floor_term", &O::floor_term,
+                "compare the floor seen under the proposal with the model's open floor (under a table or chair "
+                "the floor shows, under a cabinet or a bed never): a share of floor cells seen above the model's is "
+                "strong evidence against it, below it weak (chairs and people hide it)")
+          .DetectionOnly()
+          .Number("sig_floor_less", base(&ClassParams::floor_under), 1e-3, 100, "",
+                  "spread of (floor seen - model's open floor) when less is seen")
+          .DetectionOnly()
+          .Number("sig_floor_more", base(&ClassParams::floor_over), 1e-3, 100, "", "... when more is seen")
+          .DetectionOnly()
+          .Number("compete", base(&ClassParams::compete), 0, 100, "", "class competition exponent (0 = off)")
+          .DetectionOnly()
+          .NumberMap("thresholds", &O::thresholds, 0, std::nullopt, "",
+                     "operating score per detected class: detections at or above it are accepted (verified), the "
+                     "others kept as rejected candidates")
+          .DetectionOnly()
+          .Number("default_threshold", &O::default_threshold, 0, 1, "", "operating score of classes not in thresholds")
+          .DetectionOnly()
+          .Number("min_score", &O::min_score, 0, 1, "", "candidates scoring lower are not reported")
+          .DetectionOnly()
+          .Number("nms_iou", &O::nms_iou, 0, 1, "",
+                  "a candidate overlapping a better one of its class by more box IoU is dropped")
+          .DetectionOnly()
+          .Number("profile_cell_m", &O::cell, 0.005, 1, "m", "column size of the top-view height profile")
+          .Number("tall_class_m", &O::tall_class, 0, 10, "",
+                  "classes whose catalog models are mostly taller are made of large vertical faces: source 'catalog' "
+                  "scores them on the proposals that keep such faces (rule 'segs')")
+          .DetectionOnly();
+  return b;
+}
+
 float Pen(float d, float small, float big) {
   const float s = d < 0 ? small : big;
   return d * d / (2 * s * s);
@@ -269,70 +350,8 @@ MeshShape FromMesh(const CatalogModel& m, float cell) {
 
 class CatalogShapeVoter : public Voter {
  public:
-  static ParamSchema Schema() {
-    ParamSchema s;
-    s.Object("class_map", nlohmann::json::object(),
-             "catalog class -> detected class, e.g. {\"armchair\": \"chair\", \"desk\": \"table\"}: the models of "
-             "merged classes compete as one class (one detection per object)")
-        .DetectionOnly()
-        .Object("class_params", nlohmann::json::object(),
-                "per detected class, spreads overriding the shared ones below ({\"table\": {\"sig_long_big\": 0.5}}); "
-                "also 'source': which proposals a class is scored on ('catalog' = segs for classes whose models are "
-                "mostly taller than tall_class_m, else all; 'any'; or a proposer rule name)")
-        .DetectionOnly();
-    const ClassParams d;
-    s.Number("sig_long_small", d.long_small, 1e-3, 100, "spread of ln(length / model length) when shorter than the model").DetectionOnly()
-        .Number("sig_long_big", d.long_big, 1e-3, 100, "... when longer").DetectionOnly()
-        .Number("sig_short_small", d.short_small, 1e-3, 100, "spread of ln(width / model width) when narrower").DetectionOnly()
-        .Number("sig_short_big", d.short_big, 1e-3, 100, "... when wider").DetectionOnly()
-        .Number("sig_top_small", d.top_small, 1e-3, 100, "spread of ln(top height / model height) when lower").DetectionOnly()
-        .Number("sig_top_big", d.top_big, 1e-3, 100, "... when higher").DetectionOnly()
-        .Number("sig_bottom", d.bottom, 1e-3, 100, "spread of the bottom's height above the ground [m]").DetectionOnly()
-        .Number("sig_profile", d.profile, 1e-3, 100, "spread of the top-view height profile's distance to the model's").DetectionOnly()
-        .Number("sig_surround", d.surround, 1e-3, 100, "score factor exp(-surround / this)").DetectionOnly()
-        .Bool("floor_term", true,
-              "compare the floor seen under the proposal with the model's open floor (under a table or chair "
-              "the floor shows, under a cabinet or a bed never): a share of floor cells seen above the model's is "
-              "strong evidence against it, below it weak (chairs and people hide it)")
-        .DetectionOnly()
-        .Number("sig_floor_less", d.floor_under, 1e-3, 100, "spread of (floor seen - model's open floor) when less is seen").DetectionOnly()
-        .Number("sig_floor_more", d.floor_over, 1e-3, 100, "... when more is seen").DetectionOnly()
-        .Number("compete", d.compete, 0, 100, "class competition exponent (0 = off)").DetectionOnly()
-        .Object("thresholds", nlohmann::json::object(),
-                "operating score per detected class: detections at or above it are accepted (verified), the others "
-                "kept as rejected candidates")
-        .DetectionOnly()
-        .Number("default_threshold", 0.0, 0, 1, "operating score of classes not in thresholds").DetectionOnly()
-        .Number("min_score", 1e-3, 0, 1, "candidates scoring lower are not reported").DetectionOnly()
-        .Number("nms_iou", 0.25, 0, 1, "a candidate overlapping a better one of its class by more box IoU is dropped").DetectionOnly()
-        .Number("profile_cell_m", 0.05, 0.005, 1, "column size of the top-view height profile [m]")
-        .Number("tall_class_m", 1.2, 0, 10,
-                "classes whose catalog models are mostly taller are made of large vertical faces: source 'catalog' "
-                "scores them on the proposals that keep such faces (rule 'segs')").DetectionOnly();
-    return s;
-  }
-
-  explicit CatalogShapeVoter(const nlohmann::json& p) {
-    for (auto it = p.at("class_map").begin(); it != p.at("class_map").end(); ++it) {
-      if (!it->is_string() || it->get<std::string>().empty())
-        throw InputError("class_map/" + it.key() + ": expected a class name");
-      o_.class_map[it.key()] = it->get<std::string>();
-    }
-    for (const auto& [name, field] : Fields()) o_.base.*field = p.at(name).get<float>();
-    for (auto it = p.at("class_params").begin(); it != p.at("class_params").end(); ++it)
-      o_.per_class[it.key()] = ParseClassParams(*it, o_.base, "class_params/" + it.key());
-    for (auto it = p.at("thresholds").begin(); it != p.at("thresholds").end(); ++it) {
-      if (!it->is_number() || !(it->get<double>() >= 0.0))
-        throw InputError("thresholds/" + it.key() + ": expected a score >= 0");
-      o_.thresholds[it.key()] = it->get<float>();
-    }
-    o_.default_threshold = p.at("default_threshold").get<float>();
-    o_.min_score = p.at("min_score").get<float>();
-    o_.nms_iou = p.at("nms_iou").get<float>();
-    o_.cell = p.at("profile_cell_m").get<float>();
-    o_.tall_class = p.at("tall_class_m").get<float>();
-    o_.floor_term = p.at("floor_term").get<bool>();
-  }
+  static ParamSchema Schema() { return Binding().Schema(); }
+  explicit CatalogShapeVoter(const nlohmann::json& p) : o_(Binding().Parse(p)) {}
 
   nlohmann::json Train(const std::vector<TrainingView>& views, const RunContext&) override {
     // One entry per model: its size and the profile of all its views fused.

@@ -305,7 +305,8 @@ struct IsmOptions {
   std::map<std::string, float> thresholds;
   float default_threshold = 0.f;
   int max_hypotheses = 10;           // per class
-  std::vector<std::string> classes;  // empty = every trained class
+  std::string classes_text;          // comma-separated, as given
+  std::vector<std::string> classes;  // split classes_text; empty = every trained class
   float viewpoint_height_m = 1.5f;   // normals face (scene centre x, y, this) when no origin
   float floor_cut_m = 0.05f;         // scene points below this world height are dropped
   float grid_cell_m = 0.05f;
@@ -314,89 +315,82 @@ struct IsmOptions {
   float vote_cell_fraction = 0.25f;  // votes merged per cell of this x sigma; 0 = raw votes
   int max_votes = 200000;            // per class, after merging
 
-  static ParamSchema Schema() {
-    ParamSchema s;
-    s.Number("sampling_size_m", 0.05, 0.005, 1.0, "voxel edge of ISM's key points in views and scenes [m]")
-        .Number("normal_radius_m", 0.08, 0.005, 2.0, "normal estimation radius [m]")
-        .Number("fpfh_radius_m", 0.15, 0.01, 2.0, "FPFH support radius [m]; > normal_radius_m")
-        .Int("number_of_clusters", 40, 2, 100000,
-             "ISM codebook size k (paper's vocabulary k = 40; PCL's default 184)")
-        .Number("sigma_fraction", 0.2, 0.01, 2.0,
-                "vote kernel sigma = this x class radius (half the 3-D diagonal). PCL's rule of thumb "
-                "0.1 makes ISM's learned weights so small that tables cast no vote at all")
-        .Bool("n_vot", true, "ISM's normalisation of vote weights by the number of votes of a word")
-        .Number("peak_radius_fraction", 1.0, 0.05, 4.0,
-                "non-maxima radius of findStrongestPeaks = this x class footprint radius").DetectionOnly()
-        .Object("thresholds", nlohmann::json::object(),
-                "minimum score per class (score = ISM peak density x number of the class's words, "
-                "about the number of agreeing key points)").DetectionOnly()
-        .Number("default_threshold", 0.0, 0.0, 1e9, "minimum score of classes not in thresholds").DetectionOnly()
-        .Int("max_hypotheses", 10, 1, 1000, "at most this many hypotheses per class, strongest first").DetectionOnly()
-        .String("classes", "", "comma-separated classes to detect (empty = every trained class)").DetectionOnly()
-        .Number("floor_cut_m", 0.05, -1e3, 1e3,
-                "scene points below this world height [m] are dropped before voting (the floor: ISM "
-                "learns isolated objects and a floor votes like a huge seat or table top); -1e3 = keep all").DetectionOnly()
-        .Number("viewpoint_height_m", 1.5, -100.0, 100.0,
-                "scenes without sensor origin: normals face (centroid x, centroid y, this height)").DetectionOnly()
-        .Number("grid_cell_m", 0.05, 0.005, 1.0, "cell of the per-class vote density grids [m]").DetectionOnly()
-        .Int("max_plot_votes", 200000, 0, 1e9,
-             "raw votes kept for plots (every n-th, weight x n); 0 = all").DetectionOnly()
-        .Number("min_vote_weight", 1e-3, 0.0, 1.0,
-                "a vote is dropped when its strength is below this x the class's largest statistical "
-                "weight, or below FLT_EPSILON (PCL's own cut), whichever is lower; 0 = PCL's cut only, "
-                "which lets almost no vote through once the training set has ~1e5 words").DetectionOnly()
-        .Number("vote_cell_fraction", 0.25, 0.0, 1.0,
-                "votes in one cube of this x sigma are merged (mean position, summed strength) before "
-                "ISM's mean shift, whose cost grows with the votes within 3 sigma; 0 = PCL's raw votes").DetectionOnly()
-        .Int("max_votes", 200000, 1000, 2e9,
-             "per class, merged votes beyond this are thinned (every n-th, strength x n)")
-        .DetectionOnly();
-    return s;
-  }
-
-  static IsmOptions FromParams(const nlohmann::json& p) {
-    IsmOptions o;
-    o.sampling_size_m = p.at("sampling_size_m").get<float>();
-    o.normal_radius_m = p.at("normal_radius_m").get<float>();
-    o.fpfh_radius_m = p.at("fpfh_radius_m").get<float>();
-    o.number_of_clusters = p.at("number_of_clusters").get<int>();
-    o.sigma_fraction = p.at("sigma_fraction").get<float>();
-    o.n_vot = p.at("n_vot").get<bool>();
-    o.peak_radius_fraction = p.at("peak_radius_fraction").get<float>();
-    for (auto it = p.at("thresholds").begin(); it != p.at("thresholds").end(); ++it) {
-      if (!it.value().is_number() || it.value().get<double>() < 0)
-        throw InputError("thresholds/" + it.key() + ": expected a non-negative number, got " + it.value().dump());
-      o.thresholds[it.key()] = it.value().get<float>();
-    }
-    o.default_threshold = p.at("default_threshold").get<float>();
-    o.max_hypotheses = p.at("max_hypotheses").get<int>();
-    o.classes = SplitList(p.at("classes").get<std::string>());
-    o.viewpoint_height_m = p.at("viewpoint_height_m").get<float>();
-    o.floor_cut_m = p.at("floor_cut_m").get<float>();
-    o.grid_cell_m = p.at("grid_cell_m").get<float>();
-    o.max_plot_votes = p.at("max_plot_votes").get<int>();
-    o.min_vote_weight = p.at("min_vote_weight").get<double>();
-    o.vote_cell_fraction = p.at("vote_cell_fraction").get<float>();
-    o.max_votes = p.at("max_votes").get<int>();
-    o.Check();
-    return o;
-  }
-
-  void Check() const {
-    if (!(fpfh_radius_m > sampling_size_m))
-      throw InputError("fpfh_radius_m: must exceed sampling_size_m, or key points have no FPFH neighbours");
-  }
-
   float Threshold(const std::string& cls) const {
     const auto it = thresholds.find(cls);
     return it == thresholds.end() ? default_threshold : it->second;
   }
 };
 
+// Each parameter declared once; its default is IsmOptions{}'s.
+const ParamBinding<IsmOptions>& Binding() {
+  using O = IsmOptions;
+  static const auto b =
+      ParamBinding<O>()
+          .Number("sampling_size_m", &O::sampling_size_m, 0.005, 1.0, "m", "voxel edge of ISM's key points in views and scenes")
+          .Number("normal_radius_m", &O::normal_radius_m, 0.005, 2.0, "m", "normal estimation radius")
+          .Number("fpfh_radius_m", &O::fpfh_radius_m, 0.01, 2.0, "", "FPFH support radius [m]; > normal_radius_m")
+          .Int("number_of_clusters", &O::number_of_clusters, 2, 100000, "",
+               "ISM codebook size k (paper's vocabulary k = 40; PCL's default 184)")
+          .Number("sigma_fraction", &O::sigma_fraction, 0.01, 2.0, "",
+                  "vote kernel sigma = this x class radius (half the 3-D diagonal). PCL's rule of thumb "
+                  "0.1 makes ISM's learned weights so small that tables cast no vote at all")
+          .Bool("n_vot", &O::n_vot, "ISM's normalisation of vote weights by the number of votes of a word")
+          .Number("peak_radius_fraction", &O::peak_radius_fraction, 0.05, 4.0, "",
+                  "non-maxima radius of findStrongestPeaks = this x class footprint radius")
+          .DetectionOnly()
+          .NumberMap("thresholds", &O::thresholds, 0.0, std::nullopt, "",
+                     "minimum score per class (score = ISM peak density x number of the class's words, "
+                     "about the number of agreeing key points)")
+          .DetectionOnly()
+          .Number("default_threshold", &O::default_threshold, 0.0, 1e9, "", "minimum score of classes not in thresholds")
+          .DetectionOnly()
+          .Int("max_hypotheses", &O::max_hypotheses, 1, 1000, "",
+               "at most this many hypotheses per class, strongest first")
+          .DetectionOnly()
+          .String("classes", &O::classes_text, "comma-separated classes to detect (empty = every trained class)")
+          .DetectionOnly()
+          .Number("floor_cut_m", &O::floor_cut_m, -1e3, 1e3, "",
+                  "scene points below this world height [m] are dropped before voting (the floor: ISM "
+                  "learns isolated objects and a floor votes like a huge seat or table top); -1e3 = keep all")
+          .DetectionOnly()
+          .Number("viewpoint_height_m", &O::viewpoint_height_m, -100.0, 100.0, "",
+                  "scenes without sensor origin: normals face (centroid x, centroid y, this height)")
+          .DetectionOnly()
+          .Number("grid_cell_m", &O::grid_cell_m, 0.005, 1.0, "m", "cell of the per-class vote density grids")
+          .DetectionOnly()
+          .Int("max_plot_votes", &O::max_plot_votes, 0, 1e9, "",
+               "raw votes kept for plots (every n-th, weight x n); 0 = all")
+          .DetectionOnly()
+          .Number("min_vote_weight", &O::min_vote_weight, 0.0, 1.0, "",
+                  "a vote is dropped when its strength is below this x the class's largest statistical "
+                  "weight, or below FLT_EPSILON (PCL's own cut), whichever is lower; 0 = PCL's cut only, "
+                  "which lets almost no vote through once the training set has ~1e5 words")
+          .DetectionOnly()
+          .Number("vote_cell_fraction", &O::vote_cell_fraction, 0.0, 1.0, "",
+                  "votes in one cube of this x sigma are merged (mean position, summed strength) before "
+                  "ISM's mean shift, whose cost grows with the votes within 3 sigma; 0 = PCL's raw votes")
+          .DetectionOnly()
+          .Int("max_votes", &O::max_votes, 1000, 2e9, "",
+               "per class, merged votes beyond this are thinned (every n-th, strength x n)")
+          .DetectionOnly()
+          .Rule([](const O& o) {
+            return o.fpfh_radius_m > o.sampling_size_m
+                       ? ""
+                       : "fpfh_radius_m: must exceed sampling_size_m, or key points have no FPFH neighbours";
+          });
+  return b;
+}
+
+IsmOptions ParseOptions(const nlohmann::json& p) {
+  IsmOptions o = Binding().Parse(p);
+  o.classes = SplitList(o.classes_text);
+  return o;
+}
+
 class PclIsmVoter : public Voter {
  public:
-  static ParamSchema Schema() { return IsmOptions::Schema(); }
-  explicit PclIsmVoter(const nlohmann::json& p) : opt_(IsmOptions::FromParams(p)) {}
+  static ParamSchema Schema() { return Binding().Schema(); }
+  explicit PclIsmVoter(const nlohmann::json& p) : opt_(ParseOptions(p)) {}
 
   nlohmann::json Train(const std::vector<TrainingView>& views, const RunContext& ctx) override {
     const auto t0 = std::chrono::steady_clock::now();
