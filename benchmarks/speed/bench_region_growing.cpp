@@ -6,7 +6,7 @@
 // plus the neighbourhood search alone: our voxel grid vs a nanoflann k-d tree.
 // After the Google Benchmark table it prints a summary: times, ratios and part counts.
 //
-//   build-x/bin/bench_region_growing [--benchmark_filter=...]
+//   build/bin/bench_region_growing [--benchmark_filter=...]
 //
 // PCL's RegionGrowing has no radius neighbourhood: it grows over the k = 30 nearest
 // neighbours (its default), with the angle measured to the seed normal (smooth mode off, as
@@ -30,12 +30,12 @@
 #include <random>
 #include <string>
 
-#include "../common/tbb_for.hpp"
 #include "furnihost/io.hpp"
 #include "furnihost/log.hpp"
 #include "furnihost/voxel_index.hpp"
 #include "part_features.hpp"
 #include "region_growing_core.hpp"
+#include "tbb_for.hpp"
 
 namespace {
 
