@@ -7,7 +7,7 @@
 #
 #   benchmarks/speed/run.sh [--quick] [--build DIR] [--out DIR] [--no-build]
 #
-# --quick: the 0.1M and 0.5M rooms and ScanNet only (~2 min once built). Full run: ~6-8 min on
+# --quick: the 0.1M and 0.5M rooms and ScanNet only (~1 min once built). Full run: ~5 min on
 # 2 cores once built. Each measurement is one run (the 1.5M room costs about a minute per
 # pipeline); the model is trained once and cached, not timed.
 # Writes DIR (default runs/speed/): rooms/*.pcd, detect/<scan>/detections.json,
