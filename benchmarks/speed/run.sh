@@ -9,8 +9,9 @@
 #
 # --quick: the 0.1M and 0.5M rooms and ScanNet only (~1 min once built). Full run: ~5 min on
 # 2 cores once built. Each measurement is one run (the 1.5M room costs about a minute per
-# pipeline); the model is trained once and cached, not timed.
-# Writes DIR (default runs/speed/): rooms/*.pcd, detect/<scan>/detections.json,
+# pipeline); REPEATS=N makes it N detection runs per scan (the fastest is reported) and N
+# benchmark iterations (mean). The model is trained once and cached, not timed.
+# Writes DIR (default runs/speed/): rooms/*.pcd, detect/<scan>/run<i>/detections.json,
 # segmentation.json, speed.md (the tables) and speed.svg (time against point count).
 # $FURNIHOST_SHARED_DATA_DIR (default ../shared/data) holds scannet_votenet50k/; it is read in
 # place, never copied.
@@ -27,7 +28,7 @@ while [[ $# -gt 0 ]]; do
     --build) BUILD="$2"; shift ;;
     --out) OUT="$2"; shift ;;
     --no-build) DO_BUILD=0 ;;
-    -h|--help) sed -n '2,16p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,17p' "$0"; exit 0 ;;
     *) echo "run.sh: unknown argument $1 (see --help)" >&2; exit 2 ;;
   esac
   shift
@@ -68,8 +69,7 @@ else
   echo "run.sh: $SCANNET not found: the ScanNet row is skipped" >&2
 fi
 
-# Whole detection, per stage (timings_ms of detections.json). report.py keeps the fastest run
-# of a scan's folder, so REPEATS=3 benchmarks/speed/run.sh trades time for steadier figures.
+# Whole detection, per stage (timings_ms of detections.json); report.py keeps a scan's fastest run.
 REPEATS=${REPEATS:-1}
 for s in "${SCANS[@]}"; do
   name=${s%%=*}; f=${s#*=}
