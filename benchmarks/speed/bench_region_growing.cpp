@@ -1,18 +1,27 @@
-// Speed of segmenters.region_growing (+ features.paper24) against PCL MovingLeastSquares
-// (order 2, same radius, normals) + pcl::RegionGrowing, in one binary, on 2 threads:
+// Speed of segmenters.region_growing (+ features.paper24) against two PCL peers, in one
+// binary, on 2 threads: MovingLeastSquares (order 2, same radius, normals) + pcl::RegionGrowing
+// and NormalEstimationOMP (same radius) + pcl::RegionGrowing. Without --scan:
 //   (a) the real ScanNet room ../shared/data/scannet_votenet50k/scene0001_00.ply (50k points),
 //   (b) a procedural ~1M-point room (floor, walls, tables, chairs, cabinets, bins; 2 mm noise),
 //   (c) our pipeline on rooms of 100k..1M points at constant density (linearity),
 // plus the neighbourhood search alone: our voxel grid vs a nanoflann k-d tree.
-// After the Google Benchmark table it prints a summary: times, ratios and part counts.
+// With --scan=NAME=FILE[,PRESET] (repeatable) it times ours and both peers on those scans only
+// (benchmarks/speed/run.sh passes the simulated laser rooms and a ScanNet scan). After the
+// Google Benchmark table it prints a summary: times, ratios and part counts.
 //
-//   build-x/bin/bench_region_growing [--benchmark_filter=...]
+//   build/bin/bench_region_growing [--benchmark_filter=...]
+//   build/bin/bench_region_growing --scan=room=room.pcd,paper.json [--scan=...]
+//       [--ours_iterations=3] [--pcl_iterations=1] [--summary_json=FILE]
+//
+// PRESET: paper (Sect. III radii, the default without --scan), paper.json (configs/paper.json's
+// segmenter: 8 cm normals; features.paper24 defaults) or scannet (radii for ScanNet spacing).
 //
 // PCL's RegionGrowing has no radius neighbourhood: it grows over the k = 30 nearest
 // neighbours (its default), with the angle measured to the seed normal (smooth mode off, as
-// in the paper), no curvature or residual test, min cluster 10. MLS gets 2 threads
-// (setNumberOfThreads); RegionGrowing is single-threaded in PCL.
+// in the paper), no curvature or residual test, min cluster 10. MLS and NormalEstimationOMP
+// get 2 threads (setNumberOfThreads); RegionGrowing is single-threaded in PCL.
 #include <benchmark/benchmark.h>
+#include <pcl/features/normal_3d_omp.h>
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
 #include <pcl/search/kdtree.h>
@@ -24,11 +33,15 @@
 #include <atomic>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <ctime>
+#include <fstream>
 #include <map>
 #include <nanoflann.hpp>
+#include <nlohmann/json.hpp>
 #include <random>
 #include <string>
+#include <vector>
 
 #include "furnihost/io.hpp"
 #include "furnihost/log.hpp"
@@ -168,12 +181,15 @@ const Scan& ScanNetRoom() {
 }
 
 // ---- results for the summary -------------------------------------------------------------
+// Mean per run [ms]; `cpu` is process CPU time (all threads).
+struct Times {
+  double normals = 0, growing = 0, features = 0, total = 0, cpu = 0;
+  size_t parts = 0;
+  bool ran = false;
+};
 struct Row {
   size_t points = 0;
-  double normals = 0, growing = 0, features = 0, total = 0, cpu = 0;  // ours [ms]
-  size_t parts = 0;
-  double mls = 0, rg = 0, pcl_total = 0, pcl_cpu = 0;  // PCL [ms]
-  size_t pcl_parts = 0;
+  Times ours, mls, omp;  // ours = normals + growing + paper24 features; PCL: normals + RegionGrowing
 };
 std::map<std::string, Row> g_rows;
 
@@ -184,10 +200,14 @@ double CpuMs() { return 1000.0 * double(std::clock()) / CLOCKS_PER_SEC; }
 struct Params {
   double normal_radius, distance, boundary_radius, voxel;
 };
+enum class PclNormals { kMls, kOmp };
 // Paper (Sect. III) for the simulated room (1.25 cm spacing); for ScanNet (1.6-3.3 cm median
 // vertex spacing) the values suggested for configs/scannet.json.
 constexpr Params kPaper{0.03, 0.05, 0.03, 0.02};
 constexpr Params kScanNet{0.08, 0.07, 0.06, 0.03};
+// configs/paper.json's segment stage (8 cm normals, docs/configs.md) and paper24's defaults:
+// what `furnihost --graph configs/paper.json` runs, so these rows sit beside its stage times.
+constexpr Params kPaperJson{0.08, 0.05, 0.03, 0.02};
 
 void BM_Ours(benchmark::State& state, std::string key, const Scan* (*get)(), Params prm) {
   const Scan& scan = *get();
@@ -197,7 +217,7 @@ void BM_Ours(benchmark::State& state, std::string key, const Scan* (*get)(), Par
   furnihost::parts::PartFeatureOptions fo;
   fo.boundary_radius_m = prm.boundary_radius;
   fo.voxel_m = prm.voxel;
-  Row acc;
+  Times acc;
   int iters = 0;
   for (auto _ : state) {
     const double cpu0 = CpuMs();
@@ -217,17 +237,19 @@ void BM_Ours(benchmark::State& state, std::string key, const Scan* (*get)(), Par
   }
   Row& row = g_rows[key];
   row.points = scan.points.size();
-  row.normals = acc.normals / iters;
-  row.growing = acc.growing / iters;
-  row.features = acc.features / iters;
-  row.total = acc.total / iters;
-  row.cpu = acc.cpu / iters;
-  row.parts = acc.parts;
+  Times& r = row.ours;
+  r.normals = acc.normals / iters;
+  r.growing = acc.growing / iters;
+  r.features = acc.features / iters;
+  r.total = acc.total / iters;
+  r.cpu = acc.cpu / iters;
+  r.parts = acc.parts;
+  r.ran = true;
   state.counters["parts"] = double(acc.parts);
   state.counters["points/s"] = benchmark::Counter(double(scan.points.size()), benchmark::Counter::kIsIterationInvariantRate);
 }
 
-void BM_Pcl(benchmark::State& state, std::string key, const Scan* (*get)(), Params prm) {
+void BM_Pcl(benchmark::State& state, std::string key, const Scan* (*get)(), Params prm, PclNormals kind) {
   const Scan& scan = *get();
   const double normal_radius = prm.normal_radius;
   pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
@@ -241,25 +263,35 @@ void BM_Pcl(benchmark::State& state, std::string key, const Scan* (*get)(), Para
     furnihost::Stopwatch w;
     auto tree = std::make_shared<pcl::search::KdTree<pcl::PointXYZ>>();
     tree->setInputCloud(cloud);
-    pcl::MovingLeastSquares<pcl::PointXYZ, pcl::PointNormal> mls;
-    mls.setInputCloud(cloud);
-    mls.setSearchMethod(tree);
-    mls.setSearchRadius(normal_radius);
-    mls.setPolynomialOrder(2);
-    mls.setComputeNormals(true);
-    mls.setNumberOfThreads(kThreads);
-    pcl::PointCloud<pcl::PointNormal> out;
-    mls.process(out);
     pcl::PointCloud<pcl::Normal>::Ptr normals(new pcl::PointCloud<pcl::Normal>);
-    normals->resize(cloud->size());
-    for (auto& nm : *normals) nm.getNormalVector3fMap().setConstant(NAN);
     pcl::IndicesPtr valid(new pcl::Indices);
-    const auto corr = mls.getCorrespondingIndices();
-    for (size_t k = 0; k < out.size(); ++k) {
-      const int i = corr->indices[k];
-      (*normals)[i].getNormalVector3fMap() = out[k].getNormalVector3fMap();
-      (*normals)[i].curvature = out[k].curvature;
-      if (out[k].getNormalVector3fMap().allFinite()) valid->push_back(i);
+    if (kind == PclNormals::kMls) {
+      pcl::MovingLeastSquares<pcl::PointXYZ, pcl::PointNormal> mls;
+      mls.setInputCloud(cloud);
+      mls.setSearchMethod(tree);
+      mls.setSearchRadius(normal_radius);
+      mls.setPolynomialOrder(2);
+      mls.setComputeNormals(true);
+      mls.setNumberOfThreads(kThreads);
+      pcl::PointCloud<pcl::PointNormal> out;
+      mls.process(out);
+      normals->resize(cloud->size());
+      for (auto& nm : *normals) nm.getNormalVector3fMap().setConstant(NAN);
+      const auto corr = mls.getCorrespondingIndices();
+      for (size_t k = 0; k < out.size(); ++k) {
+        const int i = corr->indices[k];
+        (*normals)[i].getNormalVector3fMap() = out[k].getNormalVector3fMap();
+        (*normals)[i].curvature = out[k].curvature;
+        if (out[k].getNormalVector3fMap().allFinite()) valid->push_back(i);
+      }
+    } else {
+      pcl::NormalEstimationOMP<pcl::PointXYZ, pcl::Normal> ne(kThreads);
+      ne.setInputCloud(cloud);
+      ne.setSearchMethod(tree);
+      ne.setRadiusSearch(normal_radius);
+      ne.compute(*normals);
+      for (size_t i = 0; i < normals->size(); ++i)
+        if ((*normals)[i].getNormalVector3fMap().allFinite()) valid->push_back(int(i));
     }
     const double t_mls = w.Ms();
     pcl::RegionGrowing<pcl::PointXYZ, pcl::Normal> rg;
@@ -283,12 +315,15 @@ void BM_Pcl(benchmark::State& state, std::string key, const Scan* (*get)(), Para
   }
   Row& row = g_rows[key];
   row.points = scan.points.size();
-  row.mls = mls_ms / iters;
-  row.rg = rg_ms / iters;
-  row.pcl_total = row.mls + row.rg;
-  row.pcl_cpu = cpu_ms / iters;
-  row.pcl_parts = parts;
+  Times& r = kind == PclNormals::kMls ? row.mls : row.omp;
+  r.normals = mls_ms / iters;
+  r.growing = rg_ms / iters;
+  r.total = r.normals + r.growing;
+  r.cpu = cpu_ms / iters;
+  r.parts = parts;
+  r.ran = true;
   state.counters["parts"] = double(parts);
+  state.counters["points/s"] = benchmark::Counter(double(scan.points.size()), benchmark::Counter::kIsIterationInvariantRate);
 }
 
 // Neighbourhood gathering alone (radius r around every point, count only).
@@ -339,53 +374,170 @@ const Scan* GetScanNet() { return &ScanNetRoom(); }
 template <size_t N>
 const Scan* GetRoom() { return &Room(N); }
 
+// Scans named on the command line (--scan), read once on first use.
+struct FileScan {
+  std::string name, path;
+  Params params;
+};
+std::vector<FileScan> g_files;
+template <size_t I>
+const Scan* GetFile() {
+  static const Scan scan = furnihost::ReadScan(g_files.at(I).path);
+  return &scan;
+}
+// Benchmarks are registered with a plain function pointer, so file scans take a fixed slot.
+constexpr size_t kMaxFiles = 8;
+using Getter = const Scan* (*)();
+constexpr Getter kFileGetters[kMaxFiles] = {GetFile<0>, GetFile<1>, GetFile<2>, GetFile<3>,
+                                            GetFile<4>, GetFile<5>, GetFile<6>, GetFile<7>};
+
 void PrintSummary() {
-  std::printf("\n%-16s %8s | %8s %8s %8s %8s %8s %6s | %8s %8s %8s %8s %6s | %8s %8s\n", "data", "points", "normals",
-              "growing", "features", "ours", "cpu", "parts", "PCL MLS", "PCL RG", "PCL", "cpu", "parts", "wall x",
-              "cpu x");
+  std::printf("\n%-16s %8s | %8s %8s %8s %8s %8s %6s | %8s %8s %8s %6s | %8s %8s %8s %6s | %6s %6s %6s\n", "data",
+              "points", "normals", "growing", "features", "ours", "cpu", "parts", "MLS", "RG", "MLS+RG", "parts",
+              "OMP", "RG", "OMP+RG", "parts", "x MLS", "x OMP", "cpu x");
+  auto dash = [](int n) { for (int i = 0; i < n; ++i) std::printf(" %8s", "-"); };
   for (const auto& [key, r] : g_rows) {
-    std::printf("%-16s %8zu | %8.1f %8.1f %8.1f %8.1f %8.1f %6zu |", key.c_str(), r.points, r.normals, r.growing,
-                r.features, r.total, r.cpu, r.parts);
-    if (r.pcl_total > 0)
-      std::printf(" %8.1f %8.1f %8.1f %8.1f %6zu | %7.1fx %7.1fx\n", r.mls, r.rg, r.pcl_total, r.pcl_cpu, r.pcl_parts,
-                  r.pcl_total / r.total, r.pcl_cpu / r.cpu);
+    std::printf("%-16s %8zu |", key.c_str(), r.points);
+    if (r.ours.ran)
+      std::printf(" %8.1f %8.1f %8.1f %8.1f %8.1f %6zu |", r.ours.normals, r.ours.growing, r.ours.features,
+                  r.ours.total, r.ours.cpu, r.ours.parts);
     else
-      std::printf(" %8s %8s %8s %8s %6s | %8s %8s\n", "-", "-", "-", "-", "-", "-", "-");
+      dash(5), std::printf(" %6s |", "-");
+    for (const Times* t : {&r.mls, &r.omp}) {
+      if (t->ran)
+        std::printf(" %8.1f %8.1f %8.1f %6zu |", t->normals, t->growing, t->total, t->parts);
+      else
+        dash(3), std::printf(" %6s |", "-");
+    }
+    auto ratio = [&](const Times& t, double a, double b) {
+      if (t.ran && r.ours.ran && b > 0) std::printf(" %5.1fx", a / b);
+      else std::printf(" %6s", "-");
+    };
+    ratio(r.mls, r.mls.total, r.ours.total);
+    ratio(r.omp, r.omp.total, r.ours.total);
+    ratio(r.mls, r.mls.cpu, r.ours.cpu);
+    std::printf("\n");
   }
   std::printf("ms per run, wall clock unless 'cpu' (process CPU time, all threads); ours = normals + growing +\n"
-              "paper24 features; %d threads; 'x' = PCL / ours\n", kThreads);
+              "paper24 features; PCL = normals (MovingLeastSquares order 2 | NormalEstimationOMP) +\n"
+              "RegionGrowing; %d threads; 'x' = PCL / ours (wall; 'cpu x' for MLS+RG)\n", kThreads);
+}
+
+void WriteSummaryJson(const std::string& path) {
+  auto times = [](const Times& t) {
+    return nlohmann::json{{"normals_ms", t.normals}, {"growing_ms", t.growing}, {"features_ms", t.features},
+                          {"total_ms", t.total},     {"cpu_ms", t.cpu},         {"parts", t.parts}};
+  };
+  nlohmann::json rows = nlohmann::json::array();
+  for (const auto& [key, r] : g_rows) {
+    nlohmann::json j{{"name", key}, {"points", r.points}};
+    if (r.ours.ran) j["ours"] = times(r.ours);
+    if (r.mls.ran) j["pcl_mls_rg"] = times(r.mls);
+    if (r.omp.ran) j["pcl_omp_rg"] = times(r.omp);
+    rows.push_back(j);
+  }
+  std::ofstream f(path);
+  f << nlohmann::json{{"threads", kThreads}, {"rows", rows}}.dump(2) << "\n";
+  if (!f) std::fprintf(stderr, "cannot write %s\n", path.c_str());
+}
+
+// --scan=NAME=FILE[,PRESET]; returns false (with a message) on a malformed value.
+bool ParseScan(const std::string& v) {
+  const auto eq = v.find('=');
+  if (eq == std::string::npos || eq == 0) {
+    std::fprintf(stderr, "--scan=%s: expected NAME=FILE[,PRESET]\n", v.c_str());
+    return false;
+  }
+  FileScan f{v.substr(0, eq), v.substr(eq + 1), kPaper};
+  const auto comma = f.path.rfind(',');
+  if (comma != std::string::npos) {
+    const std::string preset = f.path.substr(comma + 1);
+    f.path.resize(comma);
+    if (preset == "paper") f.params = kPaper;
+    else if (preset == "paper.json") f.params = kPaperJson;
+    else if (preset == "scannet") f.params = kScanNet;
+    else {
+      std::fprintf(stderr, "--scan=%s: unknown preset \"%s\" (paper, paper.json, scannet)\n", v.c_str(), preset.c_str());
+      return false;
+    }
+  }
+  if (g_files.size() == kMaxFiles) {
+    std::fprintf(stderr, "--scan: at most %zu scans\n", kMaxFiles);
+    return false;
+  }
+  g_files.push_back(f);
+  return true;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
+  // Our flags first; the rest goes to Google Benchmark.
+  std::string summary_json;
+  int ours_iterations = 0, pcl_iterations = 0;  // 0: the built-in defaults
+  std::vector<char*> rest{argv[0]};
+  for (int a = 1; a < argc; ++a) {
+    const std::string arg = argv[a];
+    auto value = [&](const char* flag) -> const char* {
+      const size_t n = std::strlen(flag);
+      return arg.compare(0, n, flag) == 0 ? argv[a] + n : nullptr;
+    };
+    if (const char* v = value("--scan=")) {
+      if (!ParseScan(v)) return 2;
+    } else if (const char* v = value("--summary_json=")) {
+      summary_json = v;
+    } else if (const char* v = value("--ours_iterations=")) {
+      ours_iterations = std::max(1, std::atoi(v));
+    } else if (const char* v = value("--pcl_iterations=")) {
+      pcl_iterations = std::max(1, std::atoi(v));
+    } else {
+      rest.push_back(argv[a]);
+    }
+  }
+  int rest_argc = int(rest.size());
+  rest.push_back(nullptr);
+
   tbb::global_control threads(tbb::global_control::max_allowed_parallelism, kThreads);
   spdlog::set_level(spdlog::level::warn);
   using benchmark::RegisterBenchmark;
   const auto ms = benchmark::kMillisecond;
-  auto ours = [&](const char* name, const char* key, const Scan* (*get)(), Params p, int iterations) {
-    RegisterBenchmark(name, BM_Ours, std::string(key), get, p)->Unit(ms)->Iterations(iterations)->UseRealTime();
+  auto ours = [&](const std::string& name, const std::string& key, Getter get, Params p, int iterations) {
+    RegisterBenchmark(name.c_str(), BM_Ours, key, get, p)
+        ->Unit(ms)->Iterations(ours_iterations ? ours_iterations : iterations)->UseRealTime();
   };
-  auto pcl = [&](const char* name, const char* key, const Scan* (*get)(), Params p, int iterations) {
-    RegisterBenchmark(name, BM_Pcl, std::string(key), get, p)->Unit(ms)->Iterations(iterations)->UseRealTime();
+  auto pcl = [&](const std::string& name, const std::string& key, Getter get, Params p, int iterations) {
+    const int n = pcl_iterations ? pcl_iterations : iterations;
+    RegisterBenchmark(("pcl_mls_rg/" + name).c_str(), BM_Pcl, key, get, p, PclNormals::kMls)
+        ->Unit(ms)->Iterations(n)->UseRealTime();
+    RegisterBenchmark(("pcl_omp_rg/" + name).c_str(), BM_Pcl, key, get, p, PclNormals::kOmp)
+        ->Unit(ms)->Iterations(n)->UseRealTime();
   };
-  ours("ours/scannet0001_00", "a scannet0001_00", GetScanNet, kScanNet, 20);
-  pcl("pcl/scannet0001_00", "a scannet0001_00", GetScanNet, kScanNet, 3);
-  ours("ours/room_1M", "b room_1M", GetRoom<1000000>, kPaper, 5);
-  pcl("pcl/room_1M", "b room_1M", GetRoom<1000000>, kPaper, 1);
-  ours("ours/room_100k", "c room_0100k", GetRoom<100000>, kPaper, 10);
-  pcl("pcl/room_100k", "c room_0100k", GetRoom<100000>, kPaper, 2);
-  ours("ours/room_250k", "c room_0250k", GetRoom<250000>, kPaper, 5);
-  ours("ours/room_500k", "c room_0500k", GetRoom<500000>, kPaper, 5);
-  ours("ours/room_750k", "c room_0750k", GetRoom<750000>, kPaper, 5);
-  RegisterBenchmark("neighbours/grid/room_1M", BM_NeighboursGrid, GetRoom<1000000>, float(kPaper.normal_radius))
-      ->Unit(ms)->Iterations(3)->UseRealTime();
-  RegisterBenchmark("neighbours/nanoflann/room_1M", BM_NeighboursNanoflann, GetRoom<1000000>,
-                    float(kPaper.normal_radius))->Unit(ms)->Iterations(3)->UseRealTime();
-  benchmark::Initialize(&argc, argv);
-  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  if (!g_files.empty()) {
+    for (size_t i = 0; i < g_files.size(); ++i) {
+      const std::string& name = g_files[i].name;
+      ours("ours/" + name, name, kFileGetters[i], g_files[i].params, 3);
+      pcl(name, name, kFileGetters[i], g_files[i].params, 1);
+    }
+  } else {
+    ours("ours/scannet0001_00", "a scannet0001_00", GetScanNet, kScanNet, 20);
+    pcl("scannet0001_00", "a scannet0001_00", GetScanNet, kScanNet, 3);
+    ours("ours/room_1M", "b room_1M", GetRoom<1000000>, kPaper, 5);
+    pcl("room_1M", "b room_1M", GetRoom<1000000>, kPaper, 1);
+    ours("ours/room_100k", "c room_0100k", GetRoom<100000>, kPaper, 10);
+    pcl("room_100k", "c room_0100k", GetRoom<100000>, kPaper, 2);
+    ours("ours/room_250k", "c room_0250k", GetRoom<250000>, kPaper, 5);
+    ours("ours/room_500k", "c room_0500k", GetRoom<500000>, kPaper, 5);
+    ours("ours/room_750k", "c room_0750k", GetRoom<750000>, kPaper, 5);
+    RegisterBenchmark("neighbours/grid/room_1M", BM_NeighboursGrid, GetRoom<1000000>, float(kPaper.normal_radius))
+        ->Unit(ms)->Iterations(3)->UseRealTime();
+    RegisterBenchmark("neighbours/nanoflann/room_1M", BM_NeighboursNanoflann, GetRoom<1000000>,
+                      float(kPaper.normal_radius))->Unit(ms)->Iterations(3)->UseRealTime();
+  }
+  benchmark::Initialize(&rest_argc, rest.data());
+  if (benchmark::ReportUnrecognizedArguments(rest_argc, rest.data())) return 1;
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();
   PrintSummary();
+  if (!summary_json.empty()) WriteSummaryJson(summary_json);
   return 0;
 }

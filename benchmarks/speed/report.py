@@ -1,0 +1,173 @@
+#!/usr/bin/env python3
+"""Tables and plot of a benchmarks/speed/run.sh run.
+
+    python3 benchmarks/speed/report.py runs/speed
+
+Reads DIR/detect/<scan>/run*/detections.json (timings_ms per stage; the run with the smallest
+total is kept) and DIR/segmentation.json (bench_region_growing --summary_json). Prints two
+markdown tables, writes them to DIR/speed.md and a plot of time against point count to
+DIR/speed.svg (written by hand: no plotting library needed).
+"""
+import glob
+import json
+import math
+import os
+import sys
+
+
+def load_detect(out):
+    rows = {}
+    for d in sorted(glob.glob(os.path.join(out, "detect", "*"))):
+        runs = []
+        for f in glob.glob(os.path.join(d, "run*", "detections.json")):
+            with open(f) as fh:
+                runs.append(json.load(fh))
+        if runs:
+            rows[os.path.basename(d)] = min(runs, key=lambda j: j["timings_ms"]["total"])
+    return rows
+
+
+def fmt_ms(ms):
+    return f"{ms / 1000:.2f}" if ms >= 1000 else f"{ms / 1000:.3f}"
+
+
+def points_label(n, digits=2):
+    return f"{n / 1e6:.{digits}f}M" if n >= 1e6 else f"{n / 1e3:.0f}k"
+
+
+def nice_below(v):
+    """Largest 1, 2 or 5 x 10^k not above v."""
+    d = 10 ** math.floor(math.log10(v))
+    return max(m * d for m in (1, 2, 5) if m * d <= v * 1.0001)
+
+
+def nice_above(v):
+    d = 10 ** math.floor(math.log10(v))
+    return min(m * d for m in (1, 2, 5, 10) if m * d >= v * 0.9999)
+
+
+def detect_table(det):
+    # detections.json's keys come sorted; show paper.json's stages in pipeline order.
+    order = ["input", "ground", "segment", "features", "vote", "fit"]
+    stages = []
+    for j in det.values():
+        for t in j["timings_ms"]:
+            if t != "total" and t not in stages:
+                stages.append(t)
+    stages.sort(key=lambda t: (order.index(t) if t in order else len(order), t))
+    head = ["scan", "points"] + [f"{s} [s]" for s in stages] + ["total [s]", "µs/point"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for name, j in sorted(det.items(), key=lambda kv: kv[1]["points"]):
+        t = j["timings_ms"]
+        cells = [name, points_label(j["points"])] + [fmt_ms(t.get(s, 0.0)) for s in stages]
+        cells += [fmt_ms(t["total"]), f"{1000 * t['total'] / max(1, j['points']):.1f}"]
+        lines.append("| " + " | ".join(cells) + " |")
+    return lines
+
+
+def seg_table(seg):
+    head = ["scan", "points", "ours: normals + growing + features [s]", "PCL MLS + RG [s]", "× ours",
+            "PCL OMP + RG [s]", "× ours", "parts (ours / MLS / OMP)"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for r in sorted(seg["rows"], key=lambda r: r["points"]):
+        o, m, p = r.get("ours"), r.get("pcl_mls_rg"), r.get("pcl_omp_rg")
+        def ratio(x):
+            return f"{x['total_ms'] / o['total_ms']:.1f}" if x and o and o["total_ms"] > 0 else "-"
+        ours = (f"{fmt_ms(o['total_ms'])} ({fmt_ms(o['normals_ms'])} + {fmt_ms(o['growing_ms'])} + "
+                f"{fmt_ms(o['features_ms'])})") if o else "-"
+        cells = [r["name"], points_label(r["points"]), ours,
+                 fmt_ms(m["total_ms"]) if m else "-", ratio(m),
+                 fmt_ms(p["total_ms"]) if p else "-", ratio(p),
+                 " / ".join(str(x["parts"]) if x else "-" for x in (o, m, p))]
+        lines.append("| " + " | ".join(cells) + " |")
+    return lines
+
+
+def svg_plot(series, path, title):
+    """series: [(label, colour, [(points, seconds), ...])]; log-log axes."""
+    W, H, L, R, T, B = 640, 420, 70, 190, 40, 50
+    xs = [x for _, _, pts in series for x, _ in pts]
+    ys = [y for _, _, pts in series for _, y in pts if y > 0]
+    if not xs or not ys:
+        return
+    x0, x1 = nice_below(min(xs)), nice_above(max(xs))
+    y0, y1 = nice_below(min(ys)), nice_above(max(ys))
+    px = lambda x: L + (math.log10(x) - math.log10(x0)) / (math.log10(x1) - math.log10(x0)) * (W - L - R)
+    py = lambda y: H - B - (math.log10(y) - math.log10(y0)) / (math.log10(y1) - math.log10(y0)) * (H - T - B)
+    o = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" font-family="sans-serif" font-size="12">',
+         f'<rect width="{W}" height="{H}" fill="white"/>',
+         f'<text x="{L}" y="22" font-size="14">{title}</text>']
+    decade = 10 ** math.floor(math.log10(x0))
+    while decade <= x1 * 1.0001:
+        for m in range(1, 10):
+            v = decade * m
+            if v < x0 * 0.9999 or v > x1 * 1.0001:
+                continue
+            X = px(v)
+            o.append(f'<line x1="{X:.1f}" y1="{T}" x2="{X:.1f}" y2="{H - B}" stroke="#{"ccc" if m == 1 else "eee"}"/>')
+            if m in (1, 2, 5):
+                o.append(f'<text x="{X:.1f}" y="{H - B + 16}" text-anchor="middle">{points_label(v, 0)}</text>')
+        decade *= 10
+    decade = 10 ** math.floor(math.log10(y0))
+    while decade <= y1 * 1.0001:
+        for m in range(1, 10):
+            v = decade * m
+            if v < y0 * 0.9999 or v > y1 * 1.0001:
+                continue
+            Y = py(v)
+            o.append(f'<line x1="{L}" y1="{Y:.1f}" x2="{W - R}" y2="{Y:.1f}" stroke="#{"ccc" if m == 1 else "eee"}"/>')
+            if m in (1, 2, 5):
+                o.append(f'<text x="{L - 6}" y="{Y + 4:.1f}" text-anchor="end">{v:g}</text>')
+        decade *= 10
+    o.append(f'<rect x="{L}" y="{T}" width="{W - L - R}" height="{H - T - B}" fill="none" stroke="black"/>')
+    o.append(f'<text x="{(L + W - R) / 2}" y="{H - 12}" text-anchor="middle">points</text>')
+    o.append(f'<text transform="translate(16 {(T + H - B) / 2}) rotate(-90)" text-anchor="middle">time [s] (2 threads)</text>')
+    for i, (label, colour, pts) in enumerate(series):
+        pts = sorted(p for p in pts if p[1] > 0)
+        if not pts:
+            continue
+        path_d = " ".join(f"{'M' if k == 0 else 'L'}{px(x):.1f},{py(y):.1f}" for k, (x, y) in enumerate(pts))
+        o.append(f'<path d="{path_d}" fill="none" stroke="{colour}" stroke-width="2"/>')
+        for x, y in pts:
+            o.append(f'<circle cx="{px(x):.1f}" cy="{py(y):.1f}" r="3.5" fill="{colour}"/>')
+        ly = T + 14 + 20 * i
+        o.append(f'<line x1="{W - R + 12}" y1="{ly - 4}" x2="{W - R + 32}" y2="{ly - 4}" stroke="{colour}" stroke-width="2"/>')
+        o.append(f'<text x="{W - R + 38}" y="{ly}">{label}</text>')
+    o.append("</svg>")
+    with open(path, "w") as fh:
+        fh.write("\n".join(o) + "\n")
+
+
+def main():
+    out = sys.argv[1] if len(sys.argv) > 1 else "runs/speed"
+    det = load_detect(out)
+    seg_path = os.path.join(out, "segmentation.json")
+    seg = json.load(open(seg_path)) if os.path.exists(seg_path) else {"rows": []}
+    md = ["## Whole detection, configs/paper.json (fastest of the runs; 2 threads)", ""]
+    md += detect_table(det) if det else ["(no detection runs)"]
+    md += ["", "## Segmentation (+ features) against PCL on the same clouds, one process (2 threads)", ""]
+    md += seg_table(seg) if seg["rows"] else ["(no segmentation rows)"]
+    md += ["", "× ours = PCL time / our time (higher: ours faster). PCL RegionGrowing is single-threaded;",
+           "its normals (MLS order 2 / NormalEstimationOMP) use 2 threads. Radii: configs/paper.json."]
+    text = "\n".join(md) + "\n"
+    print(text)
+    with open(os.path.join(out, "speed.md"), "w") as fh:
+        fh.write(text)
+    laser = lambda name: not name.startswith("scannet")
+    rows = seg["rows"]
+    series = [
+        ("detection (total)", "#1f77b4",
+         [(j["points"], j["timings_ms"]["total"] / 1000) for n, j in det.items() if laser(n)]),
+        ("ours: seg + features", "#2ca02c",
+         [(r["points"], r["ours"]["total_ms"] / 1000) for r in rows if "ours" in r and laser(r["name"])]),
+        ("PCL MLS + RG", "#d62728",
+         [(r["points"], r["pcl_mls_rg"]["total_ms"] / 1000) for r in rows if "pcl_mls_rg" in r and laser(r["name"])]),
+        ("PCL OMP + RG", "#ff7f0e",
+         [(r["points"], r["pcl_omp_rg"]["total_ms"] / 1000) for r in rows if "pcl_omp_rg" in r and laser(r["name"])]),
+    ]
+    svg_plot(series, os.path.join(out, "speed.svg"), "furnihost speed on simulated laser rooms (configs/paper.json)")
+    print(f"wrote {out}/speed.md and {out}/speed.svg")
+
+
+if __name__ == "__main__":
+    main()

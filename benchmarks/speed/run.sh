@@ -1,0 +1,88 @@
+#!/usr/bin/env bash
+# Speed benchmark in one command: builds furnihost and bench_region_growing
+# (-DFURNIHOST_BUILD_BENCH=ON), simulates dense laser rooms of ~0.1M, 0.5M and 1.5M points, times
+# `furnihost --graph configs/paper.json` per stage on them and on one ScanNet dev scan, times our
+# segmentation + features against PCL's MLS + RegionGrowing and NormalEstimationOMP +
+# RegionGrowing on the same clouds in one process, then prints markdown tables and writes a plot.
+#
+#   benchmarks/speed/run.sh [--quick] [--build DIR] [--out DIR] [--no-build]
+#
+# --quick: the 0.1M and 0.5M rooms and ScanNet only (~1 min once built). Full run: ~5 min on
+# 2 cores once built. Each measurement is one run (the 1.5M room costs about a minute per
+# pipeline); REPEATS=N makes it N detection runs per scan (the fastest is reported) and N
+# benchmark iterations (mean). The model is trained once and cached, not timed.
+# Writes DIR (default runs/speed/): rooms/*.pcd, detect/<scan>/run<i>/detections.json,
+# segmentation.json, speed.md (the tables) and speed.svg (time against point count).
+# $FURNIHOST_SHARED_DATA_DIR (default ../shared/data) holds scannet_votenet50k/; it is read in
+# place, never copied.
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+
+BUILD=build
+OUT=runs/speed
+QUICK=0
+DO_BUILD=1
+while [[ $# -gt 0 ]]; do
+  case "$1" in
+    --quick) QUICK=1 ;;
+    --build) BUILD="$2"; shift ;;
+    --out) OUT="$2"; shift ;;
+    --no-build) DO_BUILD=0 ;;
+    -h|--help) sed -n '2,17p' "$0"; exit 0 ;;
+    *) echo "run.sh: unknown argument $1 (see --help)" >&2; exit 2 ;;
+  esac
+  shift
+done
+SHARED="${FURNIHOST_SHARED_DATA_DIR:-../shared/data}"
+SCANNET="$SHARED/scannet_votenet50k/scene0001_00.ply"
+THREADS=2  # the target machine; bench_region_growing uses 2 threads too
+
+if [[ $DO_BUILD == 1 ]]; then
+  cmake -S . -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DFURNIHOST_BUILD_BENCH=ON >/dev/null
+  cmake --build "$BUILD" -j"$(nproc)" --target furnihost furnihost_plugins bench_region_growing
+fi
+FH="$BUILD/bin/furnihost"
+mkdir -p "$OUT/rooms" "$OUT/detect"
+
+# data/demo/room.scene.json with its own sensor (a 360 deg pan-tilt scan from the room centre,
+# see data/demo/room.gt.json), denser: finer angular steps and a finer (or no) voxel filter.
+#   name        angular/tilt step [deg]  voxel [m]
+ROOMS=("room_0.1M 0.25 0.04" "room_0.5M 0.25 0" "room_1.5M 0.14 0")
+[[ $QUICK == 1 ]] && ROOMS=("${ROOMS[@]:0:2}")
+SCANS=()
+for r in "${ROOMS[@]}"; do
+  read -r name step voxel <<<"$r"
+  f="$OUT/rooms/$name.pcd"
+  if [[ ! -s $f ]]; then
+    "$FH" simulate --catalog data/demo/catalog.json --scene data/demo/room.scene.json --seed 42 \
+      --threads "$THREADS" -q --out "$f" \
+      --sensor-params "{\"angular_resolution_deg\": $step, \"tilt_resolution_deg\": $step, \"voxel_m\": $voxel}"
+  fi
+  SCANS+=("$name=$f")
+done
+if [[ -f $SCANNET ]]; then
+  SCANS+=("scannet_0001_00=$SCANNET")
+else
+  echo "run.sh: $SCANNET not found: the ScanNet row is skipped" >&2
+fi
+
+# Whole detection, per stage (timings_ms of detections.json); report.py keeps a scan's fastest run.
+# The first detection trains the model if furnihost-out/models/ has no valid one; training is
+# outside timings_ms.
+REPEATS=${REPEATS:-1}
+for s in "${SCANS[@]}"; do
+  name=${s%%=*}; f=${s#*=}
+  rm -rf "$OUT/detect/$name"
+  for i in $(seq "$REPEATS"); do
+    echo "detect: $name (run $i of $REPEATS)"
+    "$FH" --graph configs/paper.json "$f" --threads "$THREADS" -q --out "$OUT/detect/$name/run$i" >/dev/null
+  done
+done
+
+# Ours against PCL on the same clouds, in one process (configs/paper.json's radii).
+BENCH_ARGS=()
+for s in "${SCANS[@]}"; do BENCH_ARGS+=("--scan=$s,paper.json"); done
+BENCH_ARGS+=(--ours_iterations="${REPEATS}" --pcl_iterations="${REPEATS}")
+"$BUILD/bin/bench_region_growing" "${BENCH_ARGS[@]}" --summary_json="$OUT/segmentation.json"
+
+python3 benchmarks/speed/report.py "$OUT"
