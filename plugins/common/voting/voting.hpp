@@ -148,8 +148,8 @@ struct SelectionOptions {
   // walls, shelves and stacked cabinets go on upwards). column_radius = 0: off.
   float column_radius = 0.f;
   float column_margin = 0.1f;
-  int column_min_points = 0;
-  float column_max_above = 1.f;
+  int column_min_points = 10;  // = the schema default (what runs; the struct copy had drifted to 0)
+  float column_max_above = 0.1f;  // = the schema default (had drifted to 1)
   std::vector<std::string> column_clear_classes;
 
   // Declares the shared parameters (paper defaults) on `schema`.
