@@ -8,53 +8,24 @@
 
 #include "furnihost/ground.hpp"
 #include "furnihost/stage.hpp"
-#include "test_support.hpp"
+#include "test_stages.hpp"
 
 namespace furnihost {
 namespace {
 
 using nlohmann::json;
 
-Registry& Reg() {
-  static auto reg = testing::MakeRegistry();
-  return *reg;
-}
+using testing::AddBox;
 
 template <class T>
 std::shared_ptr<T> Make(const std::string& type, const json& params = json::object()) {
-  const auto* entry = Reg().Find(type);
-  if (!entry) throw std::runtime_error("plugin not found: " + type);
-  return Reg().CreateAs<T>(type, entry->params.Resolve(params, "test"));
-}
-
-void AddBox(Mesh& m, Eigen::Vector3f lo, Eigen::Vector3f hi) {
-  const int b = static_cast<int>(m.vertices.size());
-  for (int i = 0; i < 8; ++i) m.vertices.emplace_back(i & 1 ? hi.x() : lo.x(), i & 2 ? hi.y() : lo.y(), i & 4 ? hi.z() : lo.z());
-  const int f[12][3] = {{0, 2, 1}, {1, 2, 3}, {4, 5, 6}, {5, 7, 6}, {0, 1, 4}, {1, 5, 4},
-                        {2, 6, 3}, {3, 6, 7}, {0, 4, 2}, {2, 4, 6}, {1, 3, 5}, {3, 7, 5}};
-  for (const auto& t : f) m.triangles.emplace_back(b + t[0], b + t[1], b + t[2]);
+  return testing::MakeStage<T>(type, params);
 }
 
 // Catalog models stand with their bounding-box bottom centre at the origin.
-CatalogModel Table() {
-  CatalogModel m;
-  m.id = "test_table";
-  m.cls = "table";
-  AddBox(m.mesh, {-0.6f, -0.4f, 0.71f}, {0.6f, 0.4f, 0.75f});
-  for (float x : {-0.55f, 0.5f})
-    for (float y : {-0.35f, 0.3f}) AddBox(m.mesh, {x, y, 0.f}, {x + 0.05f, y + 0.05f, 0.71f});
-  m.size = m.mesh.Bounds().sizes();
-  return m;
-}
+CatalogModel Table() { return testing::BoxTable(); }
 
-CatalogModel Cabinet() {
-  CatalogModel m;
-  m.id = "test_cabinet";
-  m.cls = "cabinet";
-  AddBox(m.mesh, {-0.45f, -0.25f, 0.f}, {0.45f, 0.25f, 1.2f});
-  m.size = m.mesh.Bounds().sizes();
-  return m;
-}
+CatalogModel Cabinet() { return testing::BoxCabinet(); }
 
 std::vector<TrainingView> Views(const std::vector<const CatalogModel*>& models) {
   auto sensor = Make<Sensor>("sensors.simulated_laser", {{"voxel_m", 0.02}, {"views", 8}});
