@@ -6,6 +6,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <nanoflann.hpp>
 #include <unordered_map>
@@ -324,6 +325,58 @@ Points EyesAround(const Eigen::Vector3f& size, float height, float distance, int
     eyes.emplace_back(R * std::cos(a), R * std::sin(a), height);
   }
   return eyes;
+}
+
+float BoxIou(const Eigen::AlignedBox3f& a, const Eigen::AlignedBox3f& b) {
+  const Eigen::AlignedBox3f i = a.intersection(b);
+  if (i.isEmpty()) return 0.f;
+  const float vi = i.volume(), u = a.volume() + b.volume() - vi;
+  return u > 0 ? vi / u : 0.f;
+}
+
+std::vector<size_t> SuppressOverlaps(std::vector<size_t> candidates, const std::vector<float>& score,
+                                     const std::vector<Proposal>& proposals, float max_iou) {
+  std::stable_sort(candidates.begin(), candidates.end(), [&](size_t a, size_t b) { return score[a] > score[b]; });
+  std::vector<size_t> kept;
+  for (size_t i : candidates) {
+    bool suppressed = false;
+    for (size_t k : kept)
+      if (BoxIou(proposals[i].box, proposals[k].box) > max_iou) {
+        suppressed = true;
+        break;
+      }
+    if (!suppressed) kept.push_back(i);
+  }
+  return kept;
+}
+
+Hypothesis ProposalHypothesis(const std::string& cls, float score, float threshold, const Proposal& p, int index,
+                              int scene, const Footprint& f, const std::string& model_id, bool model_wide,
+                              const Eigen::Isometry3f& pose) {
+  Hypothesis h;
+  h.cls = cls;
+  h.score = score;
+  h.proposal = index;
+  h.scene = scene;
+  OrientedBox b;
+  b.center = pose * p.box.center();
+  b.size = p.box.sizes();
+  b.yaw = std::atan2(pose.linear()(1, 0), pose.linear()(0, 0));
+  h.box = b;
+  h.center = b.center;
+  h.accepted = score >= threshold;
+  if (!*h.accepted) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "score %.4f < %.4f", score, threshold);
+    h.rejection = buf;
+  }
+  h.model = model_id;
+  const float yaw = f.yaw + (model_wide ? 0.f : float(M_PI / 2));
+  Eigen::Isometry3f m = Eigen::Isometry3f::Identity();
+  m.linear() = Eigen::AngleAxisf(yaw, Eigen::Vector3f::UnitZ()).toRotationMatrix();
+  m.translation() = Eigen::Vector3f(f.center.x(), f.center.y(), p.ground_z);
+  h.model_pose = pose * m;
+  return h;
 }
 
 }  // namespace furnihost::shape

@@ -4,6 +4,7 @@
 #include <Eigen/Core>
 #include <array>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "furnihost/types.hpp"
@@ -77,5 +78,25 @@ std::vector<uint8_t> VisibleFrom(const Points& points, const Points& eyes, float
 // extents `size`: `n` azimuths at `distance` beyond the footprint's half-diagonal, `height`
 // above the floor (a person's or robot's sensor).
 Points EyesAround(const Eigen::Vector3f& size, float height = 1.4f, float distance = 1.5f, int n = 8);
+
+// --- Recognisers of proposals (voters.catalog_shape, voters.esf_catalog) ---
+
+// 3D IoU of two axis-aligned boxes (0 when they do not overlap).
+float BoxIou(const Eigen::AlignedBox3f& a, const Eigen::AlignedBox3f& b);
+
+// Non-maximum suppression of one class: `candidates` (indices into `proposals` and `score`) by
+// descending score, ties in their given order; each is kept unless its box overlaps a kept one
+// by an IoU above `max_iou`. Returns the kept indices, best first.
+std::vector<size_t> SuppressOverlaps(std::vector<size_t> candidates, const std::vector<float>& score,
+                                     const std::vector<Proposal>& proposals, float max_iou);
+
+// The hypothesis that proposal `p` (number `index` of scene `scene`, footprint `f`) is of class
+// `cls` with `score`: the proposal's box (world frame through the scan's `pose`; upright poses
+// keep it upright), accepted when score >= threshold (else the rejection says why), and the
+// model `model_id` standing on the ground at the footprint's centre, its width along the
+// footprint's length when the model is wider than deep (`model_wide`; yaw modulo a half turn).
+Hypothesis ProposalHypothesis(const std::string& cls, float score, float threshold, const Proposal& p, int index,
+                              int scene, const Footprint& f, const std::string& model_id, bool model_wide,
+                              const Eigen::Isometry3f& pose);
 
 }  // namespace furnihost::shape

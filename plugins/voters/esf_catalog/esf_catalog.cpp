@@ -424,19 +424,12 @@ class EsfCatalogVoter : public Voter {
         std::vector<size_t> order;
         for (size_t i = 0; i < n; ++i)
           if (score[c][i] >= o_.min_score && best_model[c][i] >= 0) order.push_back(i);
-        std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return score[c][a] > score[c][b]; });
-        std::vector<size_t> kept;
-        for (size_t i : order) {
-          bool suppressed = false;
-          for (size_t j : kept)
-            if (Iou(items[i].box, items[j].box) > o_.nms_iou) {
-              suppressed = true;
-              break;
-            }
-          if (suppressed) continue;
-          kept.push_back(i);
-          out.hypotheses.push_back(MakeHypothesis(classes_[c], score[c][i], items[i], int(i), int(s), foot[i],
-                                                  models_[size_t(best_model[c][i])], scan.pose));
+        const auto thr = o_.thresholds.find(classes_[c]);
+        const float t = thr == o_.thresholds.end() ? static_cast<float>(o_.default_threshold) : thr->second;
+        for (size_t i : shape::SuppressOverlaps(std::move(order), score[c], items, static_cast<float>(o_.nms_iou))) {
+          const Model& md = models_[size_t(best_model[c][i])];
+          out.hypotheses.push_back(shape::ProposalHypothesis(classes_[c], score[c][i], t, items[i], int(i), int(s),
+                                                             foot[i], md.id, md.wide, scan.pose));
           out.hypotheses.back().evidence = std::move(evidence[c][i]);
         }
       }
@@ -456,46 +449,6 @@ class EsfCatalogVoter : public Voter {
       if (s > 0.f) d += (q[b] - e[b]) * (q[b] - e[b]) / s;
     }
     return d;
-  }
-
-  static float Iou(const Eigen::AlignedBox3f& a, const Eigen::AlignedBox3f& b) {
-    const Eigen::AlignedBox3f i = a.intersection(b);
-    if (i.isEmpty()) return 0.f;
-    const float vi = i.volume(), u = a.volume() + b.volume() - vi;
-    return u > 0 ? vi / u : 0.f;
-  }
-
-  Hypothesis MakeHypothesis(const std::string& cls, float score, const Proposal& p, int index, int scene,
-                            const shape::Footprint& f, const Model& md, const Eigen::Isometry3f& pose) const {
-    Hypothesis h;
-    h.cls = cls;
-    h.score = score;
-    h.proposal = index;
-    h.scene = scene;
-    // The proposal's axis-aligned box (world frame for fused scans: upright poses keep it upright).
-    OrientedBox b;
-    b.center = pose * p.box.center();
-    b.size = p.box.sizes();
-    b.yaw = std::atan2(pose.linear()(1, 0), pose.linear()(0, 0));
-    h.box = b;
-    h.center = b.center;
-    const auto thr = o_.thresholds.find(cls);
-    const float t = thr == o_.thresholds.end() ? static_cast<float>(o_.default_threshold) : thr->second;
-    h.accepted = score >= t;
-    if (!*h.accepted) {
-      char buf[64];
-      std::snprintf(buf, sizeof buf, "score %.4f < %.4f", score, t);
-      h.rejection = buf;
-    }
-    // The model standing on the ground at the footprint's centre, its length along the
-    // footprint's (ESF says nothing about the yaw; modulo a half turn).
-    h.model = md.id;
-    const float yaw = f.yaw + (md.wide ? 0.f : float(M_PI / 2));
-    Eigen::Isometry3f m = Eigen::Isometry3f::Identity();
-    m.linear() = Eigen::AngleAxisf(yaw, Eigen::Vector3f::UnitZ()).toRotationMatrix();
-    m.translation() = Eigen::Vector3f(f.center.x(), f.center.y(), p.ground_z);
-    h.model_pose = pose * m;
-    return h;
   }
 
   Options o_;
