@@ -4,11 +4,13 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
 #include "furnihost/catalog.hpp"
 #include "furnihost/geometry.hpp"
+#include "furnihost/stage.hpp"
 #include "test_support.hpp"
 
 namespace furnihost::testing {
@@ -57,6 +59,29 @@ inline CatalogModel BoxCabinet() {
   AddBox(m.mesh, {-0.45f, -0.25f, 0.f}, {0.45f, 0.25f, 1.2f});
   m.size = m.mesh.Bounds().sizes();
   return m;
+}
+
+// Training views of `models` as a recogniser's Train gets them: 8 simulated laser views each at
+// 2 cm voxels (sensors.simulated_laser), with class, model id and size.
+inline std::vector<TrainingView> SimulatedTrainingViews(const std::vector<const CatalogModel*>& models) {
+  auto sensor = MakeStage<Sensor>("sensors.simulated_laser", {{"voxel_m", 0.02}, {"views", 8}});
+  std::vector<TrainingView> out;
+  RunContext ctx;
+  for (const CatalogModel* m : models) {
+    SensorRequest req;
+    req.objects.push_back({m, Eigen::Isometry3f::Identity()});
+    int v = 0;
+    for (auto& s : sensor->Acquire(req, ctx)) {
+      TrainingView tv;
+      tv.cls = m->cls;
+      tv.model_id = m->id;
+      tv.view = v++;
+      tv.object_size = m->size;
+      tv.scan = std::move(s);
+      out.push_back(std::move(tv));
+    }
+  }
+  return out;
 }
 
 }  // namespace furnihost::testing

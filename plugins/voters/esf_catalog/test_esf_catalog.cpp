@@ -49,24 +49,7 @@ CatalogModel Scaled(CatalogModel m, float f) {
 }
 
 std::vector<TrainingView> Views(const std::vector<const CatalogModel*>& models) {
-  auto sensor = Make<Sensor>("sensors.simulated_laser", {{"voxel_m", 0.02}, {"views", 8}});
-  std::vector<TrainingView> out;
-  RunContext ctx;
-  for (const CatalogModel* m : models) {
-    SensorRequest req;
-    req.objects.push_back({m, Eigen::Isometry3f::Identity()});
-    int v = 0;
-    for (auto& s : sensor->Acquire(req, ctx)) {
-      TrainingView tv;
-      tv.cls = m->cls;
-      tv.model_id = m->id;
-      tv.view = v++;
-      tv.object_size = m->size;
-      tv.scan = std::move(s);
-      out.push_back(std::move(tv));
-    }
-  }
-  return out;
+  return testing::SimulatedTrainingViews(models);
 }
 
 // A scene: `m` turned by 0.5 rad and moved, scanned from two sensor positions on one side (a
