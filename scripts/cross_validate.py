@@ -38,6 +38,8 @@ GRIDS = {
            "compete": [0, 1], "sig_long_big": [0.2, 0.5]},
     "tiny": {"sig_surround": [0.15, 0.6], "compete": [0, 1]},
 }
+# g6 and whether a class's models may hang above the floor (kitchen wall cabinets; 0 = they stand on it).
+GRIDS["g6w"] = dict(GRIDS["g6"], wall_mount=[0, 3])
 
 
 def load(path):
@@ -187,6 +189,17 @@ def run_eval(args, overrides, dataset, out):
     return os.path.join(out, "detections", "cv", sorted(seeds)[0])
 
 
+def graph_class_params(args):
+    """The graph's own per-class parameters of the recogniser (after extends): the keys a grid point does
+    not set keep these values."""
+    r = subprocess.run([args.furnihost, "validate", "--graph", args.graph, "--print"], capture_output=True, text=True)
+    if r.returncode != 0:
+        sys.stderr.write(r.stderr)
+        raise SystemExit("cross_validate: furnihost validate failed for " + args.graph)
+    stage = json.loads(r.stdout).get("stages", {}).get(args.stage, {})
+    return stage.get("params", {}).get("class_params", {})
+
+
 def class_figures(ds, dets_by_scene, scenes, cls):
     scored = {"iou25": [], "iou50": [], "paper": []}
     npos = 0
@@ -229,12 +242,17 @@ def main():
     grid = GRIDS[args.grid]
     keys = sorted(grid)
     points = [dict(zip(keys, v)) for v in itertools.product(*(grid[k] for k in keys))]
+    fixed = graph_class_params(args)
+
+    def with_fixed(choice):
+        """class -> grid point, over the graph's own per-class parameters."""
+        return {c: {**fixed.get(c, {}), **pt} for c, pt in choice.items()}
     print(f"cross_validate: {len(points)} grid points x {len(stems)} scans, {len(groups)} groups", file=sys.stderr)
 
     # 1. every grid point, every class set to it
     per_point = []
     for i, pt in enumerate(points):
-        cp = {c: pt for c in ds.classes}
+        cp = with_fixed({c: pt for c in ds.classes})
         folder = run_eval(args, [f"{args.stage}.class_params={json.dumps(cp)}"], args.dataset,
                           os.path.join(args.out, f"grid_{i:03d}"))
         per_point.append({s: detections_of(folder, s, ds) for s in stems})
@@ -269,7 +287,7 @@ def main():
         os.makedirs(args.out, exist_ok=True)
         with open(mpath, "w") as f:
             json.dump(sub, f)
-        folder = run_eval(args, [f"{args.stage}.class_params={json.dumps(choice)}"], mpath, os.path.join(args.out, f"fold_{g}"))
+        folder = run_eval(args, [f"{args.stage}.class_params={json.dumps(with_fixed(choice))}"], mpath, os.path.join(args.out, f"fold_{g}"))
         dets = {s: detections_of(folder, s, ds) for s in test}
         for c in ds.classes:
             sc, n = class_figures(ds, dets, test, c)
@@ -313,7 +331,7 @@ def main():
         thresholds[c] = round(operating_threshold(sc["iou25"], n, args.min_precision), 4)
         print(f"  {c:8s} AP25 {average_precision(sc['iou25'], n):.3f}  AP50 {average_precision(sc['iou50'], n):.3f}"
               f"  AP {average_precision(sc['paper'], n):.3f}")
-    print(json.dumps({"class_params": ship, "thresholds": thresholds}))
+    print(json.dumps({"class_params": with_fixed(ship), "thresholds": thresholds}))
 
 
 if __name__ == "__main__":

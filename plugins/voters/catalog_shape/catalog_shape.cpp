@@ -16,6 +16,9 @@
 //         + EMD(h, h_m)^2 / (2 sig_profile^2)
 //   pen(d) = d^2 / (2 s^2), s = sig_*_small when the proposal is smaller than the model (a partial
 //   scan is tolerated), sig_*_big when larger;
+//   with wall_mount > 0 (a class whose objects may hang on a wall, as kitchen wall cabinets do),
+//   also E_m' = pen(ln L/L_m) + pen(ln W/W_m) + pen(ln (T - B)/H_m; top) + wall_mount: the model
+//   lifted to the proposal's bottom, without the bottom, profile and floor terms; E_m = min(E_m, E_m');
 //   score_c = exp(-min over the class's models m of E_m - s / sig_surround),
 // then optionally class competition (score_c * (score_c / best class score of the proposal's
 // group)^compete): one object is one class, whatever variant of its cluster is looked at.
@@ -46,6 +49,7 @@ struct ClassParams {
   float top_small = 0.15f, top_big = 0.1f, bottom = 0.15f, profile = 0.05f, surround = 0.3f;
   float floor_under = 0.5f, floor_over = 0.2f;
   float compete = 0.f;
+  float wall_mount = 0.f;  // 0: models stand on the floor; > 0: they may also hang above it, at this extra cost
   std::string source = "catalog";  // proposals scored: "catalog" (from the class's model heights), "any", or a rule name
 };
 
@@ -56,7 +60,8 @@ const std::vector<std::pair<std::string, float ClassParams::*>>& Fields() {
       {"sig_top_small", &ClassParams::top_small},   {"sig_top_big", &ClassParams::top_big},
       {"sig_bottom", &ClassParams::bottom},          {"sig_profile", &ClassParams::profile},
       {"sig_surround", &ClassParams::surround},      {"sig_floor_less", &ClassParams::floor_under},
-      {"sig_floor_more", &ClassParams::floor_over},  {"compete", &ClassParams::compete}};
+      {"sig_floor_more", &ClassParams::floor_over},  {"compete", &ClassParams::compete},
+      {"wall_mount", &ClassParams::wall_mount}};
   return f;
 }
 
@@ -101,9 +106,9 @@ ClassParams ParseClassParams(const nlohmann::json& j, ClassParams p, const std::
       throw InputError(where + "/" + it.key() + ": unknown; valid: " + names);
     }
     if (!it->is_number() || !(it->get<double>() >= 0.0) || it->get<double>() > 100.0 ||
-        (f->first != "compete" && !(it->get<double>() > 0.0)))
+        (f->first.rfind("sig_", 0) == 0 && !(it->get<double>() > 0.0)))
       throw InputError(where + "/" + it.key() + ": expected a number in " +
-                       (f->first == "compete" ? "[0, 100]" : "(0, 100]"));
+                       (f->first.rfind("sig_", 0) == 0 ? "(0, 100]" : "[0, 100]"));
     p.*(f->second) = it->get<float>();
   }
   return p;
@@ -170,6 +175,10 @@ const ParamBinding<Options>& Binding() {
           .Number("sig_floor_more", base(&ClassParams::floor_over), 1e-3, 100, "", "... when more is seen")
           .DetectionOnly()
           .Number("compete", base(&ClassParams::compete), 0, 100, "", "class competition exponent (0 = off)")
+          .Number("wall_mount", base(&ClassParams::wall_mount), 0, 100, "",
+                  "0: the models stand on the floor; > 0: they may also hang above it (kitchen wall cabinets): the "
+                  "model then spans the proposal's own height extent, the bottom, top-view profile and floor terms are "
+                  "dropped (a sensor below a wall cabinet rarely sees its top) and this cost is added to the energy")
           .DetectionOnly()
           .NumberMap("thresholds", &O::thresholds, 0, std::nullopt, "",
                      "operating score per detected class: detections at or above it are accepted (verified), the "
@@ -479,13 +488,22 @@ class CatalogShapeVoter : public Voter {
             const Model& md = models_[m];
             if (md.cls != classes_[c]) continue;
             const float emd = shape::ProfileDistance(prof, md.profile);
-            const std::array<float, 6> t = {Pen(std::log(L / md.length), cp.long_small, cp.long_big),
+            std::array<float, 6> t = {Pen(std::log(L / md.length), cp.long_small, cp.long_big),
                                             Pen(std::log(W / md.width), cp.short_small, cp.short_big),
                                             Pen(std::log(T / md.height), cp.top_small, cp.top_big),
                                             0.5f * (B / cp.bottom) * (B / cp.bottom),
                                             emd * emd / (2 * cp.profile * cp.profile),
                                             o_.floor_term ? Pen(seen - md.open, cp.floor_under, cp.floor_over) : 0.f};
-            const float E = t[0] + t[1] + t[2] + t[3] + t[4] + t[5];
+            float E = t[0] + t[1] + t[2] + t[3] + t[4] + t[5];
+            if (cp.wall_mount > 0.f) {
+              // Hanging: the model spans the proposal's height extent; no bottom gap, floor or top-view
+              // evidence (a sensor below a wall cabinet rarely sees its top).
+              const std::array<float, 6> tl = {t[0], t[1],
+                                               Pen(std::log(std::max(T - B, 0.02f) / md.height), cp.top_small, cp.top_big),
+                                               cp.wall_mount, 0.f, 0.f};
+              const float El = tl[0] + tl[1] + tl[2] + tl[3] + tl[4] + tl[5];
+              if (El < E) E = El, t = tl;
+            }
             if (E < best) best = E, best_model[c][i] = int(m), terms = t;
           }
           score[c][i] = std::exp(-best - p.surround / cp.surround);

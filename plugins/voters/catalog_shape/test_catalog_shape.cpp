@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <optional>
 
 #include "furnihost/ground.hpp"
 #include "furnihost/stage.hpp"
@@ -29,6 +30,26 @@ CatalogModel Cabinet() { return testing::BoxCabinet(); }
 
 std::vector<TrainingView> Views(const std::vector<const CatalogModel*>& models) {
   return testing::SimulatedTrainingViews(models);
+}
+
+// A room with `objects` on a floor at `floor_z`, scanned from four sides 3 m around (1, 0) at
+// 1.5 m above the floor, with its ground estimated.
+Scan ScanRoom(const std::vector<PlacedObject>& objects, float floor_z,
+              RunContext& ctx) {
+  SensorRequest req;
+  req.objects = objects;
+  AddBox(req.extra, {-3.f, -3.f, floor_z - 0.02f}, {5.f, 3.f, floor_z});  // the floor
+  for (float a : {0.f, 1.57f, 3.14f, 4.71f}) {
+    Eigen::Isometry3f s = Eigen::Isometry3f::Identity();
+    s.linear() = Eigen::AngleAxisf(a + 3.14159f, Eigen::Vector3f::UnitZ()).toRotationMatrix();
+    s.translation() = Eigen::Vector3f(1.f + 3.f * std::cos(a), 3.f * std::sin(a), floor_z + 1.5f);
+    req.poses.push_back(s);
+  }
+  auto sensor = Make<Sensor>("sensors.simulated_laser", {{"voxel_m", 0.015}});
+  Scan scan;
+  for (auto& s : sensor->Acquire(req, ctx)) scan.points.insert(scan.points.end(), s.points.begin(), s.points.end());
+  scan.ground = EstimateGround(scan.points, GroundOptions{});
+  return scan;
 }
 
 TEST(CatalogShape, TrainsSizesProfilesAndOpenFloor) {
@@ -59,23 +80,11 @@ TEST(CatalogShape, FindsEachObjectAsItsClass) {
   voter->Load(voter->Train(Views({&table, &cabinet}), ctx));
 
   const float floor_z = -1.2f;
-  SensorRequest req;
   Eigen::Isometry3f tp = Eigen::Isometry3f::Identity(), cp = Eigen::Isometry3f::Identity();
   tp.translation() = Eigen::Vector3f(0.f, 0.f, floor_z);
   cp.translation() = Eigen::Vector3f(2.0f, 0.3f, floor_z);
   cp.linear() = Eigen::AngleAxisf(0.6f, Eigen::Vector3f::UnitZ()).toRotationMatrix();
-  req.objects = {{&table, tp}, {&cabinet, cp}};
-  AddBox(req.extra, {-3.f, -3.f, floor_z - 0.02f}, {5.f, 3.f, floor_z});  // the floor
-  for (float a : {0.f, 1.57f, 3.14f, 4.71f}) {
-    Eigen::Isometry3f s = Eigen::Isometry3f::Identity();
-    s.linear() = Eigen::AngleAxisf(a + 3.14159f, Eigen::Vector3f::UnitZ()).toRotationMatrix();
-    s.translation() = Eigen::Vector3f(1.f + 3.f * std::cos(a), 3.f * std::sin(a), floor_z + 1.5f);
-    req.poses.push_back(s);
-  }
-  auto sensor = Make<Sensor>("sensors.simulated_laser", {{"voxel_m", 0.015}});
-  Scan scan;
-  for (auto& s : sensor->Acquire(req, ctx)) scan.points.insert(scan.points.end(), s.points.begin(), s.points.end());
-  scan.ground = EstimateGround(scan.points, GroundOptions{});
+  const Scan scan = ScanRoom({{&table, tp}, {&cabinet, cp}}, floor_z, ctx);
   EXPECT_NEAR(scan.ground->HeightAt(1.f, 0.f), floor_z, 0.02f);
 
   auto proposer = Make<Proposer>("proposals.clusters");
@@ -116,6 +125,47 @@ TEST(CatalogShape, FindsEachObjectAsItsClass) {
   };
   EXPECT_GT(score_at("table", {0.f, 0.f}), score_at("cabinet", {0.f, 0.f}));
   EXPECT_GT(score_at("cabinet", {2.0f, 0.3f}), score_at("table", {2.0f, 0.3f}));
+}
+
+// A kitchen wall cabinet (0.8 x 0.36 x 0.7 m) hanging 1.3 m above the floor: with its class
+// standing on the floor (wall_mount 0) the gap under it rules it out; with wall_mount > 0 it is
+// found, as the model lifted to its bottom, at about exp(-wall_mount) of a perfect fit's score.
+TEST(CatalogShape, WallMountFindsAHangingCabinet) {
+  CatalogModel cabinet;
+  cabinet.id = "test_wall_cabinet";
+  cabinet.cls = "cabinet";
+  AddBox(cabinet.mesh, {-0.4f, -0.18f, 0.f}, {0.4f, 0.18f, 0.7f});
+  cabinet.size = cabinet.mesh.Bounds().sizes();
+  const float floor_z = 0.f, lift = 1.3f;
+  RunContext ctx;
+  Eigen::Isometry3f cp = Eigen::Isometry3f::Identity();
+  cp.translation() = Eigen::Vector3f(1.0f, 0.2f, floor_z + lift);
+  const Scan scan = ScanRoom({{&cabinet, cp}}, floor_z, ctx);
+  auto proposer = Make<Proposer>("proposals.clusters");
+  const Proposals props = proposer->Propose(scan, nullptr, ctx);
+  SceneParts parts;
+  parts.scan = &scan;
+  parts.proposals = &props;
+  auto cabinet_at = [&](float wall_mount) {
+    auto voter = Make<Voter>("voters.catalog_shape",
+                             {{"class_params", {{"cabinet", {{"wall_mount", wall_mount}}}}}, {"min_score", 1e-4}});
+    voter->Load(voter->Train(Views({&cabinet}), ctx));
+    std::optional<Hypothesis> best;
+    for (const auto& h : voter->Vote({parts}, ctx).hypotheses)
+      if (h.cls == "cabinet" && (h.center.head<2>() - Eigen::Vector2f(1.0f, 0.2f)).norm() < 0.15f &&
+          (!best || h.score > best->score))
+        best = h;
+    return best;
+  };
+  EXPECT_FALSE(cabinet_at(0.f).has_value());
+  const auto h = cabinet_at(2.f);
+  ASSERT_TRUE(h.has_value());
+  EXPECT_NEAR(h->evidence.at("bottom_m"), lift, 0.05f);
+  EXPECT_FLOAT_EQ(h->evidence.at("e_bottom"), 2.f);  // the wall_mount cost in place of the gap's
+  EXPECT_GT(h->score, 0.5f * std::exp(-2.f));
+  EXPECT_LE(h->score, std::exp(-2.f) + 1e-6f);
+  ASSERT_TRUE(h->box);
+  EXPECT_NEAR(h->box->size.z(), 0.7f, 0.06f);
 }
 
 }  // namespace
