@@ -24,6 +24,10 @@ class RegionGrowingSegmenter : public Segmenter {
           "parts with fewer points are regrouped by distance; still smaller ones are discarded (paper: 10)");
     s.Int("min_fit_points", 6, 3, 1e6,
           "with fewer neighbours (the point included) the normal is the PCA normal, below 3 it is NaN");
+    s.Int("max_normal_points", 400, 0, 1e6,
+          "where the normal ball would hold more than about this many points (its 3x3x3 cells of "
+          "normal_radius_m hold more than 4x this), fit the normal to the point-weighted centroids of "
+          "voxels of normal_radius_m / 4 (~50 in a planar ball), not to every point; 0 = always every point");
     s.Bool("signed_normals", false,
            "compare signed normals (needs a sensor origin); false treats n and -n as parallel");
     return s;
@@ -35,6 +39,7 @@ class RegionGrowingSegmenter : public Segmenter {
     o_.angle_deg = p.at("angle_deg").get<double>();
     o_.min_points = p.at("min_points").get<int>();
     o_.min_fit_points = p.at("min_fit_points").get<int>();
+    o_.max_normal_points = p.at("max_normal_points").get<int>();
     o_.signed_normals = p.at("signed_normals").get<bool>();
     o_.Check();
   }
