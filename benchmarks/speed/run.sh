@@ -12,7 +12,8 @@
 # pipeline); REPEATS=N makes it N detection runs per scan (the fastest is reported) and N
 # benchmark iterations (mean). The model is trained once and cached, not timed.
 # MAX_NORMAL_POINTS=K sets segmenters.region_growing's max_normal_points (detection and
-# benchmark; the detection then trains and caches a model of its own).
+# benchmark); the detection then retrains the model and overwrites the cached one (the next
+# run without it retrains again).
 # Writes DIR (default runs/speed/): rooms/*.pcd, detect/<scan>/run<i>/detections.json,
 # segmentation.json, speed.md (the tables) and speed.svg (time against point count).
 # $FURNIHOST_SHARED_DATA_DIR (default ../shared/data) holds scannet_votenet50k/; it is read in
