@@ -11,7 +11,7 @@
 //
 //   build/bin/bench_region_growing [--benchmark_filter=...]
 //   build/bin/bench_region_growing --scan=room=room.pcd,paper.json [--scan=...]
-//       [--ours_iterations=3] [--pcl_iterations=1] [--summary_json=FILE]
+//       [--ours_iterations=3] [--pcl_iterations=1] [--summary_json=FILE] [--max_normal_points=K]
 //
 // PRESET: paper (Sect. III radii, the default without --scan), paper.json (configs/paper.json's
 // segmenter: 8 cm normals; features.paper24 defaults) or scannet (radii for ScanNet spacing).
@@ -56,6 +56,8 @@ using furnihost::Points;
 using furnihost::Scan;
 
 constexpr int kThreads = 2;
+// --max_normal_points=K: segmenters.region_growing's density switch (-1: its default).
+int g_max_normal_points = -1;
 constexpr double kPi = 3.14159265358979323846;
 
 // ---- procedural room ---------------------------------------------------------------------
@@ -214,6 +216,7 @@ void BM_Ours(benchmark::State& state, std::string key, const Scan* (*get)(), Par
   furnihost::rg::RegionGrowingOptions o;
   o.normal_radius_m = prm.normal_radius;
   o.distance_m = prm.distance;
+  if (g_max_normal_points >= 0) o.max_normal_points = g_max_normal_points;
   furnihost::parts::PartFeatureOptions fo;
   fo.boundary_radius_m = prm.boundary_radius;
   fo.voxel_m = prm.voxel;
@@ -490,6 +493,8 @@ int main(int argc, char** argv) {
       ours_iterations = std::max(1, std::atoi(v));
     } else if (const char* v = value("--pcl_iterations=")) {
       pcl_iterations = std::max(1, std::atoi(v));
+    } else if (const char* v = value("--max_normal_points=")) {
+      g_max_normal_points = std::max(0, std::atoi(v));
     } else {
       rest.push_back(argv[a]);
     }

@@ -11,6 +11,9 @@
 # 2 cores once built. Each measurement is one run (the 1.5M room costs about a minute per
 # pipeline); REPEATS=N makes it N detection runs per scan (the fastest is reported) and N
 # benchmark iterations (mean). The model is trained once and cached, not timed.
+# MAX_NORMAL_POINTS=K sets segmenters.region_growing's max_normal_points (detection and
+# benchmark); the detection then retrains the model and overwrites the cached one (the next
+# run without it retrains again).
 # Writes DIR (default runs/speed/): rooms/*.pcd, detect/<scan>/run<i>/detections.json,
 # segmentation.json, speed.md (the tables) and speed.svg (time against point count).
 # $FURNIHOST_SHARED_DATA_DIR (default ../shared/data) holds scannet_votenet50k/; it is read in
@@ -70,12 +73,14 @@ fi
 # The first detection trains the model if furnihost-out/models/ has no valid one; training is
 # outside timings_ms.
 REPEATS=${REPEATS:-1}
+SET_ARGS=()
+[[ -n ${MAX_NORMAL_POINTS:-} ]] && SET_ARGS=(--set "segment.max_normal_points=$MAX_NORMAL_POINTS")
 for s in "${SCANS[@]}"; do
   name=${s%%=*}; f=${s#*=}
   rm -rf "$OUT/detect/$name"
   for i in $(seq "$REPEATS"); do
     echo "detect: $name (run $i of $REPEATS)"
-    "$FH" --graph configs/paper.json "$f" --threads "$THREADS" -q --out "$OUT/detect/$name/run$i" >/dev/null
+    "$FH" --graph configs/paper.json "$f" "${SET_ARGS[@]}" --threads "$THREADS" -q --out "$OUT/detect/$name/run$i" >/dev/null
   done
 done
 
@@ -83,6 +88,7 @@ done
 BENCH_ARGS=()
 for s in "${SCANS[@]}"; do BENCH_ARGS+=("--scan=$s,paper.json"); done
 BENCH_ARGS+=(--ours_iterations="${REPEATS}" --pcl_iterations="${REPEATS}")
+[[ -n ${MAX_NORMAL_POINTS:-} ]] && BENCH_ARGS+=(--max_normal_points="$MAX_NORMAL_POINTS")
 "$BUILD/bin/bench_region_growing" "${BENCH_ARGS[@]}" --summary_json="$OUT/segmentation.json"
 
 python3 benchmarks/speed/report.py "$OUT"

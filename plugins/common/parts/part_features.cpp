@@ -149,19 +149,30 @@ float BoundaryRatio(const Points& q, const Points& normals, const Eigen::Vector3
         // Projections of the neighbours on the tangent plane, compacted without branches.
         pa.resize(m), pb.resize(m);
         int cnt = 0;
-        for (int j = 0; j < m; ++j) {
-          const float dx = cx[j] - px, dy = cy[j] - py, dz = cz[j] - pz;
-          const float a = u.x() * dx + u.y() * dy + u.z() * dz;
-          const float b = v.x() * dx + v.y() * dy + v.z() * dz;
-          pa[cnt] = a, pb[cnt] = b;
-          // Within r, and not the point itself nor straight above it.
-          cnt += (dx * dx + dy * dy + dz * dz < r2) & (a * a + b * b > min_len2);
-        }
+        auto project = [&](int j_begin, int j_end) {
+          for (int j = j_begin; j < j_end; ++j) {
+            const float dx = cx[j] - px, dy = cy[j] - py, dz = cz[j] - pz;
+            const float a = u.x() * dx + u.y() * dy + u.z() * dz;
+            const float b = v.x() * dx + v.y() * dy + v.z() * dz;
+            pa[cnt] = a, pb[cnt] = b;
+            // Within r, and not the point itself nor straight above it.
+            cnt += (dx * dx + dy * dy + dz * dz < r2) & (a * a + b * b > min_len2);
+          }
+        };
         if (wide) {
+          // Neighbours in all eight 45 deg sectors leave no gap above 90 deg whatever the
+          // others: an inner point stops there, long before the end of a dense neighbourhood.
+          // Otherwise every neighbour is projected, as without the chunks.
+          constexpr int kChunk = 64;
           unsigned sectors = 0;
-          for (int j = 0; j < cnt; ++j) sectors |= 1u << Octant(pa[j], pb[j]);
+          for (int j0 = 0; j0 < m && sectors != 0xffu; j0 += kChunk) {
+            const int first = cnt;
+            project(j0, std::min(m, j0 + kChunk));
+            for (int j = first; j < cnt; ++j) sectors |= 1u << Octant(pa[j], pb[j]);
+          }
           last = sectors != 0xffu && GapAtEmptySectors(pa.data(), pb.data(), cnt, sectors, cos_t, keys);
         } else {
+          project(0, m);
           dirs.clear();
           for (int j = 0; j < cnt; ++j) dirs.push_back({PseudoAngle(pa[j], pb[j]), pa[j], pb[j]});
           last = HasGap(dirs, cos_t);

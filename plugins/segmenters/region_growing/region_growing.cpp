@@ -10,34 +10,35 @@
 
 namespace furnihost {
 
+// Each parameter declared once; its default is rg::RegionGrowingOptions{}'s.
+const ParamBinding<rg::RegionGrowingOptions>& Binding() {
+  using O = rg::RegionGrowingOptions;
+  static const auto b =
+      ParamBinding<O>()
+          .Number("normal_radius_m", &O::normal_radius_m, 0.001, 10.0, "",
+                  "radius of the neighbourhood of the height-function fit [m] (paper: 0.03)")
+          .Number("distance_m", &O::distance_m, 0.001, 10.0, "",
+                  "a point joins a part if closer than this to one of its points [m] (paper: 0.05)")
+          .Number("angle_deg", &O::angle_deg, 0.0, 180.0, "",
+                  "max angle between a point's normal and the part's seed normal [deg] (paper: 40)")
+          .Int("min_points", &O::min_points, 1, 1e9, "",
+               "parts with fewer points are regrouped by distance; still smaller ones are discarded (paper: 10)")
+          .Int("min_fit_points", &O::min_fit_points, 3, 1e6, "",
+               "with fewer neighbours (the point included) the normal is the PCA normal, below 3 it is NaN")
+          .Int("max_normal_points", &O::max_normal_points, 0, 1e6, "",
+               "where the normal ball would hold more than about this many points (its 3x3x3 cells of "
+               "normal_radius_m hold more than 4x this), fit the normal to the point-weighted centroids of "
+               "voxels of normal_radius_m / 4 (~50 in a planar ball), not to every point; 0 = always every point")
+          .Bool("signed_normals", &O::signed_normals,
+                "compare signed normals (needs a sensor origin); false treats n and -n as parallel");
+  return b;
+}
+
 class RegionGrowingSegmenter : public Segmenter {
  public:
-  static ParamSchema Schema() {
-    ParamSchema s;
-    s.Number("normal_radius_m", 0.03, 0.001, 10.0,
-             "radius of the neighbourhood of the height-function fit [m] (paper: 0.03)");
-    s.Number("distance_m", 0.05, 0.001, 10.0,
-             "a point joins a part if closer than this to one of its points [m] (paper: 0.05)");
-    s.Number("angle_deg", 40.0, 0.0, 180.0,
-             "max angle between a point's normal and the part's seed normal [deg] (paper: 40)");
-    s.Int("min_points", 10, 1, 1e9,
-          "parts with fewer points are regrouped by distance; still smaller ones are discarded (paper: 10)");
-    s.Int("min_fit_points", 6, 3, 1e6,
-          "with fewer neighbours (the point included) the normal is the PCA normal, below 3 it is NaN");
-    s.Bool("signed_normals", false,
-           "compare signed normals (needs a sensor origin); false treats n and -n as parallel");
-    return s;
-  }
+  static ParamSchema Schema() { return Binding().Schema(); }
 
-  explicit RegionGrowingSegmenter(const nlohmann::json& p) {
-    o_.normal_radius_m = p.at("normal_radius_m").get<double>();
-    o_.distance_m = p.at("distance_m").get<double>();
-    o_.angle_deg = p.at("angle_deg").get<double>();
-    o_.min_points = p.at("min_points").get<int>();
-    o_.min_fit_points = p.at("min_fit_points").get<int>();
-    o_.signed_normals = p.at("signed_normals").get<bool>();
-    o_.Check();
-  }
+  explicit RegionGrowingSegmenter(const nlohmann::json& p) : o_(Binding().Parse(p)) { o_.Check(); }
 
   Segmentation Segment(const Scan& scan, const RunContext& ctx) override {
     tbb::task_arena arena(ctx.threads > 0 ? ctx.threads : tbb::task_arena::automatic);

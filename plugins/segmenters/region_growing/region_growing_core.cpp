@@ -10,6 +10,7 @@
 #include <limits>
 #include <numeric>
 #include <tuple>
+#include <type_traits>
 
 #include "furnihost/log.hpp"
 #include "furnihost/voxel_index.hpp"
@@ -22,6 +23,9 @@ namespace {
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 // Cells with more points than this are checked for copies of one point (NormalsLocal).
 constexpr size_t kCopiesCheckedFrom = 32;
+// Dense cells fit voxel centroids, voxel edge = normal radius / this: ~50 centroids in a planar
+// ball (pi 4^2), ~2.5x fewer than the fewest points a dense cell's ball holds on average.
+constexpr int kCentroidVoxelsPerRadius = 4;
 
 // The finite points of a scan shifted by the centre of their bounding box, computed in double:
 // float coordinates of a scan in map coordinates (1e5 m) would leave ~8 mm of resolution for
@@ -54,10 +58,11 @@ LocalCloud ToLocal(const Points& points) {
 // The arrays have room for every candidate; the first `count` entries are the neighbours.
 struct Neighbours {
   std::vector<float> x, y, z, d2;
+  std::vector<float> mult;     // points per neighbour (voxel centroids; FitPoint<true> only)
   std::vector<float> scratch;  // FitPoint's work arrays
   int count = 0;
   void reserve(int m) {
-    if (int(x.size()) < m) x.resize(m), y.resize(m), z.resize(m), d2.resize(m);
+    if (int(x.size()) < m) x.resize(m), y.resize(m), z.resize(m), d2.resize(m), mult.resize(m);
   }
   int size() const { return count; }
 };
@@ -102,6 +107,9 @@ bool SolveSpd6(double A[6][6], double y[6], double c[6]) {
 // Fewer than `min_fit` points or a neighbourhood without 2-D extent (a line of points, where
 // the quadratic terms are undetermined): the PCA normal. Fewer than 3 points: NaN.
 // The paper also projects the point onto the fitted surface; we keep the measured points.
+// kCentroids: the neighbours are voxel centroids, each standing for nb.mult[i] points, which
+// weigh the moments and the fit as that many points at the centroid would.
+template <bool kCentroids>
 void FitPoint(Neighbours& nb, int min_fit, Eigen::Vector3f& normal, float& curvature) {
   const int k = nb.size();
   if (k < 3) {
@@ -114,11 +122,21 @@ void FitPoint(Neighbours& nb, int min_fit, Eigen::Vector3f& normal, float& curva
   // not be without -ffast-math).
   using Arr = Eigen::Map<const Eigen::ArrayXf>;
   const Arr X(nb.x.data(), k), Y(nb.y.data(), k), Z(nb.z.data(), k);
-  const double inv_k = 1.0 / k;
-  const Eigen::Vector3d mean(X.sum() * inv_k, Y.sum() * inv_k, Z.sum() * inv_k);
+  Eigen::Vector3d mean;
   Eigen::Matrix3d cov;
-  cov << (X * X).sum(), (X * Y).sum(), (X * Z).sum(), 0, (Y * Y).sum(), (Y * Z).sum(), 0, 0, (Z * Z).sum();
-  cov *= inv_k;
+  if constexpr (kCentroids) {
+    const Arr M(nb.mult.data(), k);
+    const double inv_m = 1.0 / double(M.sum());
+    mean = Eigen::Vector3d((M * X).sum() * inv_m, (M * Y).sum() * inv_m, (M * Z).sum() * inv_m);
+    cov << (M * X * X).sum(), (M * X * Y).sum(), (M * X * Z).sum(), 0, (M * Y * Y).sum(), (M * Y * Z).sum(), 0, 0,
+        (M * Z * Z).sum();
+    cov *= inv_m;
+  } else {
+    const double inv_k = 1.0 / k;
+    mean = Eigen::Vector3d(X.sum() * inv_k, Y.sum() * inv_k, Z.sum() * inv_k);
+    cov << (X * X).sum(), (X * Y).sum(), (X * Z).sum(), 0, (Y * Y).sum(), (Y * Z).sum(), 0, 0, (Z * Z).sum();
+    cov *= inv_k;
+  }
   cov -= mean * mean.transpose();
   cov(1, 0) = cov(0, 1), cov(2, 0) = cov(0, 2), cov(2, 1) = cov(1, 2);
   // Closed-form 3x3 solver in float: the scaled covariance is O(1); double costs 10 % of the
@@ -149,6 +167,7 @@ void FitPoint(Neighbours& nb, int min_fit, Eigen::Vector3f& normal, float& curva
   nb.scratch.resize(k);
   Eigen::Map<Eigen::ArrayXf> weight(nb.scratch.data(), k);
   weight = (-Arr(nb.d2.data(), k)).exp();
+  if constexpr (kCentroids) weight *= Arr(nb.mult.data(), k);
   for (int i = 0; i < k; ++i) {
     const float ex = nb.x[i] - ox, ey = nb.y[i] - oy, ez = nb.z[i] - oz;
     const float u = ex * U.x() + ey * U.y() + ez * U.z();
@@ -174,9 +193,42 @@ void FitPoint(Neighbours& nb, int min_fit, Eigen::Vector3f& normal, float& curva
   normal = (N - float(c[1]) * U - float(c[2]) * V).normalized();
 }
 
+// The centroids of the voxels of edge grid.cell / q inside cell c of `grid` (voxels aligned
+// with the cell: the grid is anchored at the points' minimum corner `lo`), one per non-empty
+// voxel, in voxel order, with its number of points as w. A centroid lies inside its cell, so the centroids within the radius
+// of any point of a cell are among those of the cell's 27 neighbour cells.
+struct CentroidScratch {
+  std::vector<int> count;
+  std::vector<Eigen::Vector3d> sum;
+  std::vector<int> used;
+};
+void CellCentroids(const VoxelIndex& grid, int c, const Eigen::Vector3f& lo, int q, CentroidScratch& w,
+                   std::vector<Eigen::Vector4f>& out) {
+  const int q3 = q * q * q;
+  if (int(w.count.size()) < q3) w.count.assign(size_t(q3), 0), w.sum.assign(size_t(q3), Eigen::Vector3d::Zero());
+  w.used.clear();
+  const Eigen::Vector3i cc = grid.CellCoords(c);
+  const float inv_v = float(q) / grid.cell;
+  auto sub = [&](float p, float l, int a) { return std::clamp(int((p - l) * inv_v) - q * cc[a], 0, q - 1); };
+  for (int s = grid.cell_start[c]; s < grid.cell_start[c + 1]; ++s) {
+    const int key = sub(grid.x[s], lo.x(), 0) + q * (sub(grid.y[s], lo.y(), 1) + q * sub(grid.z[s], lo.z(), 2));
+    if (w.count[key]++ == 0) w.used.push_back(key);
+    w.sum[key] += Eigen::Vector3d(grid.x[s], grid.y[s], grid.z[s]);
+  }
+  std::sort(w.used.begin(), w.used.end());
+  out.clear();
+  for (int key : w.used) {
+    const Eigen::Vector3f centroid = (w.sum[key] / double(w.count[key])).cast<float>();
+    out.emplace_back(centroid.x(), centroid.y(), centroid.z(), float(w.count[key]));
+    w.count[key] = 0;
+    w.sum[key].setZero();
+  }
+}
+
 // Normals of `lc` (by local index) with the grid of cell = radius. Per cell, the candidates of
 // its 27 neighbour cells are copied once into a contiguous buffer that every point of the cell
-// then scans (a tight, vectorisable loop).
+// then scans (a tight, vectorisable loop). Cells whose neighbourhood is dense (see
+// RegionGrowingOptions::max_normal_points) scan the voxel centroids of those cells instead.
 void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const RegionGrowingOptions& o,
                   Points& normals, std::vector<float>& curvature) {
   const size_t n = lc.pts.size();
@@ -187,19 +239,84 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
   const float inv_r = 1.f / r;
   VoxelIndex grid;
   grid.Build(lc.pts, r, VoxelIndex::Anchor::kBoundingBox, TbbFor());
-  tbb::parallel_for(tbb::blocked_range<int>(0, grid.NumCells(), 16), [&](const tbb::blocked_range<int>& range) {
+  const int cells = grid.NumCells();
+
+  // Dense cells and the voxel centroids of every cell next to one.
+  const int K = o.max_normal_points;
+  const int q = kCentroidVoxelsPerRadius;
+  std::vector<char> dense(size_t(cells), 0);
+  std::vector<std::vector<Eigen::Vector4f>> centroids;
+  if (K > 0) {
+    const int64_t dense_above = 4 * int64_t(K);
+    tbb::parallel_for(tbb::blocked_range<int>(0, cells, 256), [&](const tbb::blocked_range<int>& range) {
+      for (int c = range.begin(); c != range.end(); ++c) {
+        int64_t m = 0;
+        for (int k = grid.nb_start[c]; k < grid.nb_start[c + 1]; ++k)
+          m += grid.cell_start[grid.nb[k] + 1] - grid.cell_start[grid.nb[k]];
+        dense[c] = m > dense_above;
+      }
+    });
+    size_t dense_points = 0;
+    for (int c = 0; c < cells; ++c)
+      if (dense[c]) dense_points += size_t(grid.cell_start[c + 1] - grid.cell_start[c]);
+    if (dense_points > 0)
+      spdlog::debug("region_growing: {} of {} points in cells denser than {} points per 3x3x3 cells: normals from "
+                    "voxel centroids (voxel {:.4f} m)",
+                    dense_points, n, dense_above, r / float(q));
+    if (dense_points > 0) {
+      Eigen::Vector3f lo = lc.pts[0];  // VoxelIndex's anchor, computed alike
+      for (const auto& p : lc.pts) lo = lo.cwiseMin(p);
+      centroids.resize(size_t(cells));
+      tbb::parallel_for(tbb::blocked_range<int>(0, cells, 64), [&](const tbb::blocked_range<int>& range) {
+        CentroidScratch w;
+        for (int c = range.begin(); c != range.end(); ++c) {
+          bool near_dense = false;  // the neighbour relation is symmetric
+          for (int k = grid.nb_start[c]; k < grid.nb_start[c + 1] && !near_dense; ++k) near_dense = dense[grid.nb[k]];
+          if (near_dense) CellCentroids(grid, c, lo, q, w, centroids[c]);
+        }
+      });
+    }
+  }
+
+  tbb::parallel_for(tbb::blocked_range<int>(0, cells, 16), [&](const tbb::blocked_range<int>& range) {
     Neighbours nb;
-    std::vector<float> cx, cy, cz;
+    std::vector<float> cx, cy, cz, cw;
     std::vector<int> slots;
-    for (int c = range.begin(); c != range.end(); ++c) {
-      grid.GatherNeighbourhood(c, cx, cy, cz);
+    // Neighbours of (px, py, pz) among the m candidates (cx, cy, cz) into nb, scaled by 1/r;
+    // with kCentroids also their point counts cw.
+    auto collect = [&](auto centroids_tag, float px, float py, float pz) {
+      constexpr bool kCentroids = decltype(centroids_tag)::value;
       const int m = int(cx.size());
+      // Branch-free compaction: every candidate is written, only hits advance the cursor.
+      nb.reserve(m);
+      int cnt = 0;
+      float *nx = nb.x.data(), *ny = nb.y.data(), *nz = nb.z.data(), *nd = nb.d2.data(), *nm = nb.mult.data();
+      for (int j = 0; j < m; ++j) {
+        const float dx = (cx[j] - px) * inv_r, dy = (cy[j] - py) * inv_r, dz = (cz[j] - pz) * inv_r;
+        const float d2 = dx * dx + dy * dy + dz * dz;
+        nx[cnt] = dx, ny[cnt] = dy, nz[cnt] = dz, nd[cnt] = d2;
+        if constexpr (kCentroids) nm[cnt] = cw[j];
+        cnt += d2 < 1.f;
+      }
+      nb.count = cnt;
+    };
+    auto fit = [&](auto centroids_tag, int s) {
+      const float px = grid.x[s], py = grid.y[s], pz = grid.z[s];
+      Eigen::Vector3f nrm;
+      float curv;
+      FitPoint<decltype(centroids_tag)::value>(nb, o.min_fit_points, nrm, curv);
+      if (nrm.dot(view_local - Eigen::Vector3f(px, py, pz)) < 0) nrm = -nrm;
+      const uint32_t i = grid.order[s];
+      normals[i] = nrm;
+      curvature[i] = curv;
+    };
+    // The exact normals of `slots` (points of cell c) from every point of their ball.
+    auto exact = [&](int c) {
+      grid.GatherNeighbourhood(c, cx, cy, cz);
       // Copies of one point have the same neighbourhood, so one fit serves them all: without
       // this, N identical points (a (0, 0, 0) flood) cost N fits of N neighbours each. Only
       // cells that could hold many copies are sorted; a small cell costs at most its size
       // times its neighbourhood, which the neighbourhood's own points pay for.
-      slots.resize(size_t(grid.cell_start[c + 1] - grid.cell_start[c]));
-      std::iota(slots.begin(), slots.end(), grid.cell_start[c]);
       const bool copies = slots.size() > kCopiesCheckedFrom;
       if (copies)
         std::sort(slots.begin(), slots.end(), [&](int a, int b) {
@@ -216,24 +333,32 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
             continue;
           }
         }
-        // Branch-free compaction: every candidate is written, only hits advance the cursor.
-        nb.reserve(m);
-        int cnt = 0;
-        float *nx = nb.x.data(), *ny = nb.y.data(), *nz = nb.z.data(), *nd = nb.d2.data();
-        for (int j = 0; j < m; ++j) {
-          const float dx = (cx[j] - px) * inv_r, dy = (cy[j] - py) * inv_r, dz = (cz[j] - pz) * inv_r;
-          const float d2 = dx * dx + dy * dy + dz * dz;
-          nx[cnt] = dx, ny[cnt] = dy, nz[cnt] = dz, nd[cnt] = d2;
-          cnt += d2 < 1.f;
+        collect(std::false_type(), px, py, pz);
+        fit(std::false_type(), s);
+      }
+    };
+    for (int c = range.begin(); c != range.end(); ++c) {
+      slots.clear();
+      if (dense[c]) {
+        // Voxel centroids of the 27 cells; a point with fewer than 3 of them in its ball (a
+        // clump, e.g. copies of one point) takes the exact path below.
+        cx.clear(), cy.clear(), cz.clear(), cw.clear();
+        for (int k = grid.nb_start[c]; k < grid.nb_start[c + 1]; ++k)
+          for (const auto& p : centroids[grid.nb[k]])
+            cx.push_back(p.x()), cy.push_back(p.y()), cz.push_back(p.z()), cw.push_back(p.w());
+        for (int s = grid.cell_start[c]; s < grid.cell_start[c + 1]; ++s) {
+          collect(std::true_type(), grid.x[s], grid.y[s], grid.z[s]);
+          if (nb.count < 3) {
+            slots.push_back(s);
+            continue;
+          }
+          fit(std::true_type(), s);
         }
-        nb.count = cnt;
-        Eigen::Vector3f nrm;
-        float curv;
-        FitPoint(nb, o.min_fit_points, nrm, curv);
-        if (nrm.dot(view_local - Eigen::Vector3f(px, py, pz)) < 0) nrm = -nrm;
-        const uint32_t i = grid.order[s];
-        normals[i] = nrm;
-        curvature[i] = curv;
+        if (!slots.empty()) exact(c);
+      } else {
+        slots.resize(size_t(grid.cell_start[c + 1] - grid.cell_start[c]));
+        std::iota(slots.begin(), slots.end(), grid.cell_start[c]);
+        exact(c);
       }
     }
   });
@@ -252,6 +377,7 @@ void RegionGrowingOptions::Check() const {
   if (!(angle_deg >= 0 && angle_deg <= 180)) throw StageError("angle_deg must be in [0, 180]");
   if (min_points < 1) throw StageError("min_points must be >= 1");
   if (min_fit_points < 3) throw StageError("min_fit_points must be >= 3");
+  if (max_normal_points < 0) throw StageError("max_normal_points must be >= 0 (0: always exact)");
 }
 
 NormalResult EstimateNormals(const Points& points, const std::optional<Eigen::Vector3f>& viewpoint,

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <cstring>
 #include <random>
 #include <set>
 
@@ -447,7 +448,10 @@ TEST(RegionGrowing, CopiesGetTheNormalOfTheirPoint) {
   Scan copies = once;
   copies.points.clear();
   for (int c = 0; c < 40; ++c) copies.points.insert(copies.points.end(), once.points.begin(), once.points.end());
-  const auto a = RunSeg(once), b = RunSeg(copies);
+  // Exact balls: 40 copies make the neighbourhoods 40 times denser, which would switch on the
+  // voxel centroids (DenseNormals* below); here the copies must weigh alike in the exact fit.
+  const nlohmann::json exact = {{"max_normal_points", 0}};
+  const auto a = RunSeg(once, exact), b = RunSeg(copies, exact);
   ASSERT_EQ(b.normals.size(), copies.points.size());
   const size_t n = once.points.size();
   for (size_t i = 0; i < copies.points.size(); ++i) {
@@ -455,6 +459,110 @@ TEST(RegionGrowing, CopiesGetTheNormalOfTheirPoint) {
     EXPECT_LT(AngleDeg(b.normals[i], a.normals[i % n]), 0.05) << i;
     EXPECT_NEAR(b.curvature[i], a.curvature[i % n], 1e-4f) << i;
   }
+  // With the centroids (the default) every copy still gets exactly its point's normal, and
+  // it stays close to the exact one.
+  const auto c = RunSeg(copies);
+  for (size_t i = 0; i < copies.points.size(); ++i) {
+    ASSERT_TRUE(c.normals[i].allFinite()) << i;
+    EXPECT_EQ(c.normals[i], c.normals[i % n]) << i;
+    EXPECT_EQ(c.curvature[i], c.curvature[i % n]) << i;
+    EXPECT_LT(AngleDeg(c.normals[i], a.normals[i % n]), 1.0) << i;
+  }
+}
+
+// Density-adaptive normals (max_normal_points): at normal density nothing changes, bit for
+// bit; at 1-2 mm spacing the voxel centroids keep the normals accurate and the parts the same.
+TEST(RegionGrowing, DenseNormalsOffAtNormalDensity) {
+  std::mt19937_64 rng(8);
+  Scan scan;
+  scan.points = Sphere({0.1f, 0.2f, 1.f}, 0.3f, 10000.f, rng);  // ~1 cm spacing: ~28 in a 3 cm ball
+  AddQuad(scan.points, nullptr, 0, Eigen::Vector3f(-1, -1, 0.5f), Eigen::Vector3f(2, 0, 0),
+          Eigen::Vector3f(0, 2, 0), 15000.f, rng);  // ~42 in a 3 cm ball, ~130 in 3x3x3 cells
+  scan.origin = Eigen::Vector3f(0, 0, 2);
+  const auto a = RunSeg(scan), b = RunSeg(scan, {{"max_normal_points", 0}});
+  ASSERT_EQ(a.parts.size(), b.parts.size());
+  for (size_t p = 0; p < a.parts.size(); ++p) EXPECT_EQ(a.parts[p].indices, b.parts[p].indices);
+  for (size_t i = 0; i < scan.points.size(); ++i) {
+    EXPECT_EQ(std::memcmp(a.normals[i].data(), b.normals[i].data(), sizeof(float) * 3), 0) << i;
+    EXPECT_EQ(std::memcmp(&a.curvature[i], &b.curvature[i], sizeof(float)), 0) << i;
+  }
+}
+
+TEST(RegionGrowing, DenseNormalsAccurateOnASphereAndAPlane) {
+  std::mt19937_64 rng(9);
+  const Eigen::Vector3f c(0.3f, -0.2f, 1.0f);
+  Scan scan;
+  scan.points = Sphere(c, 0.2f, 400000.f, rng);  // ~1.6 mm spacing: ~1100 points in a 3 cm ball
+  scan.origin = c;
+  const size_t on_sphere = scan.points.size();
+  const Eigen::Vector3f n_true = Eigen::Vector3f(0.3f, -0.2f, 1.f).normalized();
+  const Eigen::Vector3f a = n_true.unitOrthogonal(), b = n_true.cross(a);
+  const Eigen::Vector3f o(1, 2, 0.5f);
+  std::normal_distribution<float> g(0.f, 0.001f);
+  AddQuad(scan.points, nullptr, 0, o, 0.4f * a, 0.4f * b, 400000.f, rng);  // 1 mm noise
+  for (size_t i = on_sphere; i < scan.points.size(); ++i) scan.points[i] += g(rng) * n_true;
+  const auto seg = RunSeg(scan);
+  double sum_s = 0, worst_s = 0, sum_p = 0, worst_p = 0;
+  int inner = 0;
+  for (size_t i = 0; i < scan.points.size(); ++i) {
+    ASSERT_TRUE(seg.normals[i].allFinite()) << i;
+    if (i < on_sphere) {
+      const double e = AngleDeg(seg.normals[i], (c - scan.points[i]).normalized());
+      sum_s += e, worst_s = std::max(worst_s, e);
+    } else {
+      const Eigen::Vector3f d = scan.points[i] - o;
+      const float border = std::min({d.dot(a), d.dot(b), 0.4f - d.dot(a), 0.4f - d.dot(b)});
+      if (border <= 0.03f) continue;
+      const double e = std::min(AngleDeg(seg.normals[i], n_true), AngleDeg(seg.normals[i], -n_true));
+      sum_p += e, worst_p = std::max(worst_p, e), ++inner;
+    }
+  }
+  EXPECT_LT(sum_s / double(on_sphere), 0.3);
+  EXPECT_LT(worst_s, 1.5);
+  EXPECT_LT(sum_p / inner, 0.5);
+  EXPECT_LT(worst_p, 2.0);
+}
+
+TEST(RegionGrowing, DenseNormalsGiveTheBoxTheSamePartsAsSparse) {
+  auto box = [](float density) {
+    std::mt19937_64 rng(3);
+    Scan scan;
+    std::vector<int> face;
+    const Eigen::Vector3f lo(0.2f, 0.1f, 0.3f);
+    const Eigen::Vector3f X(0.6f, 0, 0), Y(0, 0.4f, 0), Z(0, 0, 0.5f);  // BoxSurfaceGivesSixPlanarParts'
+    AddQuad(scan.points, &face, 0, lo, X, Y, density, rng);
+    AddQuad(scan.points, &face, 1, lo + Z, X, Y, density, rng);
+    AddQuad(scan.points, &face, 2, lo, X, Z, density, rng);
+    AddQuad(scan.points, &face, 3, lo + Y, X, Z, density, rng);
+    AddQuad(scan.points, &face, 4, lo, Y, Z, density, rng);
+    AddQuad(scan.points, &face, 5, lo + X, Y, Z, density, rng);
+    return std::make_pair(scan, face);
+  };
+  // Faces found: parts holding >= 90 % of a face with >= 98 % purity.
+  auto faces = [](const Segmentation& seg, const std::vector<int>& face) {
+    std::vector<int> size(6, 0);
+    for (int f : face) ++size[f];
+    std::set<int> found;
+    for (const auto& part : seg.parts) {
+      std::map<int, int> hist;
+      for (int i : part.indices) ++hist[face[i]];
+      const auto best = std::max_element(hist.begin(), hist.end(), [](auto& l, auto& r) { return l.second < r.second; });
+      if (best->second >= 0.9 * size[best->first] && best->second >= 0.98 * double(part.indices.size()))
+        found.insert(best->first);
+    }
+    return found.size();
+  };
+  const auto [sparse, sparse_face] = box(10000.f);
+  const auto [dense, dense_face] = box(250000.f);  // 2 mm spacing: ~700 points in a 3 cm ball
+  const auto a = RunSeg(sparse), b = RunSeg(dense);
+  EXPECT_EQ(faces(a, sparse_face), 6u);
+  EXPECT_EQ(faces(b, dense_face), 6u);
+  // Big parts: the six faces in both (the edge strips are small or regrouped).
+  auto big = [](const Segmentation& seg, size_t n) {
+    return std::count_if(seg.parts.begin(), seg.parts.end(), [&](const auto& p) { return p.indices.size() > n / 20; });
+  };
+  EXPECT_EQ(big(a, sparse.points.size()), 6);
+  EXPECT_EQ(big(b, dense.points.size()), 6);
 }
 
 }  // namespace
