@@ -1,11 +1,11 @@
 // `furnihost --graph G SCAN...` (detection) and `furnihost train --graph G`.
 #include <algorithm>
+#include <cstdio>
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
 #include <map>
 #include <random>
-#include <regex>
 
 #include "cli_common.hpp"
 #include "commands.hpp"
@@ -61,12 +61,16 @@ void WriteFitted(const std::string& path, const std::vector<Detection>& dets, co
   WritePlyInFrame(path, pts, scan.frame, &cols);
 }
 
-// What a rejection is grouped by: the reason without the measured value, so "coverage 0.12 <
-// 0.30" and "coverage 0.25 < 0.30" are one reason, "coverage < 0.30".
-std::string RejectionReason(const std::string& why) {
-  if (why.empty()) return "no reason given";
-  static const std::regex measured(R"(-?\d+(\.\d+)?\s*(?=[<>]))");
-  return std::regex_replace(why, measured, "", std::regex_constants::format_first_only);
+// What a rejection is grouped by: the first failed check without its measured value, so
+// "coverage 0.12 < 0.3" and "coverage 0.25 < 0.3" are one reason, "coverage < 0.3".
+std::string RejectionReason(const Detection& d) {
+  for (const Check& c : d.checks)
+    if (!c.passed) {
+      char limit[32];
+      std::snprintf(limit, sizeof limit, "%.4g", c.limit);
+      return c.name + (c.at_least ? " < " : " > ") + limit;
+    }
+  return "no reason given";
 }
 
 // One line per detection: class, model, x, y [m] (+ `shift`), yaw [deg], score, coverage.
@@ -83,7 +87,7 @@ void PrintTable(std::ostream& os, const std::vector<const Detection*>& dets, con
        << (d->model.empty() ? "-" : d->model) << std::right << std::fixed << std::setprecision(2) << std::setw(8)
        << d->center.x() + shift.x() << std::setw(8) << d->center.y() + shift.y() << std::setprecision(0) << std::setw(11)
        << d->yaw * 180 / M_PI << std::setprecision(3) << std::setw(8) << d->score;
-    if (d->coverage >= 0) os << std::setprecision(2) << std::setw(10) << d->coverage;
+    if (d->coverage) os << std::setprecision(2) << std::setw(10) << *d->coverage;
     else os << std::setw(10) << "-";
     os << "\n";
   }
@@ -100,7 +104,7 @@ void PrintDetections(std::ostream& os, const std::vector<Detection>& dets, const
     if (!d.verified) unverified.push_back(&d);
     else if (*d.verified) verified.push_back(&d);
     else {
-      ++rejected[d.cls][RejectionReason(d.rejection)];
+      ++rejected[d.cls][RejectionReason(d)];
       ++n_rejected;
     }
   }

@@ -613,8 +613,8 @@ EvalMetrics Evaluate(const std::vector<SceneEval>& scenes, const ClassMap& class
           r.yaw_error_deg = YawErrorDeg(d.yaw, *se.truth[g].yaw);
           r.yaw_error_folded_deg = FoldYawErrorDeg(r.yaw_error_deg, se.truth[g].yaw_symmetry);
         }
-        if (d.coverage >= 0) r.coverage = d.coverage;
-        r.rejection = d.rejection;
+        if (d.coverage) r.coverage = *d.coverage;
+        r.rejection = d.Rejection();
       }
       out.objects.push_back(std::move(r));
     }

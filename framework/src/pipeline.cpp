@@ -392,7 +392,7 @@ Pipeline::Result Pipeline::Detect(const std::vector<SceneInput>& scenes, const T
     if (h.model_pose) d.model_pose = *h.model_pose;
     if (h.accepted) {
       d.verified = *h.accepted;
-      d.rejection = h.rejection;
+      d.checks = h.checks;
       r.fitted = true;  // decided: the eval counts accepted detections as verified
     }
     if (h.box) {
@@ -495,11 +495,18 @@ nlohmann::json DetectionToJson(const Detection& d, const Scan* scan) {
                       {"score", d.score},
                       {"model", d.model.empty() ? nlohmann::json(nullptr) : nlohmann::json(d.model)},
                       {"verified", d.verified ? nlohmann::json(*d.verified) : nlohmann::json(nullptr)}};
-  if (d.coverage >= 0) j["coverage"] = d.coverage;
-  j["free_space_ratio"] = d.free_space_ratio >= 0 ? nlohmann::json(d.free_space_ratio) : nlohmann::json(nullptr);
-  if (d.rms >= 0) j["rms_m"] = d.rms;
+  if (d.coverage) j["coverage"] = *d.coverage;
+  j["free_space_ratio"] = d.free_space_ratio ? nlohmann::json(*d.free_space_ratio) : nlohmann::json(nullptr);
+  if (d.rms) j["rms_m"] = *d.rms;
   if (d.iterations) j["iterations"] = d.iterations;
-  if (!d.rejection.empty()) j["rejection"] = d.rejection;
+  if (!d.checks.empty()) {
+    nlohmann::json checks = nlohmann::json::array();
+    for (const Check& c : d.checks)
+      checks.push_back({{"name", c.name}, {"value", c.value}, {"limit", c.limit},
+                        {"test", c.at_least ? ">=" : "<="}, {"passed", c.passed}});
+    j["checks"] = checks;
+  }
+  if (const std::string why = d.Rejection(); !why.empty()) j["rejection"] = why;
   if (!d.notes.empty()) j["notes"] = d.notes;
   if (scan && scan->ground) j["height_above_ground"] = scan->HeightAboveGround(d.center);
   if (d.box) {

@@ -227,7 +227,7 @@ TEST(Metrics, VerificationRemovalRatesAndObjectRecords) {
   Detection d1 = Det("chair", 4.1f, 4.0f, 0.8f);
   d1.verified = false;
   d1.model = "chair_b";
-  d1.rejection = "coverage 0.30 < 0.50";
+  d1.checks = {Check::AtLeast("coverage", 0.3, 0.5)};
   // Hypotheses 2 and 3: false; the fitter moved 2 onto object a (it is still a false
   // hypothesis), 2 is removed, 3 is kept.
   Detection d2 = Det("chair", 1.0f, 1.0f, 0.7f);
@@ -256,7 +256,7 @@ TEST(Metrics, VerificationRemovalRatesAndObjectRecords) {
   EXPECT_NEAR(e.objects[0].yaw_error_deg, 170.0, 1e-3);  // raw: no symmetry folding
   EXPECT_NEAR(e.objects[0].coverage, 0.8, 1e-6);
   EXPECT_EQ(e.objects[1].status, "rejected");
-  EXPECT_EQ(e.objects[1].rejection, "coverage 0.30 < 0.50");
+  EXPECT_EQ(e.objects[1].rejection, "coverage 0.3 < 0.5");
   EXPECT_EQ(e.objects[2].status, "missed");
   EXPECT_EQ(e.objects[2].cls, "table");
   EXPECT_TRUE(std::isnan(e.objects[2].centre_error_m));
@@ -266,7 +266,7 @@ TEST(Metrics, VerificationRemovalRatesAndObjectRecords) {
   f.metrics = e;
   const RunFigures back = RunFiguresFromJson(ToJson(f), "test");
   ASSERT_EQ(back.metrics.objects.size(), 3u);
-  EXPECT_EQ(back.metrics.objects[1].rejection, "coverage 0.30 < 0.50");
+  EXPECT_EQ(back.metrics.objects[1].rejection, "coverage 0.3 < 0.5");
   EXPECT_EQ(back.metrics.verification.fp_removed, 1);
   const std::string md = RenderReport({{"A", "a.json", {back}}}, ReportInfo{});
   EXPECT_NE(md.find("share of false hypotheses removed | 0.500"), std::string::npos) << md;

@@ -23,7 +23,7 @@
 #include "furnihost/params.hpp"
 #include "furnihost/stage.hpp"
 
-#define FURNIHOST_ABI_VERSION 4
+#define FURNIHOST_ABI_VERSION 5
 
 namespace furnihost {
 

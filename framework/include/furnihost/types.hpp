@@ -226,6 +226,26 @@ struct OrientedBox {
   }
 };
 
+// One test a stage applied to a hypothesis: what it measured, the limit, the verdict
+// (e.g. {"coverage", 0.32, 0.5, at_least, failed}: "coverage 0.32 < 0.5"). Verification and
+// recognisers that decide themselves list every check they ran, in order; the first failed one
+// is why the hypothesis was rejected.
+struct FURNIHOST_API Check {
+  std::string name;      // an identifier: "score", "coverage", "free_space_ratio", "part_points", ...
+  double value = 0.0;    // what was measured
+  double limit = 0.0;    // the bound it is held to
+  bool at_least = true;  // passes when value >= limit (else when value <= limit)
+  bool passed = true;
+
+  static Check AtLeast(std::string name, double value, double limit);
+  static Check AtMost(std::string name, double value, double limit);
+  // "coverage 0.32 < 0.5" when failed, "coverage 0.62 >= 0.5" when passed (4 significant digits).
+  std::string Text() const;
+};
+
+// The text of the first failed check ("" when all passed or there are none).
+FURNIHOST_API std::string FirstFailure(const std::vector<Check>& checks);
+
 struct Hypothesis {
   std::string cls;
   Eigen::Vector3f center = Eigen::Vector3f::Zero();  // world frame; z is the mean vote height
@@ -235,9 +255,9 @@ struct Hypothesis {
   int proposal = -1;               // index into the scene's Proposals::items, when made from one
   int scene = 0;                   // which scene's proposal
   // A recogniser that decides itself (a score against its operating threshold, no fitter
-  // needed) sets these; the pipeline copies them into Detection::verified / rejection.
+  // needed) sets these; the pipeline copies them into Detection::verified / checks.
   std::optional<bool> accepted;
-  std::string rejection;
+  std::vector<Check> checks;
   // The catalog model that explains the object best, and where it stands (model -> world),
   // when the voter knows (e.g. by size and shape); no fitter has refined it.
   std::string model;
@@ -262,12 +282,12 @@ struct Detection {
   float yaw = 0.f;            // [rad] about +z
   float score = 0.f;          // voter score
   std::string model;          // fitted catalog model id ("" before fitting)
-  std::optional<bool> verified;  // unset when no fitter ran
-  float coverage = -1.f;         // share of part points covered by the model, -1 = not computed
-  float free_space_ratio = -1.f; // share of visible model surface in free space, -1 = skipped
-  float rms = -1.f;              // RMS point distance of covered points [m]
+  std::optional<bool> verified;            // unset when no fitter ran
+  std::optional<float> coverage;           // share of part points covered by the model (when fitted)
+  std::optional<float> free_space_ratio;   // share of visible model surface in free space (when tested)
+  std::optional<float> rms;                // RMS point distance of covered points [m] (when fitted)
   int iterations = 0;
-  std::string rejection;         // why verification rejected it ("" when accepted)
+  std::vector<Check> checks;               // what verification tested, in order (Check)
   std::vector<std::string> notes;
   std::vector<Support> support;
   Eigen::Isometry3f model_pose = Eigen::Isometry3f::Identity();  // model -> world
@@ -277,6 +297,9 @@ struct Detection {
   std::string box_source;
   int proposal = -1, proposal_scene = 0;  // the proposal it was made from (Hypothesis::proposal)
   std::map<std::string, float> evidence;   // Hypothesis::evidence
+
+  // Why verification rejected it: the first failed check ("" when accepted or not verified).
+  std::string Rejection() const { return FirstFailure(checks); }
 };
 
 }  // namespace furnihost

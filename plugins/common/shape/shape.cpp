@@ -364,12 +364,8 @@ Hypothesis ProposalHypothesis(const std::string& cls, float score, float thresho
   b.yaw = std::atan2(pose.linear()(1, 0), pose.linear()(0, 0));
   h.box = b;
   h.center = b.center;
-  h.accepted = score >= threshold;
-  if (!*h.accepted) {
-    char buf[64];
-    std::snprintf(buf, sizeof buf, "score %.4f < %.4f", score, threshold);
-    h.rejection = buf;
-  }
+  h.checks.push_back(Check::AtLeast("score", score, threshold));
+  h.accepted = h.checks.back().passed;
   h.model = model_id;
   const float yaw = f.yaw + (model_wide ? 0.f : float(M_PI / 2));
   Eigen::Isometry3f m = Eigen::Isometry3f::Identity();

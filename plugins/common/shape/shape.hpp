@@ -92,7 +92,7 @@ std::vector<size_t> SuppressOverlaps(std::vector<size_t> candidates, const std::
 
 // The hypothesis that proposal `p` (number `index` of scene `scene`, footprint `f`) is of class
 // `cls` with `score`: the proposal's box (world frame through the scan's `pose`; upright poses
-// keep it upright), accepted when score >= threshold (else the rejection says why), and the
+// keep it upright), accepted when score >= threshold (its "score" check), and the
 // model `model_id` standing on the ground at the footprint's centre, its width along the
 // footprint's length when the model is wider than deep (`model_wide`; yaw modulo a half turn).
 Hypothesis ProposalHypothesis(const std::string& cls, float score, float threshold, const Proposal& p, int index,

@@ -298,7 +298,8 @@ class IcpRefine : public furnihost::Fitter {
         sum += d2[0];
         ++covered;
       }
-    d.rms = covered ? float(std::sqrt(sum / double(covered))) : -1.f;
+    if (covered) d.rms = float(std::sqrt(sum / double(covered)));
+    else d.rms.reset();
     std::snprintf(buf, sizeof buf, "icp: moved %.3f m, %.2f deg (%d iterations, %zu + %zu points)",
                   double(moved), double(dyaw) * 180.0 / M_PI, iterations, from_parts,
                   source->size() - from_parts);

@@ -102,8 +102,9 @@ void ExpectRefined(const ChairScene& s, const Detection& d) {
   // Upright: the model's z axis stays the world's (roll = pitch = 0).
   EXPECT_LT((d.model_pose.linear().col(2) - Eigen::Vector3f::UnitZ()).norm(), 1e-5f);
   EXPECT_NEAR(d.model_pose.linear().determinant(), 1.f, 1e-4f);
-  EXPECT_GT(d.rms, 0.f);
-  EXPECT_LT(d.rms, 0.01f);  // 1 mm noise, ~5 mm sample spacing
+  ASSERT_TRUE(d.rms);
+  EXPECT_GT(*d.rms, 0.f);
+  EXPECT_LT(*d.rms, 0.01f);  // 1 mm noise, ~5 mm sample spacing
   ASSERT_FALSE(d.notes.empty());
   EXPECT_EQ(d.notes.back().rfind("icp: moved", 0), 0u) << d.notes.back();
 }

@@ -295,14 +295,15 @@ class RansacUprightFitter : public Fitter {
     std::vector<char> passed(dets->size(), 0);
     for (size_t d = 0; d < dets->size(); ++d) {
       Detection& det = (*dets)[d];
-      det.free_space_ratio = -1.f;  // recomputed below
-      det.rejection.clear();
-      det.coverage = -1.f;
-      det.rms = -1.f;
+      det.free_space_ratio.reset();  // recomputed below
+      det.checks.clear();
+      det.coverage.reset();
+      det.rms.reset();
       det.iterations = 0;
       auto it = by_class.find(det.cls);
       if (it == by_class.end()) {
-        Reject(&det, "no catalog model of class '" + det.cls + "'");
+        det.notes.push_back("no catalog model of class '" + det.cls + "'");
+        Reject(&det, Check::AtLeast("catalog_models", 0, 1));
         continue;
       }
       if (dropped_parts[d] > 0)
@@ -310,7 +311,7 @@ class RansacUprightFitter : public Fitter {
                             " parts out of the class' reach (floor, walls, other objects)" +
                             (o_.crop_parts ? ", cropped to it" : ", left out"));
       if (scenes[d].points.empty()) {
-        Reject(&det, "no part points to fit");
+        Reject(&det, Check::AtLeast("part_points", 0, 1));
         continue;
       }
       const FitResult& f = fits[d];
@@ -318,7 +319,7 @@ class RansacUprightFitter : public Fitter {
       det.notes.push_back(TrialNote(f, it->second));
       if (f.model < 0) {
         det.coverage = 0.f;
-        Reject(&det, "no pose found");
+        Reject(&det, Check::AtLeast("poses_found", 0, 1));
         continue;
       }
       const ModelCloud& m = *it->second[f.model];
@@ -327,11 +328,12 @@ class RansacUprightFitter : public Fitter {
       det.center = f.pose * m.Bounds().center();
       det.yaw = f.yaw;
       det.coverage = f.coverage;
-      det.rms = f.rms;
+      if (f.rms >= 0.f) det.rms = f.rms;
       det.box = OrientedBox{det.center, m.Bounds().sizes(), f.yaw};
       det.box_source = "model";
-      if (f.coverage < o_.min_coverage) {
-        Reject(&det, "coverage " + Fixed2(f.coverage) + " < " + Fixed2(o_.min_coverage));
+      det.checks.push_back(Check::AtLeast("coverage", f.coverage, o_.min_coverage));
+      if (!det.checks.back().passed) {
+        det.verified = false;
         continue;
       }
       passed[d] = 1;
@@ -367,16 +369,14 @@ class RansacUprightFitter : public Fitter {
         free += c.free;
       }
       det.free_space_ratio = visible > 0 ? float(double(free) / double(visible)) : 0.f;
-      if (det.free_space_ratio > o_.max_free_space_ratio)
-        Reject(&det, "free space " + Fixed2(det.free_space_ratio) + " > " + Fixed2(o_.max_free_space_ratio));
-      else
-        det.verified = true;
+      det.checks.push_back(Check::AtMost("free_space_ratio", *det.free_space_ratio, o_.max_free_space_ratio));
+      det.verified = det.checks.back().passed;
     });
   }
 
-  static void Reject(Detection* det, const std::string& why) {
+  static void Reject(Detection* det, Check failed) {
     det->verified = false;
-    det->rejection = why;
+    det->checks.push_back(std::move(failed));
   }
 
   static std::string TrialNote(const FitResult& f, const std::vector<const ModelCloud*>& models) {

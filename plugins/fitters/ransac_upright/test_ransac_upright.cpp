@@ -153,7 +153,8 @@ void ExpectSameFit(const Detection& a, const Detection& b) {
   EXPECT_EQ(a.free_space_ratio, b.free_space_ratio);
   EXPECT_EQ(a.iterations, b.iterations);
   EXPECT_EQ(a.verified, b.verified);
-  EXPECT_EQ(a.rejection, b.rejection);
+  EXPECT_EQ(a.Rejection(), b.Rejection());
+  EXPECT_EQ(a.checks.size(), b.checks.size());
   EXPECT_TRUE(a.model_pose.matrix() == b.model_pose.matrix());
 }
 
@@ -173,12 +174,13 @@ TEST(RansacUpright, RecoversChairPoseAndModel) {
   EXPECT_LT(e.centre, kCentreTol);
   EXPECT_LT(e.yaw, kYawTol);
   ASSERT_TRUE(d.verified.has_value());
-  EXPECT_TRUE(*d.verified) << d.rejection;
-  EXPECT_GT(d.coverage, 0.8f);
-  EXPECT_GE(d.free_space_ratio, 0.f);  // the scan has an origin: the test ran
-  EXPECT_LT(d.free_space_ratio, 0.2f);
-  EXPECT_GT(d.rms, 0.f);
-  EXPECT_LT(d.rms, 0.015f);
+  EXPECT_TRUE(*d.verified) << d.Rejection();
+  ASSERT_TRUE(d.coverage && d.free_space_ratio && d.rms);  // the scan has an origin: the test ran
+  EXPECT_GT(*d.coverage, 0.8f);
+  EXPECT_GE(*d.free_space_ratio, 0.f);
+  EXPECT_LT(*d.free_space_ratio, 0.2f);
+  EXPECT_GT(*d.rms, 0.f);
+  EXPECT_LT(*d.rms, 0.015f);
   EXPECT_GT(d.iterations, 0);
   // model_pose maps the model's bbox centre onto the reported centre.
   EXPECT_LT((d.model_pose * BoundsOf(cat.Get("chair_a").mesh).center() - d.center).norm(), 1e-4f);
@@ -213,7 +215,7 @@ TEST(RansacUpright, ModelsStandOnTheScansGround) {
     const auto out = MakeFitter()->Fit({h}, sc.Ctx(cat));
     ASSERT_EQ(out.size(), 1u);
     const Detection& d = out[0];
-    EXPECT_TRUE(d.verified.value_or(false)) << ToString(g.kind) << ": " << d.rejection;
+    EXPECT_TRUE(d.verified.value_or(false)) << ToString(g.kind) << ": " << d.Rejection();
     EXPECT_EQ(d.model, "chair_a");
     const Eigen::Vector3f c = down * truth * BoundsOf(cat.Get("chair_a").mesh).center();
     EXPECT_NEAR(d.center.z(), c.z(), 0.006f);  // stands on the floor
@@ -245,7 +247,7 @@ TEST(RansacUpright, BackgroundPartsInTheSupportAreLeftOut) {
   const PoseError e = ErrorOf(out[0], cat.Get("chair_a"), truth);
   EXPECT_LT(e.centre, kCentreTol);
   EXPECT_LT(e.yaw, kYawTol);
-  EXPECT_TRUE(out[0].verified.value_or(false)) << out[0].rejection;
+  EXPECT_TRUE(out[0].verified.value_or(false)) << out[0].Rejection();
   const std::string note = "support: 1 of " + std::to_string(h.support.size()) + " parts out of the class' reach";
   EXPECT_TRUE(std::any_of(out[0].notes.begin(), out[0].notes.end(),
                           [&](const std::string& n) { return n.rfind(note, 0) == 0; }));
@@ -255,9 +257,10 @@ TEST(RansacUpright, BackgroundPartsInTheSupportAreLeftOut) {
   EXPECT_LT(ErrorOf(left_out[0], cat.Get("chair_a"), truth).centre, kCentreTol);
   // Without the filter the background's points count against the chair.
   const auto all = MakeFitter({{"part_inside_fraction", 0.0}})->Fit({h}, sc.Ctx(cat));
-  std::printf("[ support ] coverage %.3f with the background part cropped to the reach, %.3f with all of it\n", out[0].coverage,
-              all[0].coverage);
-  EXPECT_LT(all[0].coverage, out[0].coverage - 0.1f);
+  std::printf("[ support ] coverage %.3f with the background part cropped to the reach, %.3f with all of it\n", out[0].coverage.value_or(-1.f),
+              all[0].coverage.value_or(-1.f));
+  ASSERT_TRUE(out[0].coverage && all[0].coverage);
+  EXPECT_LT(*all[0].coverage, *out[0].coverage - 0.1f);
 }
 
 // max_shift_m: a hypothesis whose centre is 0.3 m off the chair. Unlimited, the fit finds the
@@ -275,7 +278,7 @@ TEST(RansacUpright, MaxShiftKeepsTheFitNearTheVotersCentre) {
   const auto free = MakeFitter()->Fit({h}, sc.Ctx(cat));
   ASSERT_EQ(free.size(), 1u);
   EXPECT_LT(ErrorOf(free[0], cat.Get("chair_a"), truth).centre, kCentreTol);
-  EXPECT_TRUE(free[0].verified.value_or(false)) << free[0].rejection;
+  EXPECT_TRUE(free[0].verified.value_or(false)) << free[0].Rejection();
 
   const auto tight = MakeFitter({{"max_shift_m", 0.15}})->Fit({h}, sc.Ctx(cat));
   ASSERT_EQ(tight.size(), 1u);
@@ -286,7 +289,7 @@ TEST(RansacUpright, MaxShiftKeepsTheFitNearTheVotersCentre) {
 
   const auto loose = MakeFitter({{"max_shift_m", 0.5}})->Fit({h}, sc.Ctx(cat));
   EXPECT_LT(ErrorOf(loose[0], cat.Get("chair_a"), truth).centre, kCentreTol);
-  EXPECT_TRUE(loose[0].verified.value_or(false)) << loose[0].rejection;
+  EXPECT_TRUE(loose[0].verified.value_or(false)) << loose[0].Rejection();
 
   EXPECT_THROW(MakeFitter({{"max_shift_m", -0.1}}), std::exception);
 }
@@ -335,7 +338,7 @@ TEST(RansacUpright, RecoversTablePoseUpToItsSymmetry) {
   const PoseError e = ErrorOf(out[0], cat.Get("table_a"), truth, kPi);  // a rectangle: 180° symmetric
   EXPECT_LT(e.centre, kCentreTol);
   EXPECT_LT(e.yaw, kYawTol);
-  EXPECT_TRUE(out[0].verified.value_or(false)) << out[0].rejection;
+  EXPECT_TRUE(out[0].verified.value_or(false)) << out[0].Rejection();
 }
 
 TEST(RansacUpright, WrongShapeIsRejectedByCoverage) {
@@ -352,10 +355,18 @@ TEST(RansacUpright, WrongShapeIsRejectedByCoverage) {
   const Detection& d = out[0];
   ASSERT_TRUE(d.verified.has_value());
   EXPECT_FALSE(*d.verified);
-  EXPECT_EQ(d.rejection.rfind("coverage ", 0), 0u) << d.rejection;
-  EXPECT_NE(d.rejection.find("< 0.50"), std::string::npos) << d.rejection;
-  EXPECT_GE(d.coverage, 0.f);
-  EXPECT_LT(d.coverage, 0.5f);
+  // The checks say what was measured and why it failed: coverage below min_coverage.
+  ASSERT_EQ(d.checks.size(), 1u);
+  EXPECT_EQ(d.checks[0].name, "coverage");
+  EXPECT_FALSE(d.checks[0].passed);
+  EXPECT_TRUE(d.checks[0].at_least);
+  EXPECT_DOUBLE_EQ(d.checks[0].limit, 0.5);
+  ASSERT_TRUE(d.coverage);
+  EXPECT_FLOAT_EQ(float(d.checks[0].value), *d.coverage);
+  EXPECT_EQ(d.Rejection().rfind("coverage ", 0), 0u) << d.Rejection();
+  EXPECT_NE(d.Rejection().find(" < 0.5"), std::string::npos) << d.Rejection();
+  EXPECT_GE(*d.coverage, 0.f);
+  EXPECT_LT(*d.coverage, 0.5f);
   EXPECT_EQ(d.model, "table_as_chair");  // the pose that was rejected is still reported
 }
 
@@ -400,18 +411,26 @@ TEST(RansacUpright, ModelInObservedFreeSpaceIsRejected) {
     ASSERT_EQ(out.size(), 1u);
     const Detection& d = out[0];
     EXPECT_EQ(d.model, "chair_a");
-    EXPECT_GE(d.coverage, 0.5f);
+    ASSERT_TRUE(d.coverage && d.free_space_ratio);
+    EXPECT_GE(*d.coverage, 0.5f);
+    // Two checks, in order: coverage (passed), then free space.
+    ASSERT_EQ(d.checks.size(), 2u);
+    EXPECT_EQ(d.checks[0].name, "coverage");
+    EXPECT_TRUE(d.checks[0].passed);
+    EXPECT_EQ(d.checks[1].name, "free_space_ratio");
+    EXPECT_FALSE(d.checks[1].at_least);
+    EXPECT_EQ(d.checks[1].passed, chair_in_laser_scan);
     if (chair_in_laser_scan) {
-      EXPECT_TRUE(d.verified.value_or(false)) << d.rejection;
-      EXPECT_LT(d.free_space_ratio, 0.2f);
+      EXPECT_TRUE(d.verified.value_or(false)) << d.Rejection();
+      EXPECT_LT(*d.free_space_ratio, 0.2f);
     } else {
       EXPECT_FALSE(d.verified.value_or(true));
-      EXPECT_GT(d.free_space_ratio, 0.5f);
-      EXPECT_EQ(d.rejection.rfind("free space ", 0), 0u) << d.rejection;
+      EXPECT_GT(*d.free_space_ratio, 0.5f);
+      EXPECT_EQ(d.Rejection().rfind("free_space_ratio ", 0), 0u) << d.Rejection();
     }
-    EXPECT_GE(d.free_space_ratio, 0.f);
+    EXPECT_GE(*d.free_space_ratio, 0.f);
     std::printf("[ free space ] chair %s the laser scan: free_space_ratio %.3f, coverage %.3f\n",
-                chair_in_laser_scan ? "in" : "missing from", d.free_space_ratio, d.coverage);
+                chair_in_laser_scan ? "in" : "missing from", *d.free_space_ratio, *d.coverage);
   }
 }
 
@@ -424,8 +443,8 @@ TEST(RansacUpright, ScanWithoutOriginSkipsTheFreeSpaceTest) {
   const auto out = fitter->Fit({Hypothesis(sc, "chair", s, parts)}, sc.Ctx(cat));
   ASSERT_EQ(out.size(), 1u);
   EXPECT_EQ(out[0].model, "chair_b");
-  EXPECT_TRUE(out[0].verified.value_or(false)) << out[0].rejection;
-  EXPECT_EQ(out[0].free_space_ratio, -1.f);
+  EXPECT_TRUE(out[0].verified.value_or(false)) << out[0].Rejection();
+  EXPECT_FALSE(out[0].free_space_ratio.has_value());
   EXPECT_NE(std::find(out[0].notes.begin(), out[0].notes.end(), "free-space test skipped: scan has no sensor origin"),
             out[0].notes.end());
 }
@@ -439,7 +458,10 @@ TEST(RansacUpright, ClassWithoutModelsAndBadSupport) {
   const auto out = fitter->Fit({Hypothesis(sc, "sofa", s, parts)}, sc.Ctx(cat));
   ASSERT_EQ(out.size(), 1u);
   EXPECT_FALSE(out[0].verified.value_or(true));
-  EXPECT_EQ(out[0].rejection, "no catalog model of class 'sofa'");
+  ASSERT_EQ(out[0].checks.size(), 1u);
+  EXPECT_EQ(out[0].checks[0].name, "catalog_models");
+  EXPECT_EQ(out[0].Rejection(), "catalog_models 0 < 1");
+  EXPECT_NE(std::find(out[0].notes.begin(), out[0].notes.end(), "no catalog model of class 'sofa'"), out[0].notes.end());
   EXPECT_THROW(fitter->Fit({Hypothesis(sc, "chair", s, {999})}, sc.Ctx(cat)), StageError);
   EXPECT_THROW(fitter->Fit({Hypothesis(sc, "chair", 3, parts)}, sc.Ctx(cat)), StageError);
 }
@@ -479,8 +501,8 @@ TEST(RansacUpright, DeterministicForASeedWhateverTheThreads) {
     ExpectSameFit(a[i], b[i]);
     EXPECT_EQ(a[i].notes, b[i].notes);
   }
-  EXPECT_TRUE(a[0].verified.value_or(false)) << a[0].rejection;
-  EXPECT_TRUE(a[1].verified.value_or(false)) << a[1].rejection;
+  EXPECT_TRUE(a[0].verified.value_or(false)) << a[0].Rejection();
+  EXPECT_TRUE(a[1].verified.value_or(false)) << a[1].Rejection();
   EXPECT_FALSE(a[2].verified.value_or(true));  // chair models on the table's points
   // Another seed samples differently (the iteration counts are the seed's footprint).
   const auto c = run(2, 12);
@@ -507,7 +529,7 @@ TEST(RansacUpright, AHypothesisFitsTheSameWhateverElseIsInTheList) {
   ExpectSameFit(alone[0], both[1]);
   EXPECT_EQ(reversed[1].yaw, both[0].yaw);
   EXPECT_EQ(reversed[1].iterations, both[0].iterations);
-  EXPECT_TRUE(both[1].verified.value_or(false)) << both[1].rejection;
+  EXPECT_TRUE(both[1].verified.value_or(false)) << both[1].Rejection();
 }
 
 // Accuracy over random placements (both chair models, random x, y, yaw): prints median and

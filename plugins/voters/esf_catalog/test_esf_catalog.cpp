@@ -209,7 +209,10 @@ TEST(EsfCatalog, ThresholdsDecideAcceptanceAndSmallProposalsAreSkipped) {
     }
     if (h.cls == "table") {
       EXPECT_FALSE(*h.accepted);
-      EXPECT_NE(h.rejection.find("score"), std::string::npos);
+      ASSERT_EQ(h.checks.size(), 1u);
+      EXPECT_EQ(h.checks[0].name, "score");
+      EXPECT_FALSE(h.checks[0].passed);
+      EXPECT_DOUBLE_EQ(h.checks[0].value, h.score);
     }
   }
   // A second copy of the same proposal is suppressed (box IoU 1): still one per class.
