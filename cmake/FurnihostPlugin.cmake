@@ -1,6 +1,8 @@
 # furnihost_add_plugin(<kind> <name> SOURCES ... [LIBS ...] [TESTS ...] [TEST_LIBS ...])
 #   Builds libfurnihost_<kind>_<name>.so into the build tree's plugin folder, installs it, and
-#   adds each TESTS source as a GoogleTest executable registered with ctest.
+#   adds each TESTS source as a GoogleTest executable registered with ctest. A directory may set
+#   FURNIHOST_PLUGIN_BUILD_DIR (where the library lands) and FURNIHOST_PLUGIN_NO_INSTALL (e.g.
+#   examples/: built and tested, never installed) before calling it.
 function(furnihost_add_plugin kind name)
   cmake_parse_arguments(P "" "" "SOURCES;LIBS;TESTS;TEST_LIBS;INCLUDES" ${ARGN})
   set(target furnihost_${kind}_${name})
@@ -12,7 +14,9 @@ function(furnihost_add_plugin kind name)
   set_target_properties(${target} PROPERTIES
     PREFIX "lib" OUTPUT_NAME ${target}
     LIBRARY_OUTPUT_DIRECTORY ${FURNIHOST_PLUGIN_BUILD_DIR})
-  install(TARGETS ${target} LIBRARY DESTINATION ${FURNIHOST_PLUGIN_INSTALL_DIR})
+  if(NOT FURNIHOST_PLUGIN_NO_INSTALL)
+    install(TARGETS ${target} LIBRARY DESTINATION ${FURNIHOST_PLUGIN_INSTALL_DIR})
+  endif()
   add_dependencies(furnihost_plugins ${target})
   if(FURNIHOST_BUILD_TESTS)
     foreach(src ${P_TESTS})

@@ -219,3 +219,22 @@ TEST(ParamBinding, EveryPluginConstructsFromItsOwnDefaults) {
     EXPECT_NE(stage, nullptr);
   }
 }
+
+TEST(ParamBinding, StringListSplitsACommaSeparatedString) {
+  struct L {
+    std::vector<std::string> classes;
+    std::vector<std::string> keep{"chair", "table"};
+  };
+  const auto b = ParamBinding<L>()
+                     .StringList("classes", &L::classes, "classes")
+                     .StringList("keep", &L::keep, "kept");
+  const auto& s = b.Schema();
+  EXPECT_EQ(s.Find("classes")->type, ParamType::String);
+  EXPECT_EQ(s.Find("classes")->default_value, "");
+  EXPECT_EQ(s.Find("keep")->default_value, "chair, table");
+  EXPECT_EQ(b.Parse(json::object()).keep, (std::vector<std::string>{"chair", "table"}));
+  EXPECT_EQ(b.Parse({{"classes", " chair,, table ,\tsofa , "}}).classes,
+            (std::vector<std::string>{"chair", "table", "sofa"}));
+  EXPECT_TRUE(b.Parse({{"classes", " , "}}).classes.empty());
+  EXPECT_THROW(b.Parse({{"classes", 3}}), InputError);
+}

@@ -5,6 +5,7 @@
 // (ParamBinding below): the schema, the default (read from the struct), parsing and the
 // cross-field rules all come from that one declaration.
 #pragma once
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <functional>
@@ -112,6 +113,20 @@ decltype(auto) Field(O& o, const M& m) {
 template <class O, class M>
 using FieldType = std::remove_reference_t<decltype(Field(std::declval<O&>(), std::declval<const M&>()))>;
 
+// "a, b,c" -> {"a", "b", "c"}: items trimmed of spaces and tabs, empty items dropped.
+inline std::vector<std::string> SplitCommaList(const std::string& list) {
+  std::vector<std::string> out;
+  size_t start = 0;
+  while (start <= list.size()) {
+    const size_t comma = std::min(list.find(',', start), list.size());
+    const std::string item = list.substr(start, comma - start);
+    const size_t b = item.find_first_not_of(" \t");
+    if (b != std::string::npos) out.push_back(item.substr(b, item.find_last_not_of(" \t") - b + 1));
+    start = comma + 1;
+  }
+  return out;
+}
+
 template <class T>
 struct IsVector : std::false_type {};
 template <class T, class A>
@@ -179,6 +194,21 @@ class ParamBinding {
     static_assert(std::is_same_v<param_detail::FieldType<O, M>, std::string>, "String binds a std::string member");
     schema_.String(name, Default(m), help);
     return Add(name, m);
+  }
+  // A comma-separated list of names in one JSON string ("chair, table"; "" = none), split into
+  // a std::vector<std::string> member (items trimmed, empty items dropped). The schema default
+  // is the member's default joined with ", ".
+  template <class M>
+  ParamBinding& StringList(const std::string& name, M m, const std::string& help) {
+    static_assert(std::is_same_v<param_detail::FieldType<O, M>, std::vector<std::string>>,
+                  "StringList binds a std::vector<std::string> member");
+    std::string def;
+    for (const auto& item : Default(m)) def += (def.empty() ? "" : ", ") + item;
+    schema_.String(name, def, help);
+    parsers_.push_back([m](O& o, const nlohmann::json& v) {
+      param_detail::Field(o, m) = param_detail::SplitCommaList(v.get<std::string>());
+    });
+    return *this;
   }
   // A std::string member holds the choice; an enum or integer member holds its index in `choices`.
   template <class M>

@@ -70,6 +70,8 @@ struct PartFeatureOptions {
   double voxel_m = 0.02;              // voxel edge of features 3 and 9 [m]
   double boundary_radius_m = 0.03;    // neighbourhood of the boundary test [m]
   double boundary_angle_deg = 90.0;   // angular gap that makes a boundary point [deg]
+  // The library's own precondition (ComputePaper24 / ComputeReduced check it: the benchmarks call
+  // them directly); the plugins' parameters are validated by PartFeatureBinding (ranges).
   void Check() const;                 // throws StageError naming the bad field
 };
 

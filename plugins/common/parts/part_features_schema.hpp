@@ -5,24 +5,18 @@
 
 namespace furnihost::parts {
 
-inline ParamSchema PartFeatureSchema() {
-  ParamSchema s;
-  s.Number("voxel_m", 0.02, 0.001, 10.0,
-           "voxel edge of the voxelised volume (features 3 and 9) [m]; the paper gives none");
-  s.Number("boundary_radius_m", 0.03, 0.001, 10.0,
-           "neighbourhood of the boundary-point test (feature 1) [m]; about 2-3 point spacings");
-  s.Number("boundary_angle_deg", 90.0, 1.0, 179.0,
-           "a point is a boundary point if its neighbours leave an angular gap above this [deg] (PCL: 90)");
-  return s;
-}
-
-inline PartFeatureOptions PartFeatureOptionsFrom(const nlohmann::json& p) {
-  PartFeatureOptions o;
-  o.voxel_m = p.at("voxel_m").get<double>();
-  o.boundary_radius_m = p.at("boundary_radius_m").get<double>();
-  o.boundary_angle_deg = p.at("boundary_angle_deg").get<double>();
-  o.Check();
-  return o;
+// Each parameter declared once; its default is PartFeatureOptions{}'s.
+inline const ParamBinding<PartFeatureOptions>& PartFeatureBinding() {
+  using O = PartFeatureOptions;
+  static const auto b =
+      ParamBinding<O>()
+          .Number("voxel_m", &O::voxel_m, 0.001, 10, "m",
+                  "voxel edge of the voxelised volume (features 3 and 9); the paper gives none")
+          .Number("boundary_radius_m", &O::boundary_radius_m, 0.001, 10, "m",
+                  "neighbourhood of the boundary-point test (feature 1); about 2-3 point spacings")
+          .Number("boundary_angle_deg", &O::boundary_angle_deg, 1, 179, "deg",
+                  "a point is a boundary point if its neighbours leave an angular gap above this (PCL: 90)");
+  return b;
 }
 
 }  // namespace furnihost::parts

@@ -69,12 +69,15 @@ TEST(PartFeatures, DeterministicAcrossRuns) {
 }
 
 TEST(PartFeatures, DeclaredParametersResolveToTheDefaults) {
-  const ParamSchema s = PartFeatureSchema();
-  const PartFeatureOptions o = PartFeatureOptionsFrom(s.Resolve(nlohmann::json::object(), "test"));
+  const auto& b = PartFeatureBinding();
+  const PartFeatureOptions o = b.Parse(b.Schema().Resolve(nlohmann::json::object(), "test"));
   const PartFeatureOptions d;
   EXPECT_EQ(o.voxel_m, d.voxel_m);
   EXPECT_EQ(o.boundary_radius_m, d.boundary_radius_m);
   EXPECT_EQ(o.boundary_angle_deg, d.boundary_angle_deg);
+  EXPECT_EQ(b.Schema().Find("voxel_m")->default_value, 0.02);
+  EXPECT_EQ(b.Schema().Find("boundary_angle_deg")->unit, "deg");
+  EXPECT_THROW(b.Parse({{"boundary_angle_deg", 180}}), InputError);
 }
 
 TEST(PartFeatures, OptionChecks) {

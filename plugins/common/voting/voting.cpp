@@ -49,26 +49,6 @@ nlohmann::json FlatArray(const std::vector<T>& v) {
   return nlohmann::json(v);
 }
 
-std::string Trim(const std::string& s) {
-  const auto b = s.find_first_not_of(" \t");
-  if (b == std::string::npos) return "";
-  const auto e = s.find_last_not_of(" \t");
-  return s.substr(b, e - b + 1);
-}
-
-// "a, b,c" -> {"a", "b", "c"} (empty items dropped).
-std::vector<std::string> SplitList(const std::string& list) {
-  std::vector<std::string> out;
-  size_t start = 0;
-  while (start <= list.size()) {
-    const size_t comma = std::min(list.find(',', start), list.size());
-    const std::string name = Trim(list.substr(start, comma - start));
-    if (!name.empty()) out.push_back(name);
-    start = comma + 1;
-  }
-  return out;
-}
-
 }  // namespace
 
 // ---- training data ----------------------------------------------------------------------
@@ -427,99 +407,6 @@ Codebook Codebook::FromJson(const nlohmann::json& j, const std::string& format) 
 }
 
 // ---- options ----------------------------------------------------------------------------
-
-void SelectionOptions::Declare(ParamSchema& s) {
-  s.Number("max_distance", 0.0, 0.0, 100.0,
-           "feature-space distance beyond which a word/part is not activated (0 = off, paper)").DetectionOnly()
-      .Number("max_out_of_range", 0.0, 0.0, 1e6,
-              "a part whose raw features lie more than this many training ranges outside the range of "
-              "the training parts (any column) does not vote: walls and floors clamp to the largest "
-              "training part otherwise (0 = off, paper)").DetectionOnly()
-      .Number("height_tolerance_m", 0.0, 0.0, 100.0,
-              "a shape-model element votes only when the part's height above the floor is within this "
-              "of its training part's height (objects stand on the floor, Sect. VI-B) [m] (0 = off, paper)")
-      .DetectionOnly()
-      .Number("cell", 0.05, 0.005, 1.0, "vote grid cell size on the floor plane [m]").DetectionOnly()
-      .Number("smoothing", 0.08, 0.0, 1.0,
-              "Gaussian sigma smoothing the vote density before the maxima search [m] (0 = none)").DetectionOnly()
-      .Number("window_scale", 1.0, 0.1, 4.0,
-              "search/score window = window_scale x class width (paper: the class width)").DetectionOnly()
-      .Number("refine_radius", 0.15, 0.0, 2.0,
-              "mean-shift radius moving a grid maximum onto the votes [m] (0 = cell centre)").DetectionOnly()
-      .Enum("footprint", "circle", {"circle", "square"},
-            "2-D hull of a hypothesis for the consistency check (Sect. VI-B)").DetectionOnly()
-      .Number("footprint_scale", 1.0, 0.0, 4.0,
-              "footprint diameter / side = footprint_scale x class width").DetectionOnly()
-      .Object("thresholds", {{"chair", 0.6}, {"table", 1.0}, {"cabinet", 1.4}},
-              "minimum score per class (paper: chair 0.6, table 1.0, sideboard 1.4)").DetectionOnly()
-      .Number("default_threshold", 1.0, 0.0, 1e9, "minimum score of classes not in thresholds").DetectionOnly()
-      .String("classes", "", "comma-separated classes to detect (empty = every trained class)").DetectionOnly()
-      .Int("max_grid_cells", 4000000, 1000, 1e9,
-           "cap on grid cells per class; the cell grows beyond it (far outliers)")
-      .DetectionOnly()
-      .Number("column_radius_m", 0.0, 0.0, 10.0,
-              "column check (not in the paper): radius of the vertical column of scan points tested around "
-              "each hypothesis [m] (0 = off, paper)").DetectionOnly()
-      .Number("column_margin_m", 0.1, 0.0, 10.0,
-              "column check: points up to the class height (tallest training model) + this count as the "
-              "object, higher ones as 'above' [m]").DetectionOnly()
-      .Int("column_min_points", 10, 0, 1000000,
-           "column check: a hypothesis needs at least this many column points between 5 cm above the "
-           "floor and the class height + margin").DetectionOnly()
-      .Number("column_max_above", 0.1, 0.0, 1.0,
-              "column check: largest share of the column's points above the class height + margin (for "
-              "column_clear_classes; 1 = no limit)").DetectionOnly()
-      .String("column_clear_classes", "",
-              "comma-separated classes with nothing standing on them for column_max_above (empty = all)")
-      .DetectionOnly();
-}
-
-SelectionOptions SelectionOptions::FromParams(const nlohmann::json& p) {
-  SelectionOptions o;
-  o.max_distance = p.at("max_distance").get<float>();
-  o.max_out_of_range = p.at("max_out_of_range").get<float>();
-  o.height_tolerance = p.at("height_tolerance_m").get<float>();
-  o.cell = p.at("cell").get<float>();
-  o.smoothing = p.at("smoothing").get<float>();
-  o.window_scale = p.at("window_scale").get<float>();
-  o.refine_radius = p.at("refine_radius").get<float>();
-  o.footprint = p.at("footprint").get<std::string>();
-  o.footprint_scale = p.at("footprint_scale").get<float>();
-  o.default_threshold = p.at("default_threshold").get<float>();
-  o.max_grid_cells = p.at("max_grid_cells").get<long long>();
-  for (auto it = p.at("thresholds").begin(); it != p.at("thresholds").end(); ++it) {
-    if (!it.value().is_number() || !(it.value().get<double>() >= 0.0) ||
-        !std::isfinite(it.value().get<double>()))
-      throw InputError("thresholds/" + it.key() + ": expected a non-negative number, got " +
-                       it.value().dump());
-    o.thresholds[it.key()] = it.value().get<float>();
-  }
-  o.classes = SplitList(p.at("classes").get<std::string>());
-  o.column_radius = p.at("column_radius_m").get<float>();
-  o.column_margin = p.at("column_margin_m").get<float>();
-  o.column_min_points = p.at("column_min_points").get<int>();
-  o.column_max_above = p.at("column_max_above").get<float>();
-  o.column_clear_classes = SplitList(p.at("column_clear_classes").get<std::string>());
-  o.Check();
-  return o;
-}
-
-void SelectionOptions::Check() const {
-  if (activations < 1) throw InputError("activations: expected >= 1");
-  if (!(cell > 0.f)) throw InputError("cell: expected > 0");
-  if (!(smoothing >= 0.f)) throw InputError("smoothing: expected >= 0");
-  if (!(window_scale > 0.f)) throw InputError("window_scale: expected > 0");
-  if (!(refine_radius >= 0.f)) throw InputError("refine_radius: expected >= 0");
-  if (footprint != "circle" && footprint != "square")
-    throw InputError("footprint: expected circle or square, got " + footprint);
-  if (!(footprint_scale >= 0.f)) throw InputError("footprint_scale: expected >= 0");
-  if (!(default_threshold >= 0.f)) throw InputError("default_threshold: expected >= 0");
-  if (max_grid_cells < 1000) throw InputError("max_grid_cells: expected >= 1000");
-  if (!(column_radius >= 0.f)) throw InputError("column_radius_m: expected >= 0");
-  if (!(column_margin >= 0.f)) throw InputError("column_margin_m: expected >= 0");
-  if (column_min_points < 0) throw InputError("column_min_points: expected >= 0");
-  if (!(column_max_above >= 0.f && column_max_above <= 1.f)) throw InputError("column_max_above: expected 0..1");
-}
 
 float SelectionOptions::ThresholdFor(const std::string& cls) const {
   const auto it = thresholds.find(cls);

@@ -121,7 +121,8 @@ KMeansResult KMeans(const RowMatrixXf& data, const KMeansOptions& opt, uint64_t 
 Codebook BuildCodebook(const TrainingParts& parts, const RowMatrixXf& words,
                        const std::vector<int>& labels);
 
-// Options of activation, accumulation and hypothesis selection (shared parameter block).
+// Options of activation, accumulation and hypothesis selection (shared parameter block). The
+// defaults are the declared parameters' (BindSelection below reads them from here).
 struct SelectionOptions {
   int activations = 2;          // words activated per part (paper: 2)
   float max_distance = 0.f;     // feature distance beyond which a word is not activated (0 = off)
@@ -137,7 +138,8 @@ struct SelectionOptions {
   float refine_radius = 0.15f;  // mean-shift radius refining a grid maximum [m] (0 = off)
   std::string footprint = "circle";  // "circle" or "square" (axis-aligned), side = scale*width
   float footprint_scale = 1.f;
-  std::map<std::string, float> thresholds;
+  // The paper's thresholds (the schema default, what always ran; the struct copy was empty).
+  std::map<std::string, float> thresholds{{"cabinet", 1.4f}, {"chair", 0.6f}, {"table", 1.0f}};
   float default_threshold = 1.f;
   std::vector<std::string> classes;  // empty = all
   long long max_grid_cells = 4000000;
@@ -148,17 +150,81 @@ struct SelectionOptions {
   // walls, shelves and stacked cabinets go on upwards). column_radius = 0: off.
   float column_radius = 0.f;
   float column_margin = 0.1f;
-  int column_min_points = 10;  // = the schema default (what runs; the struct copy had drifted to 0)
-  float column_max_above = 0.1f;  // = the schema default (had drifted to 1)
+  int column_min_points = 10;
+  float column_max_above = 0.1f;
   std::vector<std::string> column_clear_classes;
 
-  // Declares the shared parameters (paper defaults) on `schema`.
-  static void Declare(ParamSchema& schema);
-  // Reads resolved params; throws InputError naming the bad field.
-  static SelectionOptions FromParams(const nlohmann::json& p);
-  void Check() const;
   float ThresholdFor(const std::string& cls) const;
 };
+
+// Declares the shared selection parameters (every one detection-only) on `b`, bound to the
+// SelectionOptions member `sel` of the voter's options struct O. `activations` is not among
+// them: a voter declares it (hough_vocabulary) or fixes it (nearest_neighbor).
+template <class O>
+ParamBinding<O>& BindSelection(ParamBinding<O>& b, SelectionOptions O::*sel) {
+  using S = SelectionOptions;
+  // The SelectionOptions field `f` of an O.
+  auto in = [sel](auto S::*f) { return [sel, f](O& o) -> auto& { return (o.*sel).*f; }; };
+  return b
+      .Number("max_distance", in(&S::max_distance), 0, 100, "",
+              "feature-space distance beyond which a word/part is not activated (0 = off, paper)")
+      .DetectionOnly()
+      .Number("max_out_of_range", in(&S::max_out_of_range), 0, 1e6, "",
+              "a part whose raw features lie more than this many training ranges outside the range of "
+              "the training parts (any column) does not vote: walls and floors clamp to the largest "
+              "training part otherwise (0 = off, paper)")
+      .DetectionOnly()
+      .Number("height_tolerance_m", in(&S::height_tolerance), 0, 100, "m",
+              "a shape-model element votes only when the part's height above the floor is within this "
+              "of its training part's height (objects stand on the floor, Sect. VI-B) (0 = off, paper)")
+      .DetectionOnly()
+      .Number("cell", in(&S::cell), 0.005, 1, "m", "vote grid cell size on the floor plane")
+      .DetectionOnly()
+      .Number("smoothing", in(&S::smoothing), 0, 1, "m",
+              "Gaussian sigma smoothing the vote density before the maxima search (0 = none)")
+      .DetectionOnly()
+      .Number("window_scale", in(&S::window_scale), 0.1, 4, "",
+              "search/score window = window_scale x class width (paper: the class width)")
+      .DetectionOnly()
+      .Number("refine_radius", in(&S::refine_radius), 0, 2, "m",
+              "mean-shift radius moving a grid maximum onto the votes (0 = cell centre)")
+      .DetectionOnly()
+      .Enum("footprint", in(&S::footprint), {"circle", "square"},
+            "2-D hull of a hypothesis for the consistency check (Sect. VI-B)")
+      .DetectionOnly()
+      .Number("footprint_scale", in(&S::footprint_scale), 0, 4, "",
+              "footprint diameter / side = footprint_scale x class width")
+      .DetectionOnly()
+      .NumberMap("thresholds", in(&S::thresholds), 0, std::nullopt, "",
+                 "minimum score per class (paper: chair 0.6, table 1.0, sideboard 1.4)")
+      .DetectionOnly()
+      .Number("default_threshold", in(&S::default_threshold), 0, 1e9, "", "minimum score of classes not in thresholds")
+      .DetectionOnly()
+      .StringList("classes", in(&S::classes), "comma-separated classes to detect (empty = every trained class)")
+      .DetectionOnly()
+      .Int("max_grid_cells", in(&S::max_grid_cells), 1000, 1e9, "",
+           "cap on grid cells per class; the cell grows beyond it (far outliers)")
+      .DetectionOnly()
+      .Number("column_radius_m", in(&S::column_radius), 0, 10, "m",
+              "column check (not in the paper): radius of the vertical column of scan points tested around "
+              "each hypothesis (0 = off, paper)")
+      .DetectionOnly()
+      .Number("column_margin_m", in(&S::column_margin), 0, 10, "m",
+              "column check: points up to the class height (tallest training model) + this count as the "
+              "object, higher ones as 'above'")
+      .DetectionOnly()
+      .Int("column_min_points", in(&S::column_min_points), 0, 1000000, "",
+           "column check: a hypothesis needs at least this many column points between 5 cm above the "
+           "floor and the class height + margin")
+      .DetectionOnly()
+      .Number("column_max_above", in(&S::column_max_above), 0, 1, "",
+              "column check: largest share of the column's points above the class height + margin (for "
+              "column_clear_classes; 1 = no limit)")
+      .DetectionOnly()
+      .StringList("column_clear_classes", in(&S::column_clear_classes),
+                  "comma-separated classes with nothing standing on them for column_max_above (empty = all)")
+      .DetectionOnly();
+}
 
 // kd-tree over the words of a codebook (nanoflann). Keeps its own copy of the words.
 // `leaf_size`: points per leaf (larger leaves pay off for thousands of points in 24-D).

@@ -10,8 +10,8 @@ namespace furnihost {
 
 class Paper24Features : public Features {
  public:
-  static ParamSchema Schema() { return parts::PartFeatureSchema(); }
-  explicit Paper24Features(const nlohmann::json& p) : o_(parts::PartFeatureOptionsFrom(p)) {}
+  static ParamSchema Schema() { return parts::PartFeatureBinding().Schema(); }
+  explicit Paper24Features(const nlohmann::json& p) : o_(parts::PartFeatureBinding().Parse(p)) {}
 
   FeatureMatrix Compute(const Scan& scan, const Segmentation& seg, const RunContext& ctx) override {
     tbb::task_arena arena(ctx.threads > 0 ? ctx.threads : tbb::task_arena::automatic);

@@ -11,8 +11,8 @@ namespace furnihost {
 
 class ReducedFeatures : public Features {
  public:
-  static ParamSchema Schema() { return parts::PartFeatureSchema(); }
-  explicit ReducedFeatures(const nlohmann::json& p) : o_(parts::PartFeatureOptionsFrom(p)) {}
+  static ParamSchema Schema() { return parts::PartFeatureBinding().Schema(); }
+  explicit ReducedFeatures(const nlohmann::json& p) : o_(parts::PartFeatureBinding().Parse(p)) {}
 
   FeatureMatrix Compute(const Scan& scan, const Segmentation& seg, const RunContext& ctx) override {
     tbb::task_arena arena(ctx.threads > 0 ? ctx.threads : tbb::task_arena::automatic);

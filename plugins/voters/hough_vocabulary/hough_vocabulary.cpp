@@ -14,27 +14,41 @@ namespace furnihost::voters {
 
 namespace {
 constexpr const char* kFormat = "voters.hough_vocabulary/3";
+
+struct Options {
+  voting::KMeansOptions km;
+  voting::SelectionOptions sel;
+};
+
+// Each parameter declared once; its default is Options{}'s.
+const ParamBinding<Options>& Binding() {
+  using O = Options;
+  static const auto b = [] {
+    ParamBinding<O> b;
+    b.Int("k", [](O& o) -> int& { return o.km.k; }, 1, 100000, "",
+          "vocabulary size: k-means clusters over training part features (paper: 40)")
+        .Int("max_iterations", [](O& o) -> int& { return o.km.max_iterations; }, 1, 100000, "",
+             "Lloyd iterations per k-means run")
+        .Int("restarts", [](O& o) -> int& { return o.km.restarts; }, 1, 1000, "",
+             "k-means runs from different k-means++ seeds; the lowest inertia wins")
+        .Int("activations", [](O& o) -> int& { return o.sel.activations; }, 1, 1000, "",
+             "words activated per scene part (paper: 2)")
+        .DetectionOnly();
+    voting::BindSelection(b, &O::sel);
+    return b;
+  }();
+  return b;
 }
+}  // namespace
 
 class HoughVocabularyVoter : public Voter {
  public:
-  static ParamSchema Schema() {
-    ParamSchema s;
-    s.Int("k", 40, 1, 100000, "vocabulary size: k-means clusters over training part features (paper: 40)")
-        .Int("max_iterations", 100, 1, 100000, "Lloyd iterations per k-means run")
-        .Int("restarts", 3, 1, 1000, "k-means runs from different k-means++ seeds; the lowest inertia wins")
-        .Int("activations", 2, 1, 1000, "words activated per scene part (paper: 2)")
-        .DetectionOnly();
-    voting::SelectionOptions::Declare(s);
-    return s;
-  }
+  static ParamSchema Schema() { return Binding().Schema(); }
 
-  explicit HoughVocabularyVoter(const nlohmann::json& p) : opt_(voting::SelectionOptions::FromParams(p)) {
-    km_.k = p.at("k").get<int>();
-    km_.max_iterations = p.at("max_iterations").get<int>();
-    km_.restarts = p.at("restarts").get<int>();
-    opt_.activations = p.at("activations").get<int>();
-    opt_.Check();
+  explicit HoughVocabularyVoter(const nlohmann::json& p) {
+    const Options o = Binding().Parse(p);
+    km_ = o.km;
+    opt_ = o.sel;
   }
 
   nlohmann::json Train(const std::vector<TrainingView>& views, const RunContext& ctx) override {

@@ -16,22 +16,39 @@ namespace furnihost::voters {
 
 namespace {
 constexpr const char* kFormat = "voters.nearest_neighbor/3";
+
+enum class Weighting { kUnit, kInverseDistance };  // the choices of "weighting", in order
+
+struct Options {
+  Weighting weighting = Weighting::kUnit;
+  voting::SelectionOptions sel;
+};
+
+// Each parameter declared once; its default is Options{}'s.
+const ParamBinding<Options>& Binding() {
+  using O = Options;
+  static const auto b = [] {
+    ParamBinding<O> b;
+    b.Enum("weighting", &O::weighting, {"unit", "inverse_distance"},
+           "vote weight: 1, or 1 / (1 + feature distance to the nearest training part)")
+        .DetectionOnly();
+    voting::BindSelection(b, &O::sel);
+    return b;
+  }();
+  return b;
 }
+}  // namespace
 
 class NearestNeighborVoter : public Voter {
  public:
-  static ParamSchema Schema() {
-    ParamSchema s;
-    s.Enum("weighting", "unit", {"unit", "inverse_distance"},
-           "vote weight: 1, or 1 / (1 + feature distance to the nearest training part)")
-        .DetectionOnly();
-    voting::SelectionOptions::Declare(s);
-    return s;
-  }
+  static ParamSchema Schema() { return Binding().Schema(); }
 
-  explicit NearestNeighborVoter(const nlohmann::json& p) : opt_(voting::SelectionOptions::FromParams(p)) {
+  // One activation: eq. 4 and 5 give exactly weight 1 (or the inverse distance).
+  explicit NearestNeighborVoter(const nlohmann::json& p) {
+    const Options o = Binding().Parse(p);
+    opt_ = o.sel;
     opt_.activations = 1;
-    opt_.inverse_distance = p.at("weighting").get<std::string>() == "inverse_distance";
+    opt_.inverse_distance = o.weighting == Weighting::kInverseDistance;
   }
 
   nlohmann::json Train(const std::vector<TrainingView>& views, const RunContext& ctx) override {
