@@ -107,6 +107,53 @@ TEST(BirdsEye, WritesSvgAndPngWithClassColoursWhereTheObjectsAre) {
   fs::remove_all(dir);
 }
 
+// Votes are drawn only within the scan's outline (parts also vote for centres beyond walls);
+// the scan's points stay visible under them.
+TEST(BirdsEye, VotesOutsideTheScanAreNotDrawn) {
+  const std::string dir = testing::TempDir("birdseye_outline");
+  Scan room;  // floor points of a 4 m x 3 m room, 5 cm apart
+  for (int i = 0; i <= 80; ++i)
+    for (int j = 0; j <= 60; ++j) room.points.emplace_back(0.05f * i, 0.05f * j, 0.f);
+  VoteResult votes;
+  VoteGrid g;
+  g.cls = "sofa";  // the palette's first colour: green
+  g.origin = Eigen::Vector2f(0.f, 0.f);
+  g.cell = 0.1f;
+  g.width = 70;
+  g.height = 30;
+  g.values.assign(static_cast<size_t>(g.width) * g.height, 0.f);
+  g.values[15 * g.width + 20] = 1.f;  // (2.05, 1.55): inside the room
+  g.values[15 * g.width + 55] = 1.f;  // (5.55, 1.55): 1.5 m beyond its wall
+  votes.grids.push_back(g);
+  Detection table;  // widens the picture to x = 6.5
+  table.cls = "table";
+  table.center = Eigen::Vector3f(6.5f, 1.5f, 0.4f);
+  table.score = 1.f;
+  app::WriteBirdsEye(dir + "/votes", {&room}, votes, {table});
+
+  cairo_surface_t* png = cairo_image_surface_create_from_png((dir + "/votes.png").c_str());
+  ASSERT_EQ(cairo_surface_status(png), CAIRO_STATUS_SUCCESS);
+  const int w = cairo_image_surface_get_width(png), hgt = cairo_image_surface_get_height(png);
+  const int stride = cairo_image_surface_get_stride(png);
+  const unsigned char* data = cairo_image_surface_get_data(png);
+  // The view: x from -0.25 to 6.75 m (0.25 m padding), 1000 px / 7 m, 40 px margin.
+  const double ppm = 1000.0 / 7.0;
+  auto px = [&](double x) { return 40.0 + (x + 0.25) * ppm; };
+  int green_in = 0, green_out = 0, floor_px = 0;
+  for (int y = 0; y < hgt; ++y)
+    for (int x = 0; x < w - 200; ++x) {
+      const uint32_t p = reinterpret_cast<const uint32_t*>(data + static_cast<size_t>(y) * stride)[x];
+      const int r = (p >> 16) & 255, gg = (p >> 8) & 255, b = p & 255;
+      if (gg > 120 && gg > r + 30 && gg > b + 30) (x < px(4.1) ? green_in : green_out)++;
+      if (x > px(0.5) && x < px(1.5) && r < 235 && b > r && std::abs(gg - (r + b) / 2) < 12) ++floor_px;
+    }
+  EXPECT_GT(green_in, 100);  // the vote in the room (a 0.1 m cell is ~14 x 14 px)
+  EXPECT_EQ(green_out, 0);   // the one beyond the wall is clipped
+  EXPECT_GT(floor_px, 2000);  // floor points drawn as blocks, not dust
+  cairo_surface_destroy(png);
+  fs::remove_all(dir);
+}
+
 TEST(BirdsEye, EmptyInputStillDrawsAndUnwritablePathThrows) {
   const std::string dir = testing::TempDir("birdseye_empty");
   EXPECT_NO_THROW(app::WriteBirdsEye(dir + "/empty", {}, VoteResult{}, {}));
