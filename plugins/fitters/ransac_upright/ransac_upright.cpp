@@ -113,6 +113,9 @@ const ParamBinding<RansacUprightOptions>& Binding() {
                   "a scan point is covered when a model point is this close")
           .Number("score_fraction", [](O& o) -> float& { return o.ransac.score_fraction; }, 0.01, 1, "",
                   "share of the part points each candidate is scored on (paper: ~50 %)")
+          .Int("max_score_points", [](O& o) -> int& { return o.ransac.max_score_points; }, 0, 10000000, "",
+               "at most this many part points per candidate (dense scans: the share is estimated as well from "
+               "a few thousand); ICP and the final coverage use at most 4x as many; 0 = all (paper)")
           .Number("p_success", [](O& o) -> double& { return o.ransac.p_success; }, 0.5, 0.999999, "",
                   "RANSAC success probability of eq. 7")
           .Int("max_iterations", [](O& o) -> int& { return o.ransac.max_iterations; }, 1, 100000, "",

@@ -112,7 +112,7 @@ const Eigen::Isometry3f kScanPose = Upright(0.4f, -0.3f, 0.5f);
 
 // One object of the catalog placed in a room and scanned from kSensor.
 SimScan ScanOf(const CatalogModel& m, const Eigen::Isometry3f& pose, uint64_t seed, bool with_origin = true,
-               bool object_present = true) {
+               bool object_present = true, int rays = 90) {
   World w;
   w.AddRoom(5.f, 2.5f);
   Furniture f;
@@ -124,7 +124,7 @@ SimScan ScanOf(const CatalogModel& m, const Eigen::Isometry3f& pose, uint64_t se
   const Eigen::Vector3f centre = pose * BoundsOf(m.mesh).center();
   const float radius = 0.5f * m.size.norm() + 0.1f;
   // ~90 x 90 rays over the object's angular box: about 2-3k points on a chair at 2 m.
-  return SimulateObject(w, kSensor, centre, radius, 90, 0.003f, 0.05f, seed, kScanPose, with_origin);
+  return SimulateObject(w, kSensor, centre, radius, rays, 0.003f, 0.05f, seed, kScanPose, with_origin);
 }
 
 struct PoseError {
@@ -184,6 +184,34 @@ TEST(RansacUpright, RecoversChairPoseAndModel) {
   EXPECT_GT(d.iterations, 0);
   // model_pose maps the model's bbox centre onto the reported centre.
   EXPECT_LT((d.model_pose * BoundsOf(cat.Get("chair_a").mesh).center() - d.center).norm(), 1e-4f);
+}
+
+// A dense scan (a tilting laser close by: ~10x the part points of the tests above): each
+// candidate is scored on at most max_score_points of them and the final coverage on an even
+// subset, which must find the same model and pose as scoring on all of them, and about the same
+// coverage.
+TEST(RansacUpright, DenseScanFitsOnASubsetAsOnAllPoints) {
+  const Catalog cat = FurnitureCatalog();
+  Scenes sc;
+  std::vector<int> parts;
+  const int s = sc.Add(ScanOf(cat.Get("chair_a"), kChairPose, 1, true, true, 300), 0, &parts);
+  const Detection h = Hypothesis(sc, "chair", s, parts);
+  const auto sub = MakeFitter()->Fit({h}, sc.Ctx(cat));  // default: max_score_points 2000
+  const auto all = MakeFitter({{"max_score_points", 0}})->Fit({h}, sc.Ctx(cat));
+  ASSERT_EQ(sub.size(), 1u);
+  ASSERT_EQ(all.size(), 1u);
+  ASSERT_TRUE(sub[0].coverage && all[0].coverage);
+  size_t part_points = 0;
+  for (int p : parts) part_points += sc.segs[0]->parts[p].indices.size();
+  ASSERT_GT(part_points, 4u * 2000u);  // both caps bind
+  for (const Detection* d : {&sub[0], &all[0]}) {
+    EXPECT_EQ(d->model, "chair_a");
+    const PoseError e = ErrorOf(*d, cat.Get("chair_a"), kChairPose);
+    EXPECT_LT(e.centre, kCentreTol);
+    EXPECT_LT(e.yaw, kYawTol);
+    EXPECT_TRUE(d->verified.value_or(false)) << d->Rejection();
+  }
+  EXPECT_NEAR(*sub[0].coverage, *all[0].coverage, 0.03f);
 }
 
 // A scan whose floor is 0.6 m below z = 0 (a robot's sensor frame, say): the models stand on

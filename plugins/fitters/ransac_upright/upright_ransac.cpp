@@ -109,7 +109,11 @@ FitResult FitUpright(const ScenePoints& scene, const std::vector<const ModelClou
   std::vector<int> perm(n);
   std::iota(perm.begin(), perm.end(), 0);
   std::shuffle(perm.begin(), perm.end(), rng);
-  const int E = std::clamp(static_cast<int>(std::lround(o.score_fraction * n)), 1, n);
+  // At most max_score_points: the coverage is a share, and a few thousand points estimate it
+  // as well as the ~10^5 part points of an object in a dense laser scan (cost per candidate
+  // bounded whatever the density; at room-scan densities, ~1-2 K part points, it never binds).
+  int E = std::clamp(static_cast<int>(std::lround(o.score_fraction * n)), 1, n);
+  if (o.max_score_points > 0) E = std::min(E, o.max_score_points);
   std::vector<Eigen::Vector3f> ev(E);
   for (int k = 0; k < E; ++k) {
     const Eigen::Vector3f& p = scene.points[perm[k]];
@@ -322,11 +326,16 @@ FitResult FitUpright(const ScenePoints& scene, const std::vector<const ModelClou
   // along the model's horizontal normals (points on near-horizontal faces carry no x, y, yaw
   // information and are left out), which slides along walls of the model instead of pulling
   // each scene point onto its nearest model sample.
+  // ICP and the final figures use every `stride`-th scene point: all of them unless there are
+  // more than 4 x max_score_points (dense scans), then an even subset of about that many.
+  const size_t fig_cap = o.max_score_points > 0 ? 4 * static_cast<size_t>(o.max_score_points) : 0;
+  const size_t stride = fig_cap > 0 && size_t(n) > fig_cap ? (size_t(n) + fig_cap - 1) / fig_cap : 1;
   for (int r = 0; r < o.refine_iterations; ++r) {
     const Eigen::Isometry3f Tw = UprightIsometry(pose.tx, pose.ty, o.floor_z, pose.yaw);
     const Eigen::Isometry3f Ti = Tw.inverse();
     std::vector<Eigen::Vector2f> a, b, nrm;
-    for (const auto& p : scene.points) {
+    for (size_t q = 0; q < scene.points.size(); q += stride) {
+      const Eigen::Vector3f& p = scene.points[q];
       float d = 0.f;
       const int j = m.Nearest(Ti * p, &d);
       if (j < 0 || d > 2.f * m.InlierDistance()) continue;
@@ -388,15 +397,17 @@ FitResult FitUpright(const ScenePoints& scene, const std::vector<const ModelClou
   out.pose = UprightIsometry(pose.tx, pose.ty, o.floor_z, pose.yaw);
   const Eigen::Isometry3f Ti = out.pose.inverse();
   double se = 0.0;
-  for (const auto& p : scene.points) {
+  int tested = 0;
+  for (size_t q = 0; q < scene.points.size(); q += stride, ++tested) {
     float d = 0.f;
-    m.Nearest(Ti * p, &d);
+    m.Nearest(Ti * scene.points[q], &d);
     if (d <= m.InlierDistance()) {
       ++out.covered;
       se += double(d) * d;
     }
   }
-  out.coverage = float(out.covered) / float(n);
+  out.total = tested;
+  out.coverage = float(out.covered) / float(tested);
   out.rms = out.covered > 0 ? static_cast<float>(std::sqrt(se / out.covered)) : -1.f;
   return out;
 }

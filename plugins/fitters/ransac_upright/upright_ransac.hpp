@@ -26,6 +26,8 @@ struct RansacOptions {
   float normal_z_tolerance = 0.3f;     // candidates need ||n_z,model| - |n_z,scene|| below this
   bool normal_sign_ambiguous = true;   // try yaw and yaw + 180° (normals' signs are arbitrary)
   float score_fraction = 0.5f;         // share of the scene points a candidate is scored on
+  int max_score_points = 2000;         // ... at most this many (0 = no cap); ICP and the final
+                                       // coverage use at most 4x as many (an even subset)
   double p_success = 0.99;             // eq. 7
   int max_iterations = 200;            // samples per model, cap of eq. 7
   int min_iterations = 10;             // samples per model, floor of eq. 7 once any pose reached the bound
@@ -55,7 +57,8 @@ struct FitResult {
   bool reached_bound = false;   // false: the pose is the best abandoned candidate (a weak fit)
   float x = 0.f, y = 0.f, yaw = 0.f;  // model origin in the world, yaw about +z [rad]
   Eigen::Isometry3f pose = Eigen::Isometry3f::Identity();  // model -> world
-  int covered = 0, total = 0;   // scene points within the inlier distance / all scene points
+  int covered = 0, total = 0;   // scene points within the inlier distance / scene points tested
+                                // (all, or an even subset of 4 x max_score_points)
   float coverage = 0.f;         // covered / total
   float rms = -1.f;             // RMS nearest-point distance of the covered points [m]
   double explained_share = -1.0;  // share of the model's points within the inlier distance of
