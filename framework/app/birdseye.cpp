@@ -12,6 +12,7 @@
 #include <memory>
 
 #include "furnihost/error.hpp"
+#include "furnihost/geometry.hpp"
 #include "furnihost/io.hpp"
 #include "furnihost/pipeline.hpp"
 
@@ -127,7 +128,7 @@ SurfacePtr PointsRaster(const std::vector<Shown>& scans, const View& v, std::vec
     }
   }
   // Each row's first and last drawn block bound the hull (<= 2 points per row).
-  std::vector<Eigen::Vector2d> ends;
+  std::vector<Eigen::Vector2f> ends;
   for (int by = 0; by < bh; ++by) {
     int first = -1, last = -1;
     for (int bx = 0; bx < bw; ++bx) {
@@ -149,32 +150,13 @@ SurfacePtr PointsRaster(const std::vector<Shown>& scans, const View& v, std::vec
           reinterpret_cast<uint32_t*>(data + static_cast<size_t>(y) * stride)[x] = argb;
     }
     if (first < 0) continue;
-    for (double y : {double(by * block), double((by + 1) * block)}) {
-      ends.emplace_back(first * block, y);
-      ends.emplace_back((last + 1) * block, y);
+    for (float y : {float(by * block), float((by + 1) * block)}) {
+      ends.emplace_back(float(first * block), y);
+      ends.emplace_back(float((last + 1) * block), y);
     }
   }
   extent->clear();
-  if (ends.size() >= 3) {  // Andrew's monotone chain
-    std::sort(ends.begin(), ends.end(), [](const auto& a, const auto& b) {
-      return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y());
-    });
-    auto cross = [](const Eigen::Vector2d& o, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
-      return (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
-    };
-    std::vector<Eigen::Vector2d> hull(2 * ends.size());
-    size_t k = 0;
-    for (size_t i = 0; i < ends.size(); ++i) {
-      while (k >= 2 && cross(hull[k - 2], hull[k - 1], ends[i]) <= 0) --k;
-      hull[k++] = ends[i];
-    }
-    for (size_t i = ends.size() - 1, t = k + 1; i > 0; --i) {
-      while (k >= t && cross(hull[k - 2], hull[k - 1], ends[i - 1]) <= 0) --k;
-      hull[k++] = ends[i - 1];
-    }
-    hull.resize(k - 1);
-    *extent = std::move(hull);
-  }
+  for (const Eigen::Vector2f& p : ConvexHull2D(std::move(ends))) extent->push_back(p.cast<double>());
   cairo_surface_mark_dirty(img.get());
   return img;
 }

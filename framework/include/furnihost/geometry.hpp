@@ -28,6 +28,10 @@ FURNIHOST_API VoxelNormals EstimateVoxelNormals(const Points& points, float voxe
 // Isometry for an upright pose: translation (x, y, z), rotation yaw [rad] about +z.
 FURNIHOST_API Eigen::Isometry3f UprightPose(float x, float y, float z, float yaw);
 
+// Convex hull of 2D points (Andrew's monotone chain), counter-clockwise, without collinear
+// points; fewer than 3 distinct points come back as they are (sorted, deduplicated).
+FURNIHOST_API std::vector<Eigen::Vector2f> ConvexHull2D(std::vector<Eigen::Vector2f> points);
+
 }  // namespace furnihost
 
 namespace furnihost {

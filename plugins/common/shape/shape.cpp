@@ -11,6 +11,8 @@
 #include <nanoflann.hpp>
 #include <unordered_map>
 
+#include "furnihost/geometry.hpp"
+
 namespace furnihost::shape {
 
 namespace {
@@ -166,27 +168,6 @@ float MedianSpacing(const std::vector<float>& nn, size_t stride) {
 }
 
 namespace {
-float Cross(const Eigen::Vector2f& o, const Eigen::Vector2f& a, const Eigen::Vector2f& b) {
-  return (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
-}
-// Convex hull (Andrew's monotone chain), counter-clockwise.
-std::vector<Eigen::Vector2f> Hull(std::vector<Eigen::Vector2f> p) {
-  std::sort(p.begin(), p.end(), [](const auto& a, const auto& b) { return a.x() != b.x() ? a.x() < b.x() : a.y() < b.y(); });
-  p.erase(std::unique(p.begin(), p.end()), p.end());
-  if (p.size() < 3) return p;
-  std::vector<Eigen::Vector2f> h(2 * p.size());
-  size_t k = 0;
-  for (size_t i = 0; i < p.size(); ++i) {
-    while (k >= 2 && Cross(h[k - 2], h[k - 1], p[i]) <= 0) --k;
-    h[k++] = p[i];
-  }
-  for (size_t i = p.size() - 1, t = k + 1; i > 0; --i) {
-    while (k >= t && Cross(h[k - 2], h[k - 1], p[i - 1]) <= 0) --k;
-    h[k++] = p[i - 1];
-  }
-  h.resize(k - 1);
-  return h;
-}
 // The value at quantile q of v (v is reordered).
 float Quantile(std::vector<float>& v, double q) {
   const size_t k = std::min(v.size() - 1, size_t(q * double(v.size() - 1) + 0.5));
@@ -209,7 +190,7 @@ Footprint OrientedFootprint(const std::vector<Eigen::Vector2f>& xy, float axis_m
     return f;
   }
   // Candidate directions: the hull edges' angles folded into [0, 90 deg), deduplicated to 1 mrad.
-  const std::vector<Eigen::Vector2f> h = Hull(xy);
+  const std::vector<Eigen::Vector2f> h = ConvexHull2D(xy);
   std::vector<float> angles;
   for (size_t i = 0; i < h.size(); ++i) {
     const Eigen::Vector2f e = h[(i + 1) % h.size()] - h[i];
