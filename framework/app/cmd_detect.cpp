@@ -269,6 +269,8 @@ int RunDetect(const std::vector<std::string>& args) {
       j["frames"].push_back(ToJson(s.frame));
       j["ground"].push_back(s.ground ? ToJson(*s.ground) : nlohmann::json(nullptr));
     }
+    // Several sinks (GraphConfig::Sinks): each detection names its own in "chain".
+    if (r.sinks.size() > 1) j["sinks"] = r.sinks;
     j["detections"] = nlohmann::json::array();
     for (const auto& d : r.detections) j["detections"].push_back(DetectionToJson(d, frame_scan));
     j["timings_ms"] = nlohmann::json::object();

@@ -120,6 +120,37 @@ std::vector<const StageConfig*> GraphConfig::AllOfKind(StageKind kind) const {
   return out;
 }
 
+const StageConfig* GraphConfig::InputOfKind(const StageConfig& s, StageKind kind) const {
+  for (const auto& in : s.inputs)
+    if (const StageConfig* c = Find(in); c && c->kind == kind) return c;
+  return nullptr;
+}
+
+const StageConfig* GraphConfig::SegmenterOfVoter(const StageConfig& voter) const {
+  if (const StageConfig* f = InputOfKind(voter, StageKind::Features)) return InputOfKind(*f, StageKind::Segmenter);
+  if (const StageConfig* p = InputOfKind(voter, StageKind::Proposer)) return InputOfKind(*p, StageKind::Segmenter);
+  return nullptr;
+}
+
+const StageConfig* GraphConfig::VoterOf(const StageConfig& s) const {
+  const StageConfig* c = &s;
+  // Validation refuses cycles; the bound only guards a graph built by hand.
+  for (size_t hops = 0; c && c->kind == StageKind::Fitter && hops <= stages.size(); ++hops)
+    c = c->inputs.empty() ? nullptr : Find(c->inputs.front());
+  return c && c->kind == StageKind::Voter ? c : nullptr;
+}
+
+std::vector<const StageConfig*> GraphConfig::Sinks() const {
+  std::set<std::string> fed;  // stages some fitter takes
+  for (const auto& s : stages)
+    if (s.kind == StageKind::Fitter)
+      for (const auto& in : s.inputs) fed.insert(in);
+  std::vector<const StageConfig*> out;
+  for (const auto& s : stages)
+    if ((s.kind == StageKind::Voter || s.kind == StageKind::Fitter) && !fed.count(s.tag)) out.push_back(&s);
+  return out;
+}
+
 GraphConfig ValidateGraph(const std::string& path, const nlohmann::json& config, const Registry& registry) {
   const std::string w = path + ":";
   if (!config.is_object()) throw InputError(w + " expected a JSON object, got " + Shown(config));
@@ -332,18 +363,22 @@ GraphConfig ValidateGraph(const std::string& path, const nlohmann::json& config,
     }
   }
 
-  // The detection chain must be a single line: one of each kind up to the voter, then fitters.
-  for (StageKind k : {StageKind::Sensor, StageKind::Segmenter, StageKind::Proposer, StageKind::Features, StageKind::Voter}) {
-    auto all = g.AllOfKind(k);
-    if (all.size() > 1)
-      throw InputError(w + "/stages: more than one " + std::string(ToString(k)) + " stage (" + all[0]->tag + ", " +
-                       all[1]->tag + "); a graph is one detection chain (plus an optional training sensor)");
+  // Scans come in through one sensor; every other stage may fan out (see config.hpp).
+  if (auto sensors = g.AllOfKind(StageKind::Sensor); sensors.size() > 1)
+    throw InputError(w + "/stages/" + sensors[1]->tag + ": more than one sensor stage (" + sensors[0]->tag + ", " +
+                     sensors[1]->tag + "); a graph reads its scans through one sensor (plus an optional training "
+                     "sensor named by /training/sensor)");
+  // A voter's features and proposals index the parts of one segmentation.
+  for (const auto* v : g.AllOfKind(StageKind::Voter)) {
+    const StageConfig* f = g.InputOfKind(*v, StageKind::Features);
+    const StageConfig* p = g.InputOfKind(*v, StageKind::Proposer);
+    const StageConfig* fs = f ? g.InputOfKind(*f, StageKind::Segmenter) : nullptr;
+    const StageConfig* ps = p ? g.InputOfKind(*p, StageKind::Segmenter) : nullptr;
+    if (fs && ps && fs != ps)
+      throw InputError(w + v->pointer + "/inputs: voter '" + v->tag + "' takes features '" + f->tag +
+                       "' (parts of segmenter '" + fs->tag + "') and proposer '" + p->tag + "' (parts of segmenter '" +
+                       ps->tag + "'); both must come from one segmenter");
   }
-  auto fitters = g.AllOfKind(StageKind::Fitter);
-  std::map<std::string, int> consumers;
-  for (const auto* f : fitters) consumers[f->inputs[0]]++;
-  for (const auto& [t, n] : consumers)
-    if (n > 1) throw InputError(w + "/stages: stage '" + t + "' feeds " + std::to_string(n) + " fitters; fitters form one chain");
   if (g.catalog.empty() && g.FirstOfKind(StageKind::Voter))
     throw InputError(w + "/catalog: missing (the catalog.json the voter is trained from)");
   g.resolved = resolved;
