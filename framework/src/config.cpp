@@ -132,11 +132,15 @@ const StageConfig* GraphConfig::SegmenterOfVoter(const StageConfig& voter) const
   return nullptr;
 }
 
+const StageConfig* GraphConfig::DetectionsInput(const StageConfig& fitter) const {
+  if (const StageConfig* v = InputOfKind(fitter, StageKind::Voter)) return v;
+  return InputOfKind(fitter, StageKind::Fitter);
+}
+
 const StageConfig* GraphConfig::VoterOf(const StageConfig& s) const {
   const StageConfig* c = &s;
   // Validation refuses cycles; the bound only guards a graph built by hand.
-  for (size_t hops = 0; c && c->kind == StageKind::Fitter && hops <= stages.size(); ++hops)
-    c = c->inputs.empty() ? nullptr : Find(c->inputs.front());
+  for (size_t hops = 0; c && c->kind == StageKind::Fitter && hops <= stages.size(); ++hops) c = DetectionsInput(*c);
   return c && c->kind == StageKind::Voter ? c : nullptr;
 }
 
@@ -144,7 +148,7 @@ std::vector<const StageConfig*> GraphConfig::Sinks() const {
   std::set<std::string> fed;  // stages some fitter takes
   for (const auto& s : stages)
     if (s.kind == StageKind::Fitter)
-      for (const auto& in : s.inputs) fed.insert(in);
+      if (const StageConfig* in = DetectionsInput(s)) fed.insert(in->tag);
   std::vector<const StageConfig*> out;
   for (const auto& s : stages)
     if ((s.kind == StageKind::Voter || s.kind == StageKind::Fitter) && !fed.count(s.tag)) out.push_back(&s);
@@ -281,7 +285,7 @@ GraphConfig ValidateGraph(const std::string& path, const nlohmann::json& config,
       case StageKind::Proposer: return {StageKind::Segmenter, StageKind::Sensor};
       case StageKind::Features: return {StageKind::Segmenter};
       case StageKind::Voter: return {StageKind::Features, StageKind::Proposer};
-      case StageKind::Fitter: return {StageKind::Voter, StageKind::Fitter};
+      case StageKind::Fitter: return {StageKind::Voter, StageKind::Fitter, StageKind::Proposer};
     }
     return {};
   };
@@ -290,12 +294,32 @@ GraphConfig ValidateGraph(const std::string& path, const nlohmann::json& config,
     auto want = expected_input(s.kind);
     if (want.empty() && !s.inputs.empty()) throw InputError(at + ": a sensor takes no inputs");
     // A voter takes part features, the proposals it recognises, or both.
-    const size_t most = s.kind == StageKind::Voter ? 2 : 1;
+    // A fitter takes the detections of a voter or a fitter, and may take a proposer whose
+    // proposals it sees (instead of its voter's).
+    const size_t most = s.kind == StageKind::Voter || s.kind == StageKind::Fitter ? 2 : 1;
     if (!want.empty() && (s.inputs.empty() || s.inputs.size() > most))
       throw InputError(at + ": a " + std::string(ToString(s.kind)) + " takes " +
-                       (most > 1 ? "a features stage, a proposer, or one of each" :
-                        std::string("exactly one input (a ") + ToString(want.front()) +
-                            (want.size() > 1 ? std::string(" or a ") + ToString(want[1]) : std::string()) + " stage)"));
+                       (s.kind == StageKind::Voter    ? std::string("a features stage, a proposer, or one of each")
+                        : s.kind == StageKind::Fitter ? std::string("a voter or a fitter, and optionally a proposer")
+                                                      : std::string("exactly one input (a ") + ToString(want.front()) +
+                                                            (want.size() > 1 ? std::string(" or a ") + ToString(want[1])
+                                                                             : std::string()) +
+                                                            " stage)"));
+    if (s.kind == StageKind::Fitter) {
+      int detections = 0, proposers = 0, unknown = 0;
+      for (const auto& in : s.inputs) {
+        auto it = by_tag.find(in);
+        if (it == by_tag.end() || std::find(want.begin(), want.end(), it->second.kind) == want.end()) {
+          ++unknown;  // named below (unknown stage or kind mismatch)
+          continue;
+        }
+        detections += it->second.kind == StageKind::Voter || it->second.kind == StageKind::Fitter;
+        proposers += it->second.kind == StageKind::Proposer;
+      }
+      if (!unknown && (detections != 1 || proposers > 1))
+        throw InputError(at + ": fitter '" + tag +
+                         "' takes the detections of one voter or fitter, and optionally one proposer");
+    }
     if (s.kind == StageKind::Voter) {
       int features = 0, proposers = 0, unknown = 0;
       for (const auto& in : s.inputs) {
@@ -378,6 +402,18 @@ GraphConfig ValidateGraph(const std::string& path, const nlohmann::json& config,
       throw InputError(w + v->pointer + "/inputs: voter '" + v->tag + "' takes features '" + f->tag +
                        "' (parts of segmenter '" + fs->tag + "') and proposer '" + p->tag + "' (parts of segmenter '" +
                        ps->tag + "'); both must come from one segmenter");
+  }
+  for (const auto* f : g.AllOfKind(StageKind::Fitter)) {
+    const StageConfig* p = g.InputOfKind(*f, StageKind::Proposer);
+    const StageConfig* v = g.VoterOf(*f);
+    if (!p || !v) continue;
+    const StageConfig* ps = g.InputOfKind(*p, StageKind::Segmenter);
+    const StageConfig* vs = g.SegmenterOfVoter(*v);
+    if (ps != vs)
+      throw InputError(w + f->pointer + "/inputs: fitter '" + f->tag + "' takes proposer '" + p->tag + "' (" +
+                       (ps ? "parts of segmenter '" + ps->tag + "'" : std::string("no parts")) + ") after voter '" +
+                       v->tag + "' (" + (vs ? "parts of segmenter '" + vs->tag + "'" : std::string("no parts")) +
+                       "); both must come from one segmenter");
   }
   if (g.catalog.empty() && g.FirstOfKind(StageKind::Voter))
     throw InputError(w + "/catalog: missing (the catalog.json the voter is trained from)");

@@ -431,7 +431,7 @@ Pipeline::Result Pipeline::Detect(const std::vector<SceneInput>& scenes, const T
   std::map<std::string, Output> out;
   const size_t n = r.scans.size();
   const StageConfig *first_seg = nullptr, *first_prop = nullptr, *first_feat = nullptr, *first_voter = nullptr;
-  std::map<std::string, FitContext> fit_contexts;  // by the voter at the root of a fitter chain
+  std::map<std::string, FitContext> fit_contexts;  // by root voter (and proposer) of a fitter chain
   for (const StageConfig& s : graph_.stages) {
     if (s.kind == StageKind::Sensor) continue;  // the input sensor ran above; the training sensor trains
     Output& o = out[s.tag];
@@ -561,16 +561,21 @@ Pipeline::Result Pipeline::Detect(const std::vector<SceneInput>& scenes, const T
       }
       case StageKind::Fitter: {
         // Fitters verify against the catalog; without one the chain stops at what ran before.
-        const Output& in = out.at(s.inputs.front());
+        const Output& in = out.at(graph_.DetectionsInput(s)->tag);
         if (!catalog || !in.ran) break;
+        // The scenes its voter voted with; a proposer among its inputs gives the proposals.
         const StageConfig* root = graph_.VoterOf(s);
-        auto fc = fit_contexts.find(root->tag);
+        const StageConfig* prop_cfg = graph_.InputOfKind(s, StageKind::Proposer);
+        const std::string key = root->tag + (prop_cfg ? "/" + prop_cfg->tag : std::string());
+        auto fc = fit_contexts.find(key);
         if (fc == fit_contexts.end()) {
           FitContext c;
           c.scenes = out.at(root->tag).parts;
+          if (prop_cfg)
+            for (size_t i = 0; i < n; ++i) c.scenes[i].proposals = &out.at(prop_cfg->tag).proposals.at(i);
           for (const auto& m : catalog->models) c.catalog.push_back(&m);
           c.run = ctx;
-          fc = fit_contexts.emplace(root->tag, std::move(c)).first;
+          fc = fit_contexts.emplace(key, std::move(c)).first;
         }
         auto& fitter = StageAs<Fitter>(s);
         Stopwatch sf;
@@ -589,7 +594,7 @@ Pipeline::Result Pipeline::Detect(const std::vector<SceneInput>& scenes, const T
   for (const StageConfig* sink : sinks) {
     const StageConfig* c = sink;
     for (size_t hops = 0; c && !out.at(c->tag).ran && c->kind == StageKind::Fitter && hops <= graph_.stages.size(); ++hops)
-      c = graph_.Find(c->inputs.front());
+      c = graph_.DetectionsInput(*c);
     if (!c || !out.at(c->tag).ran || !given.insert(c->tag).second) continue;
     Output& o = out.at(c->tag);
     r.sinks.push_back(c->tag);

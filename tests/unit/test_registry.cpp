@@ -211,6 +211,26 @@ TEST(Config, FanOutAndSideBySideValidateWhatCannotRunIsRefused) {
   EXPECT_EQ(ConfigError(With(mixed)),
             "g.json:/stages/vote/inputs: voter 'vote' takes features 'feat' (parts of segmenter 'segment') and "
             "proposer 'prop' (parts of segmenter 'segment2'); both must come from one segmenter");
+  // A fitter may take a proposer beside its detections, if both see the parts of one segmenter.
+  EXPECT_EQ(ConfigError(With({{"catalog", "cat.json"},
+                              {"stages",
+                               {{"prop", {{"type", "proposals.clusters"}, {"inputs", {"segment"}}}},
+                                {"vote", {{"type", "voters.nearest_neighbor"}, {"inputs", {"feat"}}}},
+                                {"f1", {{"type", "fitters.passthrough"}, {"inputs", {"vote", "prop"}}}}}}})),
+            "");
+  EXPECT_EQ(ConfigError(With({{"catalog", "cat.json"},
+                              {"stages",
+                               {{"prop", {{"type", "proposals.clusters"}, {"inputs", {"input"}}}},
+                                {"vote", {{"type", "voters.nearest_neighbor"}, {"inputs", {"feat"}}}},
+                                {"f1", {{"type", "fitters.passthrough"}, {"inputs", {"vote", "prop"}}}}}}})),
+            "g.json:/stages/f1/inputs: fitter 'f1' takes proposer 'prop' (no parts) after voter 'vote' (parts of "
+            "segmenter 'segment'); both must come from one segmenter");
+  EXPECT_EQ(ConfigError(With({{"catalog", "cat.json"},
+                              {"stages",
+                               {{"prop", {{"type", "proposals.clusters"}, {"inputs", {"segment"}}}},
+                                {"f1", {{"type", "fitters.passthrough"}, {"inputs", {"prop"}}}}}}})),
+            "g.json:/stages/f1/inputs: fitter 'f1' takes the detections of one voter or fitter, and optionally one "
+            "proposer");
   // Scans come in through one sensor.
   EXPECT_NE(ConfigError(With({{"stages", {{"input2", {{"type", "sensors.scan_file"}}}}}}))
                 .find("g.json:/stages/input2: more than one sensor stage (input, input2)"),

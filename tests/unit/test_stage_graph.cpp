@@ -143,6 +143,26 @@ TEST(StageGraph, FanOutGivesEachBranchTheVotersOutput) {
   EXPECT_EQ(j["stages_run"], json({"input", "ground", "seg", "feat", "vote", "a", "b", "c"}));
 }
 
+// One proposer feeding a voter's fitter beside the voter: the fitter that names the proposer
+// among its inputs sees its proposals, the one that does not sees none (its voter took none).
+TEST(StageGraph, ProposerFeedsAFitter) {
+  const std::string dir = furnihost::testing::TempDir("stage_graph_proposer");
+  fs::remove_all(dir);
+  const json stages = {
+      {"prop", {{"type", "proposals.clusters"}, {"inputs", {"seg"}}}},
+      {"with", {{"type", "fitters.passthrough"}, {"inputs", {"vote", "prop"}}, {"params", {{"note_proposals", true}}}}},
+      {"without", {{"type", "fitters.passthrough"}, {"inputs", {"vote"}}, {"params", {{"note_proposals", true}}}}}};
+  const json j = Detect(dir, Graph(dir, stages));
+  EXPECT_EQ(j.value("sinks", json()), json({"with", "without"}));
+  const auto with = OfChain(j, "with"), without = OfChain(j, "without");
+  ASSERT_FALSE(with.empty()) << j.dump(1);
+  for (const auto& d : without) EXPECT_EQ(d["notes"], json({"proposals none"})) << d.dump();
+  for (const auto& d : with) {
+    ASSERT_EQ(d["notes"].size(), 1u);
+    EXPECT_NE(d["notes"][0], "proposals none") << d.dump();
+  }
+}
+
 // Two segmenters side by side on the one input, each with its own features and voter: training
 // trains both voters into one model file (by voter tag), and each voter's detections are those
 // its chain gives on its own.

@@ -27,7 +27,8 @@
 //   proposer  -> sensor or segmenter
 //   features  -> segmenter
 //   voter     -> features, proposer or one of each (from the same segmenter, if any)
-//   fitter    -> voter or fitter        (a chain; fitters may fan out)
+//   fitter    -> voter or fitter        (a chain; fitters may fan out), and optionally a
+//                proposer whose proposals it sees instead of its voter's
 // Every voter or fitter that no fitter takes is a sink; the detections are those of every
 // sink, each naming its sink ("chain") when there are several. Training trains every voter
 // on the views of the training sensor through its own segmenter and features.
@@ -73,6 +74,8 @@ struct FURNIHOST_API GraphConfig {
   const StageConfig* InputOfKind(const StageConfig& s, StageKind kind) const;
   // The segmenter whose parts a voter sees: its features' segmenter, else its proposer's, or null.
   const StageConfig* SegmenterOfVoter(const StageConfig& voter) const;
+  // The voter or fitter whose detections a fitter takes, or null.
+  const StageConfig* DetectionsInput(const StageConfig& fitter) const;
   // The voter at the root of a fitter chain (a voter is its own root).
   const StageConfig* VoterOf(const StageConfig& s) const;
   // The stages whose detections are the graph's output, in execution order: every voter and
