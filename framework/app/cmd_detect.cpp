@@ -269,6 +269,8 @@ int RunDetect(const std::vector<std::string>& args) {
       j["frames"].push_back(ToJson(s.frame));
       j["ground"].push_back(s.ground ? ToJson(*s.ground) : nlohmann::json(nullptr));
     }
+    // Several sinks (GraphConfig::Sinks): each detection names its own in "chain".
+    if (r.sinks.size() > 1) j["sinks"] = r.sinks;
     j["detections"] = nlohmann::json::array();
     for (const auto& d : r.detections) j["detections"].push_back(DetectionToJson(d, frame_scan));
     j["timings_ms"] = nlohmann::json::object();
@@ -293,7 +295,17 @@ int RunDetect(const std::vector<std::string>& args) {
     for (const auto& d : r.detections) shown.push_back(TransformDetection(d, r.world_to_user));
     const Eigen::Vector3d shift =
         frame_scan ? Eigen::Vector3d(frame_scan->frame.to_upright.linear() * frame_scan->frame.shift) : Eigen::Vector3d::Zero();
-    PrintDetections(std::cout, shown, shift);
+    if (r.sinks.size() <= 1) {
+      PrintDetections(std::cout, shown, shift);
+      continue;
+    }
+    for (const auto& sink : r.sinks) {  // several sinks: each one's detections apart
+      std::vector<Detection> of;
+      for (const auto& d : shown)
+        if (d.chain == sink) of.push_back(d);
+      std::cout << "  chain " << sink << ": " << of.size() << (of.size() == 1 ? " detection\n" : " detections\n");
+      PrintDetections(std::cout, of, shift);
+    }
   }
   return 0;
 }

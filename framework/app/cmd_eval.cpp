@@ -454,6 +454,13 @@ int RunEval(const std::vector<std::string>& args) {
     std::string model_source = "none";
     {
       Pipeline p(cfg.graph, *reg);
+      if (const auto sinks = cfg.graph.Sinks(); sinks.size() > 1) {
+        std::string tags;
+        for (const auto* s : sinks) tags += (tags.empty() ? "" : ", ") + s->tag;
+        spdlog::warn("{}: {} sinks ({}): their detections are evaluated together; to compare them, evaluate one "
+                     "graph per alternative",
+                     cfg.graph.path, sinks.size(), tags);
+      }
       if (p.HasDetectionChain()) {
         cfg.catalog = LoadCatalog(cfg.graph.catalog, strict);
         const std::string cache = cfg.graph.model_cache;

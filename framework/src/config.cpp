@@ -120,6 +120,41 @@ std::vector<const StageConfig*> GraphConfig::AllOfKind(StageKind kind) const {
   return out;
 }
 
+const StageConfig* GraphConfig::InputOfKind(const StageConfig& s, StageKind kind) const {
+  for (const auto& in : s.inputs)
+    if (const StageConfig* c = Find(in); c && c->kind == kind) return c;
+  return nullptr;
+}
+
+const StageConfig* GraphConfig::SegmenterOfVoter(const StageConfig& voter) const {
+  if (const StageConfig* f = InputOfKind(voter, StageKind::Features)) return InputOfKind(*f, StageKind::Segmenter);
+  if (const StageConfig* p = InputOfKind(voter, StageKind::Proposer)) return InputOfKind(*p, StageKind::Segmenter);
+  return nullptr;
+}
+
+const StageConfig* GraphConfig::DetectionsInput(const StageConfig& fitter) const {
+  if (const StageConfig* v = InputOfKind(fitter, StageKind::Voter)) return v;
+  return InputOfKind(fitter, StageKind::Fitter);
+}
+
+const StageConfig* GraphConfig::VoterOf(const StageConfig& s) const {
+  const StageConfig* c = &s;
+  // Validation refuses cycles; the bound only guards a graph built by hand.
+  for (size_t hops = 0; c && c->kind == StageKind::Fitter && hops <= stages.size(); ++hops) c = DetectionsInput(*c);
+  return c && c->kind == StageKind::Voter ? c : nullptr;
+}
+
+std::vector<const StageConfig*> GraphConfig::Sinks() const {
+  std::set<std::string> fed;  // stages some fitter takes
+  for (const auto& s : stages)
+    if (s.kind == StageKind::Fitter)
+      if (const StageConfig* in = DetectionsInput(s)) fed.insert(in->tag);
+  std::vector<const StageConfig*> out;
+  for (const auto& s : stages)
+    if ((s.kind == StageKind::Voter || s.kind == StageKind::Fitter) && !fed.count(s.tag)) out.push_back(&s);
+  return out;
+}
+
 GraphConfig ValidateGraph(const std::string& path, const nlohmann::json& config, const Registry& registry) {
   const std::string w = path + ":";
   if (!config.is_object()) throw InputError(w + " expected a JSON object, got " + Shown(config));
@@ -250,7 +285,7 @@ GraphConfig ValidateGraph(const std::string& path, const nlohmann::json& config,
       case StageKind::Proposer: return {StageKind::Segmenter, StageKind::Sensor};
       case StageKind::Features: return {StageKind::Segmenter};
       case StageKind::Voter: return {StageKind::Features, StageKind::Proposer};
-      case StageKind::Fitter: return {StageKind::Voter, StageKind::Fitter};
+      case StageKind::Fitter: return {StageKind::Voter, StageKind::Fitter, StageKind::Proposer};
     }
     return {};
   };
@@ -259,12 +294,32 @@ GraphConfig ValidateGraph(const std::string& path, const nlohmann::json& config,
     auto want = expected_input(s.kind);
     if (want.empty() && !s.inputs.empty()) throw InputError(at + ": a sensor takes no inputs");
     // A voter takes part features, the proposals it recognises, or both.
-    const size_t most = s.kind == StageKind::Voter ? 2 : 1;
+    // A fitter takes the detections of a voter or a fitter, and may take a proposer whose
+    // proposals it sees (instead of its voter's).
+    const size_t most = s.kind == StageKind::Voter || s.kind == StageKind::Fitter ? 2 : 1;
     if (!want.empty() && (s.inputs.empty() || s.inputs.size() > most))
       throw InputError(at + ": a " + std::string(ToString(s.kind)) + " takes " +
-                       (most > 1 ? "a features stage, a proposer, or one of each" :
-                        std::string("exactly one input (a ") + ToString(want.front()) +
-                            (want.size() > 1 ? std::string(" or a ") + ToString(want[1]) : std::string()) + " stage)"));
+                       (s.kind == StageKind::Voter    ? std::string("a features stage, a proposer, or one of each")
+                        : s.kind == StageKind::Fitter ? std::string("a voter or a fitter, and optionally a proposer")
+                                                      : std::string("exactly one input (a ") + ToString(want.front()) +
+                                                            (want.size() > 1 ? std::string(" or a ") + ToString(want[1])
+                                                                             : std::string()) +
+                                                            " stage)"));
+    if (s.kind == StageKind::Fitter) {
+      int detections = 0, proposers = 0, unknown = 0;
+      for (const auto& in : s.inputs) {
+        auto it = by_tag.find(in);
+        if (it == by_tag.end() || std::find(want.begin(), want.end(), it->second.kind) == want.end()) {
+          ++unknown;  // named below (unknown stage or kind mismatch)
+          continue;
+        }
+        detections += it->second.kind == StageKind::Voter || it->second.kind == StageKind::Fitter;
+        proposers += it->second.kind == StageKind::Proposer;
+      }
+      if (!unknown && (detections != 1 || proposers > 1))
+        throw InputError(at + ": fitter '" + tag +
+                         "' takes the detections of one voter or fitter, and optionally one proposer");
+    }
     if (s.kind == StageKind::Voter) {
       int features = 0, proposers = 0, unknown = 0;
       for (const auto& in : s.inputs) {
@@ -332,18 +387,34 @@ GraphConfig ValidateGraph(const std::string& path, const nlohmann::json& config,
     }
   }
 
-  // The detection chain must be a single line: one of each kind up to the voter, then fitters.
-  for (StageKind k : {StageKind::Sensor, StageKind::Segmenter, StageKind::Proposer, StageKind::Features, StageKind::Voter}) {
-    auto all = g.AllOfKind(k);
-    if (all.size() > 1)
-      throw InputError(w + "/stages: more than one " + std::string(ToString(k)) + " stage (" + all[0]->tag + ", " +
-                       all[1]->tag + "); a graph is one detection chain (plus an optional training sensor)");
+  // Scans come in through one sensor; every other stage may fan out (see config.hpp).
+  if (auto sensors = g.AllOfKind(StageKind::Sensor); sensors.size() > 1)
+    throw InputError(w + "/stages/" + sensors[1]->tag + ": more than one sensor stage (" + sensors[0]->tag + ", " +
+                     sensors[1]->tag + "); a graph reads its scans through one sensor (plus an optional training "
+                     "sensor named by /training/sensor)");
+  // A voter's features and proposals index the parts of one segmentation.
+  for (const auto* v : g.AllOfKind(StageKind::Voter)) {
+    const StageConfig* f = g.InputOfKind(*v, StageKind::Features);
+    const StageConfig* p = g.InputOfKind(*v, StageKind::Proposer);
+    const StageConfig* fs = f ? g.InputOfKind(*f, StageKind::Segmenter) : nullptr;
+    const StageConfig* ps = p ? g.InputOfKind(*p, StageKind::Segmenter) : nullptr;
+    if (fs && ps && fs != ps)
+      throw InputError(w + v->pointer + "/inputs: voter '" + v->tag + "' takes features '" + f->tag +
+                       "' (parts of segmenter '" + fs->tag + "') and proposer '" + p->tag + "' (parts of segmenter '" +
+                       ps->tag + "'); both must come from one segmenter");
   }
-  auto fitters = g.AllOfKind(StageKind::Fitter);
-  std::map<std::string, int> consumers;
-  for (const auto* f : fitters) consumers[f->inputs[0]]++;
-  for (const auto& [t, n] : consumers)
-    if (n > 1) throw InputError(w + "/stages: stage '" + t + "' feeds " + std::to_string(n) + " fitters; fitters form one chain");
+  for (const auto* f : g.AllOfKind(StageKind::Fitter)) {
+    const StageConfig* p = g.InputOfKind(*f, StageKind::Proposer);
+    const StageConfig* v = g.VoterOf(*f);
+    if (!p || !v) continue;
+    const StageConfig* ps = g.InputOfKind(*p, StageKind::Segmenter);
+    const StageConfig* vs = g.SegmenterOfVoter(*v);
+    if (ps != vs)
+      throw InputError(w + f->pointer + "/inputs: fitter '" + f->tag + "' takes proposer '" + p->tag + "' (" +
+                       (ps ? "parts of segmenter '" + ps->tag + "'" : std::string("no parts")) + ") after voter '" +
+                       v->tag + "' (" + (vs ? "parts of segmenter '" + vs->tag + "'" : std::string("no parts")) +
+                       "); both must come from one segmenter");
+  }
   if (g.catalog.empty() && g.FirstOfKind(StageKind::Voter))
     throw InputError(w + "/catalog: missing (the catalog.json the voter is trained from)");
   g.resolved = resolved;

@@ -175,3 +175,77 @@ TEST(Config, FitterCycleIsRefused) {
   auto two = With({{"stages", {{"f1", {{"type", "fitters.passthrough"}, {"inputs", {"feat"}}}}}}});
   EXPECT_NE(ConfigError(two).find("kind mismatch: fitter 'f1' cannot take features"), std::string::npos);
 }
+
+using json = nlohmann::json;
+
+// The graph may branch: one voter feeding two fitter chains, two segmenters side by side each
+// with its features and voter. What the executor cannot run is refused naming the stage.
+TEST(Config, FanOutAndSideBySideValidateWhatCannotRunIsRefused) {
+  const json fan = {{"catalog", "cat.json"},
+                    {"stages",
+                     {{"vote", {{"type", "voters.nearest_neighbor"}, {"inputs", {"feat"}}}},
+                      {"f1", {{"type", "fitters.passthrough"}, {"inputs", {"vote"}}}},
+                      {"f2", {{"type", "fitters.passthrough"}, {"inputs", {"f1"}}}},
+                      {"f3", {{"type", "fitters.passthrough"}, {"inputs", {"vote"}}}},
+                      {"segment2", {{"type", "segmenters.throws"}, {"inputs", {"input"}}}},
+                      {"feat2", {{"type", "features.centroid"}, {"inputs", {"segment2"}}}},
+                      {"vote2", {{"type", "voters.nearest_neighbor"}, {"inputs", {"feat2"}}}}}}};
+  EXPECT_EQ(ConfigError(With(fan)), "");
+  Registry reg({furnihost::testing::PluginDir(), TestPluginDir("bad"), TestPluginDir("outside")});
+  auto dir = furnihost::testing::TempDir("cfg_fan");
+  AtomicWriteText(dir + "/g.json", With(fan));
+  const GraphConfig g = LoadGraph(dir + "/g.json", reg);
+  std::vector<std::string> sinks;
+  for (const auto* s : g.Sinks()) sinks.push_back(s->tag);
+  EXPECT_EQ(sinks, (std::vector<std::string>{"f2", "f3", "vote2"}));
+  EXPECT_EQ(g.VoterOf(*g.Find("f2"))->tag, "vote");
+  EXPECT_EQ(g.SegmenterOfVoter(*g.Find("vote2"))->tag, "segment2");
+  EXPECT_EQ(g.InputOfKind(*g.Find("vote"), StageKind::Proposer), nullptr);
+
+  // A voter's features and proposals must index the parts of one segmentation.
+  const json mixed = {{"catalog", "cat.json"},
+                      {"stages",
+                       {{"segment2", {{"type", "segmenters.throws"}, {"inputs", {"input"}}}},
+                        {"prop", {{"type", "proposals.clusters"}, {"inputs", {"segment2"}}}},
+                        {"vote", {{"type", "voters.nearest_neighbor"}, {"inputs", {"feat", "prop"}}}}}}};
+  EXPECT_EQ(ConfigError(With(mixed)),
+            "g.json:/stages/vote/inputs: voter 'vote' takes features 'feat' (parts of segmenter 'segment') and "
+            "proposer 'prop' (parts of segmenter 'segment2'); both must come from one segmenter");
+  // A fitter may take a proposer beside its detections, if both see the parts of one segmenter.
+  EXPECT_EQ(ConfigError(With({{"catalog", "cat.json"},
+                              {"stages",
+                               {{"prop", {{"type", "proposals.clusters"}, {"inputs", {"segment"}}}},
+                                {"vote", {{"type", "voters.nearest_neighbor"}, {"inputs", {"feat"}}}},
+                                {"f1", {{"type", "fitters.passthrough"}, {"inputs", {"vote", "prop"}}}}}}})),
+            "");
+  EXPECT_EQ(ConfigError(With({{"catalog", "cat.json"},
+                              {"stages",
+                               {{"prop", {{"type", "proposals.clusters"}, {"inputs", {"input"}}}},
+                                {"vote", {{"type", "voters.nearest_neighbor"}, {"inputs", {"feat"}}}},
+                                {"f1", {{"type", "fitters.passthrough"}, {"inputs", {"vote", "prop"}}}}}}})),
+            "g.json:/stages/f1/inputs: fitter 'f1' takes proposer 'prop' (no parts) after voter 'vote' (parts of "
+            "segmenter 'segment'); both must come from one segmenter");
+  EXPECT_EQ(ConfigError(With({{"catalog", "cat.json"},
+                              {"stages",
+                               {{"prop", {{"type", "proposals.clusters"}, {"inputs", {"segment"}}}},
+                                {"f1", {{"type", "fitters.passthrough"}, {"inputs", {"prop"}}}}}}})),
+            "g.json:/stages/f1/inputs: fitter 'f1' takes the detections of one voter or fitter, and optionally one "
+            "proposer");
+  // Scans come in through one sensor.
+  EXPECT_NE(ConfigError(With({{"stages", {{"input2", {{"type", "sensors.scan_file"}}}}}}))
+                .find("g.json:/stages/input2: more than one sensor stage (input, input2)"),
+            std::string::npos);
+  // Cycles and kind mismatches name the stage.
+  const auto cycle = ConfigError(With({{"catalog", "cat.json"},
+                                       {"stages",
+                                        {{"vote", {{"type", "voters.nearest_neighbor"}, {"inputs", {"feat"}}}},
+                                         {"f1", {{"type", "fitters.passthrough"}, {"inputs", {"f2"}}}},
+                                         {"f2", {{"type", "fitters.passthrough"}, {"inputs", {"f1"}}}},
+                                         {"f3", {{"type", "fitters.passthrough"}, {"inputs", {"vote"}}}}}}}));
+  EXPECT_NE(cycle.find("cycle in connections: f1, f2, f1"), std::string::npos) << cycle;
+  const auto mismatch = ConfigError(With({{"stages", {{"feat2", {{"type", "features.centroid"}, {"inputs", {"feat"}}}}}}}));
+  EXPECT_NE(mismatch.find("/stages/feat2/inputs/0: kind mismatch: features 'feat2' cannot take features 'feat'"),
+            std::string::npos)
+      << mismatch;
+}
+

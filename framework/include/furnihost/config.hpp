@@ -17,6 +17,21 @@
 //       ...
 //     }
 //   }
+//
+// The stages form a graph: each stage gets the outputs of the stages its `inputs` name, and
+// one output may feed several stages (a proposer feeding a voter and a fitter, a voter feeding
+// two fitter chains, two segmenters side by side on the one input sensor, each with its own
+// features and voter). Connections by kind:
+//   sensor    -> (none)                 the one detection sensor (plus the training sensor)
+//   segmenter -> sensor
+//   proposer  -> sensor or segmenter
+//   features  -> segmenter
+//   voter     -> features, proposer or one of each (from the same segmenter, if any)
+//   fitter    -> voter or fitter        (a chain; fitters may fan out), and optionally a
+//                proposer whose proposals it sees instead of its voter's
+// Every voter or fitter that no fitter takes is a sink; the detections are those of every
+// sink, each naming its sink ("chain") when there are several. Training trains every voter
+// on the views of the training sensor through its own segmenter and features.
 #pragma once
 #include <nlohmann/json.hpp>
 #include <string>
@@ -52,9 +67,20 @@ struct FURNIHOST_API GraphConfig {
   std::vector<StageConfig> stages;  // in execution (topological) order
 
   const StageConfig* Find(const std::string& tag) const;
-  // The detection chain: input sensor, segmenter, features, voter, fitters (may stop early).
+  // Stages of a kind in execution order, the training sensor left out.
   const StageConfig* FirstOfKind(StageKind kind) const;
   std::vector<const StageConfig*> AllOfKind(StageKind kind) const;
+  // The stage of kind `kind` among the inputs of `s` (a stage takes at most one of each), or null.
+  const StageConfig* InputOfKind(const StageConfig& s, StageKind kind) const;
+  // The segmenter whose parts a voter sees: its features' segmenter, else its proposer's, or null.
+  const StageConfig* SegmenterOfVoter(const StageConfig& voter) const;
+  // The voter or fitter whose detections a fitter takes, or null.
+  const StageConfig* DetectionsInput(const StageConfig& fitter) const;
+  // The voter at the root of a fitter chain (a voter is its own root).
+  const StageConfig* VoterOf(const StageConfig& s) const;
+  // The stages whose detections are the graph's output, in execution order: every voter and
+  // fitter that no fitter takes as input.
+  std::vector<const StageConfig*> Sinks() const;
 };
 
 // Reads `path`, resolves `extends` (with loop detection), applies merge patches, makes

@@ -18,19 +18,36 @@ namespace furnihost {
 
 constexpr int kModelFormatVersion = 1;
 
+// One voter's learned model: its features' normaliser and what its Train returned.
+struct TrainedVoter {
+  std::string voter_type;
+  Normaliser normaliser;
+  nlohmann::json voter_model;
+};
+
 // The learned model: everything detection needs besides the plugins themselves.
 struct TrainedModel {
   int format_version = kModelFormatVersion;
   nlohmann::json training_config;  // the graph parts that shape the model (see TrainingKey)
   std::string catalog_hash;
+  // A graph with one voter: its model (the file layout of every model before graphs could
+  // hold several voters).
   std::string voter_type;
   Normaliser normaliser;
   nlohmann::json voter_model;
+  // A graph with several voters: each one's model by voter tag (the fields above stay empty).
+  std::map<std::string, TrainedVoter> voters;
   nlohmann::json summary;  // models, views, parts per class, time per stage
+
+  // The model of the voter `tag`, or null when the file has none for it.
+  const TrainedVoter* FindVoter(const std::string& tag) const;
 };
 
-// The subset of a resolved graph that determines the trained model: training sensor,
-// segmenter, features and voter (type + params) and the seed.
+// The subset of a resolved graph that determines the trained model: the seed, the training
+// sensor and, for each voter, the segmenter, features and voter (type + params) it learns
+// through. One voter: {seed, training_sensor, segmenter, features, voter} as before; several:
+// {seed, training_sensor, voters: {tag: {segmenter, features, voter}}}, so a model cache of
+// the other shape is stale and retrained.
 FURNIHOST_API nlohmann::json TrainingKey(const GraphConfig& graph);
 
 // Writes atomically: magic line "furnihost-model\n" followed by CBOR.
@@ -47,7 +64,7 @@ class FURNIHOST_API Pipeline {
   Pipeline(const GraphConfig& graph, const Registry& registry);
   const GraphConfig& Graph() const { return graph_; }
 
-  bool HasDetectionChain() const { return voter_ != nullptr; }
+  bool HasDetectionChain() const { return !voters_.empty(); }
   std::vector<std::string> MissingStages() const;  // kinds absent from the detection chain
 
   TrainedModel Train(const Catalog& catalog, const RunContext& ctx);
@@ -58,14 +75,19 @@ class FURNIHOST_API Pipeline {
     Eigen::Isometry3f pose = Eigen::Isometry3f::Identity();
     FrameOptions frame;                      // up axis / transform / global shift
   };
+  // With several stages of a kind, the fields below hold the first one's output (execution
+  // order); `detections` holds every sink's (GraphConfig::Sinks).
   struct Result {
     std::vector<Scan> scans;
     std::vector<Segmentation> segmentations;
     std::vector<Proposals> proposals;     // one per scan when the graph has a proposer
-    std::vector<FeatureMatrix> features;  // normalised when a model was given
+    std::vector<FeatureMatrix> features;  // normalised (for the first voter) when a model was given
     size_t clamped_features = 0;
     VoteResult votes;
+    // Every sink's detections in execution order of the sinks; with several sinks each names
+    // its sink in Detection::chain.
     std::vector<Detection> detections;
+    std::vector<std::string> sinks;  // the tags of the sinks that ran
     bool voted = false, fitted = false;
     // The world frame (detections, votes) is the first scan's working frame; this maps it to
     // the frame the user gave the scans in: the first scan's z-up frame, moved by its --pose.
@@ -82,17 +104,20 @@ class FURNIHOST_API Pipeline {
   auto Call(const StageConfig& s, F&& f) -> decltype(f());
 
  private:
+  // One trained voter's plugin and the model id it has loaded.
+  struct VoterSlot {
+    std::shared_ptr<Voter> voter;
+    std::string loaded_model_id;
+  };
   GraphConfig graph_;
-  const StageConfig *input_cfg_ = nullptr, *train_cfg_ = nullptr, *seg_cfg_ = nullptr,
-                    *prop_cfg_ = nullptr, *feat_cfg_ = nullptr, *voter_cfg_ = nullptr;
-  std::vector<const StageConfig*> fitter_cfgs_;
+  const StageConfig *input_cfg_ = nullptr, *train_cfg_ = nullptr;
   std::shared_ptr<Sensor> input_, training_;
-  std::shared_ptr<Segmenter> segmenter_;
-  std::shared_ptr<Proposer> proposer_;
-  std::shared_ptr<Features> features_;
-  std::shared_ptr<Voter> voter_;
-  std::vector<std::shared_ptr<Fitter>> fitters_;
-  std::string loaded_model_id_;
+  // Every other stage's plugin by tag (segmenters, proposers, features, fitters).
+  std::map<std::string, std::shared_ptr<Stage>> stages_;
+  std::map<std::string, VoterSlot> voters_;  // by voter tag
+  // The plugin of stage `s` as its kind's interface.
+  template <class T>
+  T& StageAs(const StageConfig& s) const;
   // Typical box size [w, d, h] of each class (the median of its catalog models), for the boxes
   // of detections no fitter gave a model.
   std::map<std::string, Eigen::Vector3f> class_size_;

@@ -23,7 +23,7 @@
 #include "furnihost/params.hpp"
 #include "furnihost/stage.hpp"
 
-#define FURNIHOST_ABI_VERSION 5
+#define FURNIHOST_ABI_VERSION 6
 
 namespace furnihost {
 

@@ -297,6 +297,9 @@ struct Detection {
   std::string box_source;
   int proposal = -1, proposal_scene = 0;  // the proposal it was made from (Hypothesis::proposal)
   std::map<std::string, float> evidence;   // Hypothesis::evidence
+  // The sink (voter or last fitter of a chain) that produced it, set by the pipeline when the
+  // graph has several sinks (GraphConfig::Sinks); "" with one.
+  std::string chain;
 
   // Why verification rejected it: the first failed check ("" when accepted or not verified).
   std::string Rejection() const { return FirstFailure(checks); }
