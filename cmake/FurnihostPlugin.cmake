@@ -14,9 +14,11 @@ function(furnihost_add_plugin kind name)
   if(P_INCLUDES)
     target_include_directories(${target} PRIVATE ${P_INCLUDES})
   endif()
+  # Installed in <prefix>/lib/furnihost/plugins, beside <prefix>/lib/libfurnihost_sdk.so.
   set_target_properties(${target} PROPERTIES
     PREFIX "lib" OUTPUT_NAME ${target}
-    LIBRARY_OUTPUT_DIRECTORY ${FURNIHOST_PLUGIN_BUILD_DIR})
+    LIBRARY_OUTPUT_DIRECTORY ${FURNIHOST_PLUGIN_BUILD_DIR}
+    INSTALL_RPATH "$ORIGIN/../..")
   if(NOT FURNIHOST_PLUGIN_NO_INSTALL)
     install(TARGETS ${target} LIBRARY DESTINATION ${FURNIHOST_PLUGIN_INSTALL_DIR})
   endif()
