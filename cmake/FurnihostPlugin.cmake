@@ -3,17 +3,22 @@
 #   adds each TESTS source as a GoogleTest executable registered with ctest. A directory may set
 #   FURNIHOST_PLUGIN_BUILD_DIR (where the library lands) and FURNIHOST_PLUGIN_NO_INSTALL (e.g.
 #   examples/: built and tested, never installed) before calling it.
+#   The plugin links furnihost::sdk only (with --no-undefined: a call into the host library is a
+#   link error); its tests run it through the host and link furnihost::host.
 function(furnihost_add_plugin kind name)
   cmake_parse_arguments(P "" "" "SOURCES;LIBS;TESTS;TEST_LIBS;INCLUDES" ${ARGN})
   set(target furnihost_${kind}_${name})
   add_library(${target} MODULE ${P_SOURCES})
-  target_link_libraries(${target} PRIVATE furnihost::core ${P_LIBS})
+  target_link_libraries(${target} PRIVATE furnihost::sdk ${P_LIBS})
+  target_link_options(${target} PRIVATE ${FURNIHOST_NO_UNDEFINED})
   if(P_INCLUDES)
     target_include_directories(${target} PRIVATE ${P_INCLUDES})
   endif()
+  # Installed in <prefix>/lib/furnihost/plugins, beside <prefix>/lib/libfurnihost_sdk.so.
   set_target_properties(${target} PROPERTIES
     PREFIX "lib" OUTPUT_NAME ${target}
-    LIBRARY_OUTPUT_DIRECTORY ${FURNIHOST_PLUGIN_BUILD_DIR})
+    LIBRARY_OUTPUT_DIRECTORY ${FURNIHOST_PLUGIN_BUILD_DIR}
+    INSTALL_RPATH "$ORIGIN/../..")
   if(NOT FURNIHOST_PLUGIN_NO_INSTALL)
     install(TARGETS ${target} LIBRARY DESTINATION ${FURNIHOST_PLUGIN_INSTALL_DIR})
   endif()
@@ -23,7 +28,7 @@ function(furnihost_add_plugin kind name)
       get_filename_component(tname ${src} NAME_WE)
       set(tt ${target}_${tname})
       add_executable(${tt} ${src})
-      target_link_libraries(${tt} PRIVATE furnihost::core furnihost::testing ${P_TEST_LIBS})
+      target_link_libraries(${tt} PRIVATE furnihost::host furnihost::testing ${P_TEST_LIBS})
       if(P_INCLUDES)
         target_include_directories(${tt} PRIVATE ${P_INCLUDES})
       endif()

@@ -47,7 +47,7 @@ def load(path):
         return json.load(f)
 
 
-# ---- matching and AP (as framework/src/evaluation.cpp) -----------------------------------------
+# ---- matching and AP (as framework/src/eval_matching.cpp, eval_metrics.cpp) -----------------------
 def box_iou(a, b):
     """a, b: (lo, hi) triples of 3 numbers."""
     inter = 1.0

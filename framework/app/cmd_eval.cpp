@@ -33,6 +33,7 @@
 #include "furnihost/log.hpp"
 #include "furnihost/pipeline.hpp"
 #include "plots.hpp"
+#include "report.hpp"
 
 namespace fs = std::filesystem;
 using nlohmann::json;

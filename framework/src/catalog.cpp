@@ -37,7 +37,7 @@ namespace fs = std::filesystem;
 
 // Debian's assimp is built with ASSIMP_BUILD_DEBUG: an internal consistency check that fails
 // on a malformed file (e.g. a broken OFF face list) calls this function, which aborts the
-// whole process. This definition interposes the library's (the core library comes first in
+// whole process. This definition interposes the library's (the host library comes first in
 // the dynamic linker's search order) and turns the abort into an exception that
 // LoadMeshFile reports as an unreadable mesh. Without a debug assimp it is never called.
 namespace Assimp {

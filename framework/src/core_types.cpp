@@ -6,7 +6,7 @@
 
 namespace furnihost {
 
-// Out-of-line destructors anchor vtables and type_info in the core library, so dynamic_cast
+// Out-of-line destructors anchor vtables and type_info in the SDK library, so dynamic_cast
 // and catch clauses agree between the host and every plugin.
 InputError::~InputError() = default;
 StageError::~StageError() = default;

@@ -63,7 +63,7 @@ Registry::Registry(const std::vector<std::string>& search_dirs) : impl_(new Impl
 
 Registry::~Registry() {
   // Entries hold ParamSchema copies made by plugin code, but copies live in host memory and
-  // use the core library's code; clearing them before the library handles close is still tidy
+  // use the SDK library's code; clearing them before the library handles close is still tidy
   // (accepted plugins stay mapped anyway: see LoadFile).
   plugins_.clear();
 }

@@ -12,10 +12,13 @@
 #include <fstream>
 
 #include "furnihost/io.hpp"
+#include "report.hpp"
 #include "test_support.hpp"
 
 namespace fs = std::filesystem;
 using namespace furnihost;
+using furnihost::app::RenderReport;  // the app's (framework/app/report.hpp)
+using furnihost::app::ReportInfo;
 using nlohmann::json;
 
 namespace {

@@ -1,5 +1,5 @@
-// Error types shared by host and plugins. They live in the core library so that their
-// type_info and vtables outlive any plugin that throws them.
+// Error types shared by host and plugins. They live in the SDK library (libfurnihost_sdk.so) so
+// that their type_info and vtables outlive any plugin that throws them.
 #pragma once
 #include <stdexcept>
 #include <string>

@@ -1,6 +1,8 @@
 // Evaluation of detections against ground truth (paper Sect. VII-A) and the figures of an
-// A/B run: dataset manifests, the matcher, precision-recall curves, average precision,
-// operating points, error statistics, and the Markdown comparison report.
+// A/B run (host): dataset manifests (src/eval_dataset.cpp), the matchers (eval_matching.cpp),
+// precision-recall curves, average precision, operating points and error statistics
+// (eval_metrics.cpp), and run records (eval_records.cpp). The Markdown report rendered from
+// them is the app's (framework/app/report.hpp).
 //
 // Frames and units: world frame of the scan files (metres, z up, floor at z = 0). Matching
 // and centre errors are measured on the floor plane (x, y) only: a voter's hypothesis height
@@ -204,7 +206,7 @@ struct SceneEval {
 FURNIHOST_API EvalMetrics Evaluate(const std::vector<SceneEval>& scenes, const ClassMap& classes,
                                    WidthConvention width);
 
-// ---- run figures and reports -----------------------------------------------------------
+// ---- run figures and records ----------------------------------------------------------
 struct SceneRecord {
   std::string scan;
   double total_ms = 0;
@@ -248,20 +250,5 @@ struct MeanStd {
   int n = 0;
 };
 FURNIHOST_API MeanStd MeanAndStd(const std::vector<double>& values);
-
-struct ReportInfo {
-  std::string title = "furnihost evaluation";
-  std::string dataset;       // manifest path
-  std::string dataset_hash;
-  int scenes = 0;
-  WidthConvention width = WidthConvention::Max;
-  std::vector<std::string> plots;  // image files to embed (relative to the report)
-  std::vector<std::string> notes;  // extra lines (warnings) printed under the header
-};
-
-// Markdown: a header (dataset, hash, width convention, seeds, configs), then per class and
-// for all classes a table `metric | A | B | B − A [| C | C − A ...]` (config 0 is the
-// baseline A), values "mean ± std" over seeds when there are several, then time and memory.
-FURNIHOST_API std::string RenderReport(const std::vector<ConfigSummary>& configs, const ReportInfo& info);
 
 }  // namespace furnihost

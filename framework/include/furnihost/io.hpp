@@ -1,33 +1,16 @@
-// Scan and output file IO. Every writer goes through AtomicWrite (temp file + rename), so an
-// interrupted run never leaves a half-written output.
+// Scan and output file IO (host). Every writer goes through AtomicWrite (temp file + rename),
+// so an interrupted run never leaves a half-written output. The scan readers (ReadScan,
+// RequireRegularFile) are in the SDK header scan_reader.hpp, included here.
 #pragma once
 #include <functional>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 
+#include "furnihost/scan_reader.hpp"
 #include "furnihost/types.hpp"
 
 namespace furnihost {
-
-struct ReadStats {
-  size_t read = 0;         // points in the file
-  size_t non_finite = 0;   // dropped NaN/inf points
-};
-
-// Reads .pcd (ascii/binary/binary_compressed with the project's own reader: the header is
-// checked whole against itself and the file before any data is read; VIEWPOINT becomes the
-// sensor origin unless it is PCL's default of 0,0,0 with identity rotation; packed rgb/rgba
-// and integer fields such as label / instance kept; organised clouds' NaN padding dropped),
-// .ply (ascii / binary little or big endian; x y z required, red green blue / label /
-// instance kept) and .xyz/.txt (x y z [more columns]). Non-finite points are dropped and
-// counted.
-// `max_points` refuses larger scans with an InputError (0 = no cap).
-// Throws InputError "<path>: <what is wrong>".
-// Coordinates are read in double and the global shift (ShiftOption) subtracted before they
-// are rounded to float.
-FURNIHOST_API Scan ReadScan(const std::string& path, ReadStats* stats = nullptr,
-                            size_t max_points = 0, const ShiftOption& shift = {});
 
 // Writers. PCD is binary with VIEWPOINT from scan.origin; PLY is binary little endian with
 // optional per-point colours.
@@ -55,8 +38,5 @@ FURNIHOST_API nlohmann::json ReadJson(const std::string& path);
 // Reads a *.gt.json file.
 FURNIHOST_API std::vector<GroundTruthObject> ReadGroundTruth(const std::string& path);
 FURNIHOST_API nlohmann::json GroundTruthToJson(const std::vector<GroundTruthObject>& objects);
-
-// Checks that `path` names a readable regular file (not a directory, FIFO, ...).
-FURNIHOST_API void RequireRegularFile(const std::string& path, const std::string& what);
 
 }  // namespace furnihost

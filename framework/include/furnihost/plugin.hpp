@@ -10,8 +10,8 @@
 //   FURNIHOST_PLUGIN(MySegmenter, "segmenters.mine", "1.0.0", "what it does")
 //
 // ABI policy: plugins are built with the host's compiler and standard library (in-tree or
-// against an installed furnihost of the same version); FURNIHOST_ABI_VERSION changes whenever
-// a type in framework/include changes layout. The host reads the plain C symbol
+// against an installed furnihost of the same version) and link only the SDK library
+// (furnihost::sdk, libfurnihost_sdk.so). The host reads the plain C symbol
 // `furnihost_abi_version` first and refuses a mismatch before touching anything else.
 #pragma once
 #include <boost/config.hpp>
@@ -23,6 +23,12 @@
 #include "furnihost/params.hpp"
 #include "furnihost/stage.hpp"
 
+// Covers the SDK alone: the headers error.hpp, types.hpp, ground.hpp, stage.hpp, params.hpp,
+// plugin.hpp, log.hpp, geometry.hpp, voxel_index.hpp, hash.hpp and scan_reader.hpp (the list
+// is FURNIHOST_SDK_HEADERS in framework/CMakeLists.txt) and the functions libfurnihost_sdk.so
+// defines for them. It changes whenever one of their types changes layout or one of their
+// exported functions its signature; the host's headers (pipeline, config, registry, io,
+// evaluation, ...) change freely, since no plugin includes them.
 #define FURNIHOST_ABI_VERSION 6
 
 namespace furnihost {

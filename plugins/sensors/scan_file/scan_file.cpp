@@ -3,8 +3,8 @@
 #include <spdlog/spdlog.h>
 
 #include "furnihost/geometry.hpp"
-#include "furnihost/io.hpp"
 #include "furnihost/plugin.hpp"
+#include "furnihost/scan_reader.hpp"
 
 namespace furnihost {
 

@@ -1,0 +1,727 @@
+// Scan file readers (.pcd, .ply, .xyz/.txt) and the file check they start with: the SDK part
+// of the IO (sensor plugins read scans). The writers and the JSON / ground-truth files are
+// host IO (io.cpp).
+#include "furnihost/scan_reader.hpp"
+
+#include <spdlog/spdlog.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <sstream>
+
+namespace fs = std::filesystem;
+
+namespace furnihost {
+
+void RequireRegularFile(const std::string& path, const std::string& what) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) throw InputError(path + ": no such " + what);
+  if (S_ISDIR(st.st_mode)) throw InputError(path + ": is a directory, expected a " + what);
+  if (!S_ISREG(st.st_mode)) throw InputError(path + ": is not a regular file (FIFO, device or socket), expected a " + what);
+  if (::access(path.c_str(), R_OK) != 0) throw InputError(path + ": cannot be read (permission denied)");
+  if (st.st_size == 0) throw InputError(path + ": is empty");
+}
+
+namespace {
+
+std::string Lower(std::string s) {
+  for (auto& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+void CheckCap(const std::string& path, size_t n, size_t max_points) {
+  if (max_points && n > max_points)
+    throw InputError(path + ": " + std::to_string(n) + " points exceed the limit of " + std::to_string(max_points) +
+                     " (raise the graph's limits.max_points or the sensor's max_points)");
+}
+
+// Scans are in metres in a local frame. Farther points are dropped like NaNs: they are no
+// furniture, and grid keys (voxels, vote cells) computed from them would overflow.
+constexpr float kMaxCoordinate = 1e6f;
+// A file whose first finite point lies this far from the origin [m] is shifted automatically
+// (as CloudCompare offers): no room scan in a local frame reaches 10 km.
+constexpr double kAutoShiftFrom = 1e4;
+// ... and no farther than this: ECEF and every map projection stay below 1e8 m; beyond is
+// garbage (1e30 from a broken driver), dropped as far points, never a shift.
+constexpr double kAutoShiftUpTo = 1e8;
+// The shift for a first point `d`: each far coordinate rounded down to 100 m, so the local
+// coordinates keep their decimals and the shift reads well in a log.
+Eigen::Vector3d AutoShift(const Eigen::Vector3d& d) {
+  Eigen::Vector3d s = Eigen::Vector3d::Zero();
+  for (int k = 0; k < 3; ++k)
+    if (std::abs(d[k]) >= kAutoShiftFrom) s[k] = std::floor(d[k] / 100.0) * 100.0;
+  return s;
+}
+
+// What the readers drop besides keeping ReadStats, and the global shift (in double, before
+// anything is rounded to float): files in georeferenced coordinates (UTM: x ~ 7e5, y ~ 5e6)
+// would lose centimetres to float rounding, and grid keys computed from them would overflow.
+struct Tally {
+  ReadStats stats;
+  size_t far = 0;  // finite points beyond kMaxCoordinate after the shift
+  std::optional<Eigen::Vector3d> shift;  // subtracted from every point; set by the first far point when automatic
+  bool auto_shift = true;
+  // True when `d` is kept (then `v` holds it, shifted); counts it otherwise.
+  bool Keep(const Eigen::Vector3d& d, Eigen::Vector3f& v) {
+    if (!d.allFinite()) {
+      ++stats.non_finite;
+      return false;
+    }
+    if (!shift && auto_shift && d.cwiseAbs().maxCoeff() >= kAutoShiftFrom && d.cwiseAbs().maxCoeff() <= kAutoShiftUpTo)
+      shift = AutoShift(d);
+    const Eigen::Vector3d local = shift ? Eigen::Vector3d(d - *shift) : d;
+    if (local.cwiseAbs().maxCoeff() > kMaxCoordinate) {
+      ++far;
+      return false;
+    }
+    v = local.cast<float>();
+    return true;
+  }
+};
+
+// ---- PCD (own reader) ------------------------------------------------------------------
+// PCL's reader trusts a header's sizes (it allocates and copies what they declare before
+// looking at the file) and crashed on fuzzed files, so PCD is read here: the header is
+// checked whole (every size, count and offset against the others and against the file) before
+// a byte of data is touched.
+
+// PCL writes ~200-byte headers; a header that has no DATA line by then is not one.
+constexpr size_t kPcdHeaderMax = size_t(1) << 16;
+// Bytes per point: descriptors (VFH: 308 floats) stay far below; more is a corrupt header.
+constexpr uint64_t kPcdMaxPointStep = uint64_t(1) << 20;
+// Binary data is decoded this many bytes at a time, so a 10^7-point file is never copied whole.
+constexpr size_t kPcdChunkBytes = size_t(8) << 20;
+
+struct PcdField {
+  std::string name;
+  int size = 0;        // bytes per value: 1, 2, 4 or 8
+  char type = 0;       // I (signed), U (unsigned), F (float)
+  uint64_t count = 1;  // values per point
+  size_t offset = 0;   // from the start of a point in the binary layout
+};
+
+struct PcdHeader {
+  std::vector<PcdField> fields;
+  size_t n = 0;           // WIDTH x HEIGHT
+  size_t point_step = 0;  // bytes per point
+  size_t values = 0;      // values per point (tokens on an ascii line)
+  std::string data;       // ascii, binary or binary_compressed
+  size_t data_offset = 0; // first byte after the DATA line
+  std::optional<Eigen::Vector3d> viewpoint;  // unset when it is PCL's default (no sensor origin)
+};
+
+// A token as shown in a message: printable and short, so the error stays one line.
+std::string Shown(const std::string& s) {
+  std::string out;
+  for (char c : s.substr(0, 24)) out += (c >= 32 && c < 127) ? c : '?';
+  return s.size() > 24 ? out + "..." : out;
+}
+
+[[noreturn]] void BadPcdHeader(const std::string& path, const std::string& what) {
+  throw InputError(path + ": not a valid PCD file (bad header: " + what + ")");
+}
+
+// A decimal count (digits only) up to `max`.
+bool ParseCount(const std::string& s, uint64_t max, uint64_t& v) {
+  if (s.empty() || s.size() > 20) return false;
+  unsigned __int128 acc = 0;
+  for (char c : s) {
+    if (c < '0' || c > '9') return false;
+    acc = acc * 10 + unsigned(c - '0');
+  }
+  if (acc > max) return false;
+  v = static_cast<uint64_t>(acc);
+  return true;
+}
+
+// The whole token is a number (strtod's syntax, so nan and inf too).
+bool ParseReal(const std::string& s, double& v) {
+  if (s.empty()) return false;
+  char* end = nullptr;
+  v = std::strtod(s.c_str(), &end);
+  return end == s.c_str() + s.size();
+}
+
+std::vector<std::string> Tokens(const std::string& line) {
+  std::vector<std::string> t;
+  size_t i = 0;
+  while (i < line.size()) {
+    while (i < line.size() && (line[i] == ' ' || line[i] == '\t')) ++i;
+    size_t j = i;
+    while (j < line.size() && line[j] != ' ' && line[j] != '\t') ++j;
+    if (j > i) t.push_back(line.substr(i, j - i));
+    i = j;
+  }
+  return t;
+}
+
+PcdHeader ReadPcdHeader(const std::string& path, std::ifstream& in, uint64_t file_size, size_t max_points) {
+  std::string head(static_cast<size_t>(std::min<uint64_t>(file_size, kPcdHeaderMax)), '\0');
+  in.read(head.data(), static_cast<std::streamsize>(head.size()));
+  if (static_cast<size_t>(in.gcount()) != head.size()) throw InputError(path + ": cannot be read");
+  std::map<std::string, std::vector<std::string>> lines;  // keyword -> its values
+  PcdHeader h;
+  size_t pos = 0;
+  while (h.data.empty()) {
+    if (pos >= head.size())
+      BadPcdHeader(path, file_size > head.size() ? "no DATA line in the first 64 KiB" : "no DATA line");
+    size_t eol = head.find('\n', pos);
+    if (eol == std::string::npos) {
+      if (file_size > head.size()) BadPcdHeader(path, "no DATA line in the first 64 KiB");
+      eol = head.size();
+    }
+    std::string line = head.substr(pos, eol - pos);
+    pos = eol + 1;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    std::vector<std::string> t = Tokens(line);
+    if (t.empty() || t[0][0] == '#') continue;
+    std::string key = t[0] == "COLUMNS" ? "FIELDS" : t[0];  // COLUMNS: PCD 0.5's name
+    static const char* const kKeys[] = {"VERSION", "FIELDS", "SIZE", "TYPE", "COUNT",
+                                        "WIDTH",   "HEIGHT", "VIEWPOINT", "POINTS", "DATA"};
+    if (std::none_of(std::begin(kKeys), std::end(kKeys), [&](const char* k) { return key == k; }))
+      BadPcdHeader(path, "unknown line '" + Shown(line) + "'");
+    // A keyword given twice is a second header inside the first (the fuzzer's crash).
+    if (lines.count(key)) BadPcdHeader(path, key + " given twice");
+    t.erase(t.begin());
+    if (key == "DATA") {
+      if (t.size() != 1 || (t[0] != "ascii" && t[0] != "binary" && t[0] != "binary_compressed"))
+        BadPcdHeader(path, "DATA '" + Shown(line.substr(std::min<size_t>(line.size(), 5))) +
+                               "', expected ascii, binary or binary_compressed");
+      h.data = t[0];
+      h.data_offset = std::min<size_t>(pos, head.size());
+    }
+    lines[key] = std::move(t);
+  }
+
+  static const std::vector<std::string> kNone;
+  auto values_of = [&](const char* key) -> const std::vector<std::string>& {
+    const auto it = lines.find(key);
+    return it == lines.end() ? kNone : it->second;
+  };
+  const auto& names = values_of("FIELDS");
+  if (names.empty()) BadPcdHeader(path, "no FIELDS");
+  for (const char* axis : {"x", "y", "z"})
+    if (std::find(names.begin(), names.end(), axis) == names.end()) throw InputError(path + ": PCD has no x, y, z fields");
+  const auto& sizes = values_of("SIZE");
+  const auto& types = values_of("TYPE");
+  const auto& counts = values_of("COUNT");
+  auto same_length = [&](const char* key, const std::vector<std::string>& v) {
+    if (v.size() != names.size())
+      BadPcdHeader(path, std::string(key) + " has " + std::to_string(v.size()) + " entries for " +
+                             std::to_string(names.size()) + " FIELDS");
+  };
+  same_length("SIZE", sizes);
+  same_length("TYPE", types);
+  if (lines.count("COUNT")) same_length("COUNT", counts);
+  uint64_t step = 0, values = 0;
+  for (size_t i = 0; i < names.size(); ++i) {
+    PcdField f;
+    f.name = names[i];
+    if (f.name != "_")  // "_" pads; every other name must be unique
+      for (size_t j = 0; j < i; ++j)
+        if (names[j] == f.name) BadPcdHeader(path, "field '" + Shown(f.name) + "' given twice");
+    uint64_t v = 0;
+    if (!ParseCount(sizes[i], 8, v) || (v != 1 && v != 2 && v != 4 && v != 8))
+      BadPcdHeader(path, "SIZE '" + Shown(sizes[i]) + "' of field '" + Shown(f.name) + "', expected 1, 2, 4 or 8");
+    f.size = int(v);
+    if (types[i].size() != 1 || (types[i][0] != 'I' && types[i][0] != 'U' && types[i][0] != 'F'))
+      BadPcdHeader(path, "TYPE '" + Shown(types[i]) + "' of field '" + Shown(f.name) + "', expected I, U or F");
+    f.type = types[i][0];
+    if (f.type == 'F' && f.size < 4) BadPcdHeader(path, "field '" + Shown(f.name) + "' is a float of size " + sizes[i]);
+    if (!counts.empty() && (!ParseCount(counts[i], kPcdMaxPointStep, f.count) || f.count == 0))
+      BadPcdHeader(path, "COUNT '" + Shown(counts[i]) + "' of field '" + Shown(f.name) + "'");
+    f.offset = static_cast<size_t>(step);
+    step += uint64_t(f.size) * f.count;
+    values += f.count;
+    if (step > kPcdMaxPointStep) BadPcdHeader(path, "points of more than 1 MiB");
+    h.fields.push_back(f);
+  }
+  h.point_step = static_cast<size_t>(step);
+  h.values = static_cast<size_t>(values);
+  for (const auto& f : h.fields)
+    if (f.name == "x" || f.name == "y" || f.name == "z") {
+      if (f.type != 'F') throw InputError(path + ": PCD field " + f.name + " is not float");
+      if (f.count != 1) BadPcdHeader(path, "field " + f.name + " has COUNT " + std::to_string(f.count));
+    }
+
+  // PCL stores WIDTH and HEIGHT in 32 bits; so their product fits 64.
+  auto count_of = [&](const char* key, uint64_t& v) {
+    if (!lines.count(key)) return false;
+    const auto& t = values_of(key);
+    if (t.size() != 1 || !ParseCount(t[0], 0xFFFFFFFFull, v))
+      BadPcdHeader(path, std::string(key) + " '" + Shown(t.empty() ? "" : t[0]) + (t.size() > 1 ? " ..." : "") +
+                             "' is not a count below 2^32");
+    return true;
+  };
+  uint64_t width = 0, height = 1, points = 0;
+  const bool has_width = count_of("WIDTH", width), has_points = count_of("POINTS", points);
+  count_of("HEIGHT", height);
+  if (!has_width && !has_points) BadPcdHeader(path, "no WIDTH");
+  if (!has_width) width = points;  // PCD 0.5 gave only POINTS
+  const uint64_t n = width * height;
+  CheckCap(path, static_cast<size_t>(std::max(n, points)), max_points);
+  if (has_points && points != n)
+    BadPcdHeader(path, "POINTS " + std::to_string(points) + " but WIDTH x HEIGHT = " + std::to_string(n));
+  h.n = static_cast<size_t>(n);
+
+  if (lines.count("VIEWPOINT")) {
+    const auto& t = values_of("VIEWPOINT");
+    double vp[7];
+    if (t.size() != 7) BadPcdHeader(path, "VIEWPOINT needs 7 numbers (tx ty tz qw qx qy qz)");
+    for (int k = 0; k < 7; ++k)
+      if (!ParseReal(t[k], vp[k])) BadPcdHeader(path, "VIEWPOINT value '" + Shown(t[k]) + "' is not a number");
+    // PCL writes 0 0 0 1 0 0 0 when nothing is known: that is no sensor origin.
+    const bool default_view = vp[0] == 0 && vp[1] == 0 && vp[2] == 0 && std::abs(vp[3] - 1) < 1e-5 &&
+                              std::abs(vp[4]) < 1e-5 && std::abs(vp[5]) < 1e-5 && std::abs(vp[6]) < 1e-5;
+    const Eigen::Vector3d o(vp[0], vp[1], vp[2]);
+    if (!default_view && o.allFinite()) h.viewpoint = o;
+  }
+  return h;
+}
+
+// LZF as PCL's binary_compressed writes it: a control byte below 32 starts a run of
+// control + 1 literal bytes; above, its top 3 bits are a length - 2 (7: a further byte adds to
+// it) and its low 5 bits with the next byte an offset - 1 back into the output. Every read and
+// write is bounds-checked; false when the stream is corrupt or does not fill `out` exactly.
+bool LzfDecompress(const uint8_t* in, size_t in_size, uint8_t* out, size_t out_size) {
+  size_t ip = 0, op = 0;
+  while (ip < in_size) {
+    const unsigned ctrl = in[ip++];
+    if (ctrl < 32) {
+      const size_t len = ctrl + 1;
+      if (len > in_size - ip || len > out_size - op) return false;
+      std::memcpy(out + op, in + ip, len);
+      ip += len;
+      op += len;
+      continue;
+    }
+    size_t len = ctrl >> 5;
+    if (len == 7) {
+      if (ip >= in_size) return false;
+      len += in[ip++];
+    }
+    len += 2;
+    if (ip >= in_size) return false;
+    const size_t back = ((size_t(ctrl & 31) << 8) | in[ip++]) + 1;
+    if (back > op || len > out_size - op) return false;
+    // A reference may overlap the bytes it writes (a repeated run): copy forwards, bytewise.
+    for (size_t k = 0; k < len; ++k, ++op) out[op] = out[op - back];
+  }
+  return op == out_size;
+}
+
+double PcdValue(const uint8_t* p, const PcdField& f) {
+  switch (f.type) {
+    case 'F':
+      if (f.size == 4) { float v; std::memcpy(&v, p, 4); return v; }
+      else { double v; std::memcpy(&v, p, 8); return v; }
+    case 'U':
+      switch (f.size) {
+        case 1: return *p;
+        case 2: { uint16_t v; std::memcpy(&v, p, 2); return v; }
+        case 4: { uint32_t v; std::memcpy(&v, p, 4); return v; }
+        default: { uint64_t v; std::memcpy(&v, p, 8); return double(v); }
+      }
+    default:
+      switch (f.size) {
+        case 1: return static_cast<int8_t>(*p);
+        case 2: { int16_t v; std::memcpy(&v, p, 2); return v; }
+        case 4: { int32_t v; std::memcpy(&v, p, 4); return v; }
+        default: { int64_t v; std::memcpy(&v, p, 8); return double(v); }
+      }
+  }
+}
+
+// Where each field of a point goes: coordinates, packed colour, integer attributes.
+struct PcdRoles {
+  int xyz[3] = {-1, -1, -1};
+  int rgb = -1;  // "rgb" / "rgba": 4 bytes 0xAARRGGBB (PCL stores them as F or U)
+  std::vector<int> attrs;  // integer fields of one value (label, instance, ...)
+};
+
+PcdRoles RolesOf(const PcdHeader& h) {
+  PcdRoles r;
+  for (int i = 0; i < int(h.fields.size()); ++i) {
+    const auto& f = h.fields[i];
+    if (f.name == "x") r.xyz[0] = i;
+    else if (f.name == "y") r.xyz[1] = i;
+    else if (f.name == "z") r.xyz[2] = i;
+    else if ((f.name == "rgb" || f.name == "rgba") && f.size == 4 && f.count == 1 && r.rgb < 0) r.rgb = i;
+    else if (f.type != 'F' && f.count == 1 && f.name != "_") r.attrs.push_back(i);
+  }
+  return r;
+}
+
+// Keeps the points of a PCD body, with their colours and attributes.
+struct PcdSink {
+  Scan& scan;
+  Tally& tally;
+  const PcdHeader& h;
+  const PcdRoles& roles;
+  std::vector<std::vector<int32_t>*> attrs;
+  PcdSink(Scan& s, Tally& t, const PcdHeader& hd, const PcdRoles& r) : scan(s), tally(t), h(hd), roles(r) {
+    for (int a : roles.attrs) attrs.push_back(&scan.attributes[h.fields[a].name]);
+  }
+  // `value(i)`: field i's value as a double; `bits`: the packed colour.
+  template <class Value>
+  void Add(const Value& value, uint32_t bits) {
+    Eigen::Vector3f v;
+    if (!tally.Keep(Eigen::Vector3d(value(roles.xyz[0]), value(roles.xyz[1]), value(roles.xyz[2])), v)) return;
+    scan.points.push_back(v);
+    if (roles.rgb >= 0)
+      scan.colors.push_back({uint8_t(bits >> 16), uint8_t(bits >> 8), uint8_t(bits)});
+    for (size_t k = 0; k < attrs.size(); ++k) {
+      const double d = value(roles.attrs[k]);
+      // Integer fields may be 64-bit or uint32: clamp to int32 (a cast would be UB).
+      attrs[k]->push_back(std::isfinite(d) ? static_cast<int32_t>(std::clamp(d, -2147483648.0, 2147483647.0)) : 0);
+    }
+  }
+};
+
+void ReadPcdAscii(const std::string& path, std::ifstream& in, const PcdHeader& h, PcdSink& sink) {
+  // Offsets of each field's first value on a line.
+  std::vector<size_t> first(h.fields.size());
+  for (size_t i = 0, at = 0; i < h.fields.size(); at += h.fields[i].count, ++i) first[i] = at;
+  std::vector<double> vals(h.values);
+  std::string line;
+  size_t i = 0;
+  uint32_t bits = 0;
+  while (i < h.n) {
+    if (!std::getline(in, line))
+      throw InputError(path + ": PCD ends after " + std::to_string(i) + " of " + std::to_string(h.n) + " points");
+    const std::vector<std::string> t = Tokens(line.size() && line.back() == '\r' ? line.substr(0, line.size() - 1) : line);
+    if (t.empty()) continue;
+    if (t.size() != h.values)
+      throw InputError(path + ": PCD point " + std::to_string(i) + " has " + std::to_string(t.size()) +
+                       " values, its header's fields need " + std::to_string(h.values));
+    for (size_t k = 0; k < t.size(); ++k)
+      if (!ParseReal(t[k], vals[k]))
+        throw InputError(path + ": PCD point " + std::to_string(i) + ": '" + Shown(t[k]) + "' is not a number");
+    if (sink.roles.rgb >= 0) {
+      // PCL writes a packed colour as its integer; other writers as the float of the same bits.
+      const std::string& c = t[first[sink.roles.rgb]];
+      uint64_t u = 0;
+      if (ParseCount(c, 0xFFFFFFFFull, u)) {
+        bits = uint32_t(u);
+      } else {
+        const float f = float(vals[first[sink.roles.rgb]]);
+        std::memcpy(&bits, &f, 4);
+      }
+    }
+    sink.Add([&](int f) { return vals[first[f]]; }, bits);
+    ++i;
+  }
+}
+
+Scan ReadPcd(const std::string& path, Tally& tally, size_t max_points) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path + ": cannot be opened");
+  std::error_code ec;
+  const uint64_t file_size = fs::file_size(path, ec);
+  if (ec) throw InputError(path + ": cannot be read (" + ec.message() + ")");
+  const PcdHeader h = ReadPcdHeader(path, in, file_size, max_points);
+  const PcdRoles roles = RolesOf(h);
+  const uint64_t left = file_size - h.data_offset;
+  const std::string declared = std::to_string(h.n) + " points";
+  const unsigned __int128 body = static_cast<unsigned __int128>(h.n) * h.point_step;
+  // Sizes against the file before anything is allocated for them.
+  if (h.data == "binary" && body > left)
+    throw InputError(path + ": PCD data shorter than its header says (" + declared + " of " +
+                     std::to_string(h.point_step) + " bytes, " + std::to_string(left) + " bytes of data)");
+  if (h.data == "ascii" && static_cast<unsigned __int128>(h.n) * h.values > left)  // a value takes a byte at least
+    throw InputError(path + ": PCD declares " + declared + " but holds " + std::to_string(left) + " bytes of data");
+  uint32_t sz[2] = {0, 0};  // binary_compressed: compressed and uncompressed sizes
+  if (h.data == "binary_compressed") {
+    if (left < 8) throw InputError(path + ": binary_compressed PCD data truncated (no size words)");
+    in.clear();
+    in.seekg(static_cast<std::streamoff>(h.data_offset));
+    in.read(reinterpret_cast<char*>(sz), sizeof sz);
+    if (!in) throw InputError(path + ": binary_compressed PCD data truncated (no size words)");
+    if (sz[0] > left - 8)
+      throw InputError(path + ": binary_compressed PCD data truncated (" + std::to_string(sz[0]) +
+                       " compressed bytes declared, " + std::to_string(left - 8) + " present)");
+    // A 3-byte LZF back reference writes at most 264 bytes.
+    if (sz[1] != body || (h.n > 0 && sz[0] == 0) || sz[1] > 100ull * sz[0] + 64)
+      throw InputError(path + ": corrupt binary_compressed PCD (uncompressed size " + std::to_string(sz[1]) +
+                       " bytes, the header's " + declared + " need " +
+                       std::to_string(static_cast<unsigned long long>(std::min<unsigned __int128>(body, ~0ull))) + ")");
+  }
+
+  Scan scan;
+  scan.source = path;
+  tally.stats.read = h.n;
+  scan.points.reserve(h.n);
+  if (roles.rgb >= 0) scan.colors.reserve(h.n);
+  PcdSink sink(scan, tally, h, roles);
+  auto bits_at = [&](const uint8_t* p) {
+    uint32_t b = 0;
+    std::memcpy(&b, p, 4);
+    return b;
+  };
+  if (h.data == "ascii") {
+    in.clear();
+    in.seekg(static_cast<std::streamoff>(h.data_offset));
+    ReadPcdAscii(path, in, h, sink);
+  } else if (h.data == "binary") {
+    in.clear();
+    in.seekg(static_cast<std::streamoff>(h.data_offset));
+    const size_t per_chunk = std::max<size_t>(1, kPcdChunkBytes / h.point_step);
+    std::vector<uint8_t> buf(std::min(per_chunk, h.n) * h.point_step);
+    for (size_t done = 0; done < h.n;) {
+      const size_t m = std::min(per_chunk, h.n - done);
+      in.read(reinterpret_cast<char*>(buf.data()), static_cast<std::streamsize>(m * h.point_step));
+      if (static_cast<size_t>(in.gcount()) != m * h.point_step) throw InputError(path + ": PCD data truncated");
+      for (size_t i = 0; i < m; ++i) {
+        const uint8_t* p = buf.data() + i * h.point_step;
+        sink.Add([&](int f) { return PcdValue(p + h.fields[f].offset, h.fields[f]); },
+                 roles.rgb >= 0 ? bits_at(p + h.fields[roles.rgb].offset) : 0);
+      }
+      done += m;
+    }
+  } else {
+    std::vector<uint8_t> packed(sz[0]), raw(sz[1]);
+    in.read(reinterpret_cast<char*>(packed.data()), static_cast<std::streamsize>(packed.size()));
+    if (static_cast<size_t>(in.gcount()) != packed.size()) throw InputError(path + ": binary_compressed PCD data truncated");
+    if (!LzfDecompress(packed.data(), packed.size(), raw.data(), raw.size()))
+      throw InputError(path + ": corrupt or truncated PCD data (the binary_compressed stream does not decode to " +
+                       std::to_string(raw.size()) + " bytes)");
+    // Stored field by field: all points' x, then all y, ...; field f starts at n x its offset.
+    for (size_t i = 0; i < h.n; ++i) {
+      auto at = [&](int f) { return raw.data() + h.n * h.fields[f].offset + i * h.fields[f].size * h.fields[f].count; };
+      sink.Add([&](int f) { return PcdValue(at(f), h.fields[f]); }, roles.rgb >= 0 ? bits_at(at(roles.rgb)) : 0);
+    }
+  }
+  if (h.viewpoint) scan.origin = (*h.viewpoint - tally.shift.value_or(Eigen::Vector3d::Zero())).cast<float>();
+  return scan;
+}
+
+// ---- PLY (own reader: keeps label/instance/colour, refuses inconsistent sizes) -----------
+struct PlyProp {
+  std::string name, type;
+  int size = 0;
+};
+
+int PlyTypeSize(const std::string& t) {
+  if (t == "char" || t == "uchar" || t == "int8" || t == "uint8") return 1;
+  if (t == "short" || t == "ushort" || t == "int16" || t == "uint16") return 2;
+  if (t == "int" || t == "uint" || t == "int32" || t == "uint32" || t == "float" || t == "float32") return 4;
+  if (t == "double" || t == "float64") return 8;
+  return 0;
+}
+
+double PlyDecode(const uint8_t* p, const std::string& t, bool swap) {
+  uint8_t b[8];
+  const int n = PlyTypeSize(t);
+  for (int i = 0; i < n; ++i) b[i] = swap ? p[n - 1 - i] : p[i];
+  if (t == "char" || t == "int8") return static_cast<int8_t>(b[0]);
+  if (t == "uchar" || t == "uint8") return b[0];
+  if (t == "short" || t == "int16") { int16_t v; std::memcpy(&v, b, 2); return v; }
+  if (t == "ushort" || t == "uint16") { uint16_t v; std::memcpy(&v, b, 2); return v; }
+  if (t == "int" || t == "int32") { int32_t v; std::memcpy(&v, b, 4); return v; }
+  if (t == "uint" || t == "uint32") { uint32_t v; std::memcpy(&v, b, 4); return v; }
+  if (t == "float" || t == "float32") { float v; std::memcpy(&v, b, 4); return v; }
+  double v;
+  std::memcpy(&v, b, 8);
+  return v;
+}
+
+Scan ReadPly(const std::string& path, Tally& tally, size_t max_points) {
+  ReadStats& stats = tally.stats;
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path + ": cannot be opened");
+  std::string line;
+  if (!std::getline(in, line) || line.rfind("ply", 0) != 0) throw InputError(path + ": not a PLY file (no 'ply' magic)");
+  std::string format;
+  size_t n_vertex = 0;
+  bool in_vertex = false, seen_vertex = false, vertex_first = true;
+  std::vector<PlyProp> props;
+  int header_lines = 0;
+  while (std::getline(in, line)) {
+    if (++header_lines > 10000) throw InputError(path + ": PLY header too long");
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    std::istringstream ls(line);
+    std::string word;
+    ls >> word;
+    if (word == "format") {
+      ls >> format;
+    } else if (word == "element") {
+      std::string name;
+      long long count = -1;
+      ls >> name >> count;
+      if (count < 0 || ls.fail()) throw InputError(path + ": PLY element '" + name + "' has a bad count");
+      in_vertex = name == "vertex";
+      if (in_vertex) {
+        n_vertex = static_cast<size_t>(count);
+        seen_vertex = true;
+      } else if (!seen_vertex && count > 0) {
+        vertex_first = false;
+      }
+    } else if (word == "property" && in_vertex) {
+      std::string type, name;
+      ls >> type;
+      if (type == "list") throw InputError(path + ": PLY vertex list properties are not supported");
+      ls >> name;
+      int sz = PlyTypeSize(type);
+      if (!sz) throw InputError(path + ": PLY property '" + name + "' has unknown type '" + type + "'");
+      props.push_back({name, type, sz});
+    } else if (word == "end_header") {
+      break;
+    }
+  }
+  if (line.rfind("end_header", 0) != 0) throw InputError(path + ": PLY header has no end_header");
+  if (!seen_vertex) throw InputError(path + ": PLY has no vertex element");
+  if (!vertex_first) throw InputError(path + ": PLY elements before 'vertex' are not supported");
+  int ix = -1, iy = -1, iz = -1, ir = -1, ig = -1, ib = -1;
+  for (size_t i = 0; i < props.size(); ++i) {
+    const auto& nm = props[i].name;
+    if (nm == "x") ix = i;
+    if (nm == "y") iy = i;
+    if (nm == "z") iz = i;
+    if (nm == "red" || nm == "r" || nm == "diffuse_red") ir = i;
+    if (nm == "green" || nm == "g" || nm == "diffuse_green") ig = i;
+    if (nm == "blue" || nm == "b" || nm == "diffuse_blue") ib = i;
+  }
+  if (ix < 0 || iy < 0 || iz < 0) throw InputError(path + ": PLY vertex has no x, y, z properties");
+  CheckCap(path, n_vertex, max_points);
+  const bool colour = ir >= 0 && ig >= 0 && ib >= 0;
+  std::vector<int> attr_props;
+  for (size_t i = 0; i < props.size(); ++i) {
+    const auto& t = props[i].type;
+    const bool integer = t != "float" && t != "float32" && t != "double" && t != "float64";
+    if (integer && (int)i != ir && (int)i != ig && (int)i != ib) attr_props.push_back(i);
+  }
+  Scan scan;
+  scan.source = path;
+  stats.read = n_vertex;
+  std::vector<double> vals(props.size());
+  auto keep = [&](size_t) {
+    Eigen::Vector3f v;
+    if (!tally.Keep(Eigen::Vector3d(vals[ix], vals[iy], vals[iz]), v)) return;
+    scan.points.push_back(v);
+    if (colour)
+      scan.colors.push_back({static_cast<uint8_t>(std::clamp(vals[ir], 0.0, 255.0)),
+                             static_cast<uint8_t>(std::clamp(vals[ig], 0.0, 255.0)),
+                             static_cast<uint8_t>(std::clamp(vals[ib], 0.0, 255.0))});
+    // Integer attributes may be uint32 (or ascii text of any size): clamp to int32 (UB otherwise).
+    for (int a : attr_props)
+      scan.attributes[props[a].name].push_back(
+          std::isfinite(vals[a]) ? static_cast<int32_t>(std::clamp(vals[a], -2147483648.0, 2147483647.0)) : 0);
+  };
+  if (format == "ascii") {
+    for (size_t i = 0; i < n_vertex; ++i) {
+      if (!std::getline(in, line)) throw InputError(path + ": PLY ends after " + std::to_string(i) + " of " + std::to_string(n_vertex) + " vertices");
+      std::istringstream ls(line);
+      for (size_t k = 0; k < props.size(); ++k) {
+        std::string tok;
+        if (!(ls >> tok)) throw InputError(path + ": PLY vertex " + std::to_string(i) + " has too few values");
+        char* end = nullptr;
+        vals[k] = std::strtod(tok.c_str(), &end);
+        if (end == tok.c_str()) throw InputError(path + ": PLY vertex " + std::to_string(i) + " has a non-numeric value '" + tok + "'");
+      }
+      keep(i);
+    }
+  } else if (format == "binary_little_endian" || format == "binary_big_endian") {
+    const bool swap = format == "binary_big_endian";
+    size_t stride = 0;
+    std::vector<size_t> offs;
+    for (const auto& p : props) {
+      offs.push_back(stride);
+      stride += p.size;
+    }
+    const auto data_start = in.tellg();
+    in.seekg(0, std::ios::end);
+    const auto file_end = in.tellg();
+    in.seekg(data_start);
+    if (data_start < 0 || file_end < data_start ||
+        static_cast<size_t>(file_end - data_start) / std::max<size_t>(stride, 1) < n_vertex)
+      throw InputError(path + ": PLY declares " + std::to_string(n_vertex) + " vertices but the file holds fewer");
+    std::vector<uint8_t> buf(stride * std::min<size_t>(n_vertex, 65536));
+    size_t done = 0;
+    while (done < n_vertex) {
+      const size_t chunk = std::min<size_t>(n_vertex - done, 65536);
+      in.read(reinterpret_cast<char*>(buf.data()), chunk * stride);
+      if (static_cast<size_t>(in.gcount()) != chunk * stride) throw InputError(path + ": PLY data truncated");
+      for (size_t i = 0; i < chunk; ++i) {
+        for (size_t k = 0; k < props.size(); ++k) vals[k] = PlyDecode(buf.data() + i * stride + offs[k], props[k].type, swap);
+        keep(done + i);
+      }
+      done += chunk;
+    }
+  } else {
+    throw InputError(path + ": unknown PLY format '" + format + "'");
+  }
+  return scan;
+}
+
+// ---- XYZ -------------------------------------------------------------------------------
+Scan ReadXyz(const std::string& path, Tally& tally, size_t max_points) {
+  ReadStats& stats = tally.stats;
+  std::ifstream in(path);
+  if (!in) throw InputError(path + ": cannot be opened");
+  Scan scan;
+  scan.source = path;
+  std::string line;
+  size_t lineno = 0;
+  while (std::getline(in, line)) {
+    ++lineno;
+    size_t first = line.find_first_not_of(" \t\r");
+    if (first == std::string::npos || line[first] == '#' || line[first] == '/') continue;
+    for (auto& c : line)
+      if (c == ',' || c == ';') c = ' ';
+    const char* s = line.c_str();
+    double v[3];
+    for (int k = 0; k < 3; ++k) {
+      char* end = nullptr;
+      v[k] = std::strtod(s, &end);
+      if (end == s) throw InputError(path + ":" + std::to_string(lineno) + ": expected x y z, got '" + line.substr(0, 40) + "'");
+      s = end;
+    }
+    ++stats.read;
+    CheckCap(path, stats.read, max_points);
+    Eigen::Vector3f p;
+    if (!tally.Keep(Eigen::Vector3d(v[0], v[1], v[2]), p)) continue;
+    scan.points.push_back(p);
+  }
+  return scan;
+}
+
+}  // namespace
+
+Scan ReadScan(const std::string& path, ReadStats* stats_out, size_t max_points, const ShiftOption& shift) {
+  RequireRegularFile(path, "scan file");
+  Tally tally;
+  tally.shift = shift.shift;
+  tally.auto_shift = shift.automatic;
+  const ReadStats& stats = tally.stats;
+  const std::string ext = Lower(fs::path(path).extension().string());
+  Scan scan;
+  if (ext == ".pcd") scan = ReadPcd(path, tally, max_points);
+  else if (ext == ".ply") scan = ReadPly(path, tally, max_points);
+  else if (ext == ".xyz" || ext == ".txt" || ext == ".pts" || ext == ".asc") scan = ReadXyz(path, tally, max_points);
+  else throw InputError(path + ": unknown scan format '" + ext + "' (expected .pcd, .ply, .xyz or .txt)");
+  if (scan.points.empty() && tally.far)
+    throw InputError(path + ": holds no points within " + std::to_string(static_cast<int>(kMaxCoordinate)) +
+                     " m of the " + (tally.shift ? "shifted origin" : "origin") + " (" + std::to_string(tally.far) +
+                     " farther; give the global shift with --shift x,y,z)");
+  scan.frame.shift = tally.shift.value_or(Eigen::Vector3d::Zero());
+  if (tally.shift && !shift.shift)
+    spdlog::info("{}: coordinates far from the origin: global shift ({:.1f}, {:.1f}, {:.1f}) subtracted (outputs are "
+                 "written back in the file's coordinates)", path, scan.frame.shift.x(), scan.frame.shift.y(),
+                 scan.frame.shift.z());
+  if (scan.points.empty()) throw InputError(path + ": holds no finite points");
+  if (stats.non_finite) spdlog::info("{}: dropped {} NaN/inf points of {}", path, stats.non_finite, stats.read);
+  if (tally.far)
+    spdlog::warn("{}: dropped {} of {} points farther than {} m from the origin (scans are metres in a local frame)",
+                 path, tally.far, stats.read, static_cast<int>(kMaxCoordinate));
+  if (stats_out) *stats_out = stats;
+  return scan;
+}
+
+}  // namespace furnihost
