@@ -3,7 +3,6 @@
 // small input; the examples' graph runs `furnihost detect` on the demo room; and the doc's code
 // blocks are the files that are built here.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
 #include <array>
 #include <cstdio>
@@ -37,21 +36,14 @@ std::shared_ptr<T> Make(const std::string& type, const json& params = json::obje
   return Reg().CreateAs<T>(type, entry->params.Resolve(params, "test"));
 }
 
+// out: stdout then stderr (for failure messages and the plugin list).
 struct CliRun {
   int code = -1;
   std::string out;
 };
-
 CliRun Furnihost(const std::string& args) {
-  const std::string cmd = std::string(FURNIHOST_TEST_BINARY) + " " + args + " 2>&1 </dev/null";
-  CliRun r;
-  FILE* p = popen(cmd.c_str(), "r");
-  std::array<char, 4096> buf{};
-  size_t n;
-  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.out.append(buf.data(), n);
-  const int status = pclose(p);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  return r;
+  const testing::CommandRun r = testing::RunFurnihost(args);
+  return {r.code, r.out + r.err};
 }
 
 std::string ReadText(const fs::path& p) {

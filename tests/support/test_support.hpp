@@ -1,9 +1,14 @@
 // Helpers shared by every test: where the sources, plugins and shared data are.
 #pragma once
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 
+#include <array>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <memory>
 #include <sstream>
 #include <string>
@@ -56,5 +61,35 @@ inline std::vector<std::string> ErrorLines(const std::string& err) {
     if (!l.empty() && l[0] != '[') lines.push_back(l);
   return lines;
 }
+
+// A shell command's result: exit status (128 + the signal when killed), stdout, stderr.
+struct CommandRun {
+  int code = -1;
+  std::string out, err;
+};
+
+// Runs `command` through the shell with stdin from /dev/null, capturing stdout and stderr (the
+// latter through a file in this process's temporary folder).
+inline CommandRun RunCommand(const std::string& command) {
+  const std::string err_file = TempDir("command") + "/stderr.txt";
+  CommandRun r;
+  FILE* p = popen((command + " 2>" + err_file + " </dev/null").c_str(), "r");
+  if (!p) return r;
+  std::array<char, 4096> buf{};
+  size_t n;
+  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.out.append(buf.data(), n);
+  const int status = pclose(p);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  std::ifstream e(err_file);
+  r.err.assign(std::istreambuf_iterator<char>(e), std::istreambuf_iterator<char>());
+  return r;
+}
+
+#ifdef FURNIHOST_TEST_BINARY
+// The furnihost binary of this build with `args`.
+inline CommandRun RunFurnihost(const std::string& args) {
+  return RunCommand(std::string(FURNIHOST_TEST_BINARY) + " " + args);
+}
+#endif
 
 }  // namespace furnihost::testing

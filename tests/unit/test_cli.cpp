@@ -1,9 +1,7 @@
 // The furnihost binary: exit codes and one-line errors on bad input.
 #include <gtest/gtest.h>
 #include <sys/stat.h>
-#include <sys/wait.h>
 
-#include <array>
 #include <cstdio>
 #include <filesystem>
 #include <functional>
@@ -16,26 +14,8 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct Run {
-  int code = -1;
-  std::string out, err;
-};
-
-Run Furnihost(const std::string& args) {
-  auto dir = furnihost::testing::TempDir("cli");
-  const std::string err_file = dir + "/stderr.txt";
-  const std::string cmd = std::string(FURNIHOST_TEST_BINARY) + " " + args + " 2>" + err_file + " </dev/null";
-  Run r;
-  FILE* p = popen(cmd.c_str(), "r");
-  std::array<char, 4096> buf{};
-  size_t n;
-  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.out.append(buf.data(), n);
-  int status = pclose(p);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  std::ifstream e(err_file);
-  r.err.assign(std::istreambuf_iterator<char>(e), std::istreambuf_iterator<char>());
-  return r;
-}
+using Run = furnihost::testing::CommandRun;
+Run Furnihost(const std::string& args) { return furnihost::testing::RunFurnihost(args); }
 
 using furnihost::testing::ErrorLines;
 

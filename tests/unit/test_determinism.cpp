@@ -2,7 +2,6 @@
 // without timings_ms, model files without their timing summary), also with 1 vs 2 threads.
 // Runs the furnihost binary, as a user would.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
 #include <cstdlib>
 #include <filesystem>
@@ -18,20 +17,9 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct RunResult {
-  int code = -1;
-  std::string err;
-};
-
-RunResult Furnihost(const std::string& args, const std::string& dir) {
-  const std::string err = dir + "/stderr.txt";
-  const std::string cmd = std::string(FURNIHOST_TEST_BINARY) + " " + args + " >/dev/null 2>" + err + " </dev/null";
-  const int status = std::system(cmd.c_str());
-  RunResult r;
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  std::ifstream e(err);
-  r.err.assign(std::istreambuf_iterator<char>(e), std::istreambuf_iterator<char>());
-  return r;
+// `dir` (the test's folder) is kept for the call sites; stderr goes to this process's temp folder.
+furnihost::testing::CommandRun Furnihost(const std::string& args, const std::string& /*dir*/) {
+  return furnihost::testing::RunFurnihost(args);
 }
 
 std::string Bytes(const std::string& path) {

@@ -5,7 +5,6 @@
 // (tests/hostile/plugins) and the passthrough fitter (tests/plugins), whose "note" marks each
 // detection with the fitters it went through.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
 #include <cstdlib>
 #include <filesystem>
@@ -20,20 +19,9 @@ using nlohmann::json;
 
 namespace {
 
-struct RunResult {
-  int code = -1;
-  std::string err;
-};
-
-RunResult Furnihost(const std::string& args, const std::string& dir) {
-  const std::string err = dir + "/stderr.txt";
-  const std::string cmd = std::string(FURNIHOST_TEST_BINARY) + " " + args + " >/dev/null 2>" + err + " </dev/null";
-  const int status = std::system(cmd.c_str());
-  RunResult r;
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  std::ifstream e(err);
-  r.err.assign(std::istreambuf_iterator<char>(e), std::istreambuf_iterator<char>());
-  return r;
+// `dir` (the test's folder) is kept for the call sites; stderr goes to this process's temp folder.
+furnihost::testing::CommandRun Furnihost(const std::string& args, const std::string& /*dir*/) {
+  return furnihost::testing::RunFurnihost(args);
 }
 
 std::string TestPlugins(const std::string& name) {
