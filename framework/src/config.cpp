@@ -74,7 +74,10 @@ nlohmann::json LoadRecursive(const std::string& path, std::vector<std::string>& 
     const auto& ext = j["extends"];
     if (!ext.is_string()) throw InputError(path + ":/extends: expected a file name string, got " + Shown(ext));
     fs::path base = fs::path(path).parent_path() / ext.get<std::string>();
-    if (!fs::exists(base)) throw InputError(path + ":/extends: unknown base config " + base.string() + " (no such file)");
+    std::error_code exists_ec;  // a name too long or not searchable is a bad extends, not a crash
+    if (!fs::exists(base, exists_ec))
+      throw InputError(path + ":/extends: unknown base config " + base.string() + " (" +
+                       (exists_ec ? exists_ec.message() : std::string("no such file")) + ")");
     nlohmann::json b = LoadRecursive(base.string(), chain);
     j.erase("extends");
     j = MergePatch(std::move(b), j);

@@ -61,6 +61,8 @@ TEST(Cli, BadInputsExitTwoWithOneLine) {
                                                     "WIDTH 99\nHEIGHT 1\nPOINTS 99\nDATA binary\nxx");
   furnihost::AtomicWriteText(dir + "/unknown_param.json",
                              R"({"stages": {"input": {"type": "sensors.scan_file", "params": {"voxel": 1}}}})");
+  // A base config whose name is too long for the file system (found by fuzz_graph_config).
+  furnihost::AtomicWriteText(dir + "/long_extends.json", "{\"extends\": \"" + std::string(5000, 'a') + ".json\"}");
   const std::string g = "--graph " + dir + "/g.json " + PluginArgs() + " ";
   struct Case {
     std::string args, needle;
@@ -72,6 +74,7 @@ TEST(Cli, BadInputsExitTwoWithOneLine) {
       {"--graph " + dir + "/unknown_param.json " + dir + "/corrupt.pcd", "/stages/input/params/voxel: unknown parameter"},
       {"--graph " + dir + "/nothere.json x.pcd", "nothere.json: no such JSON file"},
       {"validate --graph " + dir + "/unknown_param.json", "unknown parameter"},
+      {"validate --graph " + dir + "/long_extends.json", "long_extends.json:/extends: unknown base config"},
       {"detect --graph", "--graph"},
       // Issue 18's frame options name themselves.
       {g + "--up q " + dir + "/corrupt.pcd", "--up: 'q' is not an axis"},
