@@ -22,29 +22,42 @@ float MatchRadius(const GroundTruthObject& g, WidthConvention w) {
   return 0.5f * (w == WidthConvention::Max ? std::max(sx, sy) : std::min(sx, sy));
 }
 
-SceneMatch MatchScene(const std::vector<Detection>& dets, const std::vector<GroundTruthObject>& truth,
-                      const ClassMap& classes, WidthConvention width) {
-  SceneMatch m;
-  m.det_to_gt.assign(dets.size(), SceneMatch::kUnmatched);
-  m.gt_to_det.assign(truth.size(), SceneMatch::kUnmatched);
-  m.det_class.resize(dets.size());
-  m.gt_class.resize(truth.size());
+namespace {
+
+// Both rules start alike: every object and detection gets its evaluation class (or is ignored:
+// a class the dataset does not evaluate), all unmatched; returns the evaluated detections'
+// indices by descending score (stable: ties keep their order).
+std::vector<size_t> Classify(const std::vector<Detection>& dets, const std::vector<GroundTruthObject>& truth,
+                             const ClassMap& classes, SceneMatch* m) {
+  m->det_to_gt.assign(dets.size(), SceneMatch::kUnmatched);
+  m->gt_to_det.assign(truth.size(), SceneMatch::kUnmatched);
+  m->det_class.resize(dets.size());
+  m->gt_class.resize(truth.size());
   for (size_t g = 0; g < truth.size(); ++g) {
     auto c = classes.Map(truth[g].cls);
-    if (c) m.gt_class[g] = *c;
-    else m.gt_to_det[g] = SceneMatch::kIgnored;
+    if (c) m->gt_class[g] = *c;
+    else m->gt_to_det[g] = SceneMatch::kIgnored;
   }
   std::vector<size_t> order;
   for (size_t i = 0; i < dets.size(); ++i) {
     auto c = classes.Map(dets[i].cls);
     if (c) {
-      m.det_class[i] = *c;
+      m->det_class[i] = *c;
       order.push_back(i);
     } else {
-      m.det_to_gt[i] = SceneMatch::kIgnored;
+      m->det_to_gt[i] = SceneMatch::kIgnored;
     }
   }
   std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return dets[a].score > dets[b].score; });
+  return order;
+}
+
+}  // namespace
+
+SceneMatch MatchScene(const std::vector<Detection>& dets, const std::vector<GroundTruthObject>& truth,
+                      const ClassMap& classes, WidthConvention width) {
+  SceneMatch m;
+  const std::vector<size_t> order = Classify(dets, truth, classes, &m);
   for (size_t i : order) {
     int best = SceneMatch::kUnmatched;
     float best_dist = 0.f;
@@ -84,28 +97,9 @@ Eigen::AlignedBox3f DetectionBox(const Detection& d) { return d.box ? d.box->Aab
 SceneMatch MatchSceneIou(const std::vector<Detection>& dets, const std::vector<GroundTruthObject>& truth,
                          const ClassMap& classes, float threshold) {
   SceneMatch m;
-  m.det_to_gt.assign(dets.size(), SceneMatch::kUnmatched);
-  m.gt_to_det.assign(truth.size(), SceneMatch::kUnmatched);
-  m.det_class.resize(dets.size());
-  m.gt_class.resize(truth.size());
+  const std::vector<size_t> order = Classify(dets, truth, classes, &m);
   std::vector<Eigen::AlignedBox3f> gt_box(truth.size());
-  for (size_t g = 0; g < truth.size(); ++g) {
-    auto c = classes.Map(truth[g].cls);
-    if (c) m.gt_class[g] = *c;
-    else m.gt_to_det[g] = SceneMatch::kIgnored;
-    gt_box[g] = GroundTruthBox(truth[g]);
-  }
-  std::vector<size_t> order;
-  for (size_t i = 0; i < dets.size(); ++i) {
-    auto c = classes.Map(dets[i].cls);
-    if (c) {
-      m.det_class[i] = *c;
-      order.push_back(i);
-    } else {
-      m.det_to_gt[i] = SceneMatch::kIgnored;
-    }
-  }
-  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return dets[a].score > dets[b].score; });
+  for (size_t g = 0; g < truth.size(); ++g) gt_box[g] = GroundTruthBox(truth[g]);
   for (size_t i : order) {
     const Eigen::AlignedBox3f box = DetectionBox(dets[i]);
     int best = -1;
