@@ -24,7 +24,8 @@ constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 // Cells with more points than this are checked for copies of one point (NormalsLocal).
 constexpr size_t kCopiesCheckedFrom = 32;
 // Dense cells fit voxel centroids, voxel edge = normal radius / this: ~50 centroids in a planar
-// ball (pi 4^2), ~2.5x fewer than the fewest points a dense cell's ball holds on average.
+// ball (pi 4^2), ~2.5x fewer than the fewest points a dense cell's ball holds on average. The
+// points of one such voxel share one fit.
 constexpr int kCentroidVoxelsPerRadius = 4;
 
 // The finite points of a scan shifted by the centre of their bounding box, computed in double:
@@ -97,26 +98,37 @@ bool SolveSpd6(double A[6][6], double y[6], double c[6]) {
   return true;
 }
 
-// Normal and curvature of one point from its radius neighbourhood (query included).
+// The local surface of one query from its radius neighbourhood (the query's own point included
+// when it is one).
 // 1. PCA of the neighbourhood: tangent frame U (largest), V, N (smallest eigenvector) and the
 //    curvature lambda0 / sum.
 // 2. Height function h(u, v) = c0 + c1 u + c2 v + c3 uv + c4 u^2 + c5 v^2 over the PCA plane,
 //    origin at the query projected on that plane (eq. 1), fitted by weighted least squares with
 //    Gaussian weights exp(-d^2 / r^2) of the distance to the query (as in PCL's MLS).
-// 3. n = (U + c1 N) x (V + c2 N) = N - c1 U - c2 V, with U x V = N.
+// 3. The normal at a point of offset (u, v) from the origin: n = (U + h_u N) x (V + h_v N) =
+//    N - h_u U - h_v V, with U x V = N (at the query: N - c1 U - c2 V). NormalAt below.
 // Fewer than `min_fit` points or a neighbourhood without 2-D extent (a line of points, where
 // the quadratic terms are undetermined): the PCA normal. Fewer than 3 points: NaN.
 // The paper also projects the point onto the fitted surface; we keep the measured points.
 // kCentroids: the neighbours are voxel centroids, each standing for nb.mult[i] points, which
 // weigh the moments and the fit as that many points at the centroid would.
+struct LocalFit {
+  bool valid = false;  // false: fewer than 3 neighbours (NaN normal)
+  bool poly = false;   // the height function was fitted; false: the PCA normal N
+  Eigen::Vector3f N = Eigen::Vector3f::Zero(), U = Eigen::Vector3f::Zero(), V = Eigen::Vector3f::Zero();
+  Eigen::Vector3f o = Eigen::Vector3f::Zero();  // frame and origin (offsets scaled by 1/r from the query)
+  float c[6] = {0, 0, 0, 0, 0, 0};
+};
+
 template <bool kCentroids>
-void FitPoint(Neighbours& nb, int min_fit, Eigen::Vector3f& normal, float& curvature) {
+void FitPoint(Neighbours& nb, int min_fit, LocalFit& fit, float& curvature) {
+  fit = LocalFit();
   const int k = nb.size();
   if (k < 3) {
-    normal.setConstant(kNaN);
     curvature = kNaN;
     return;
   }
+  fit.valid = true;
   // Raw moments of the offsets, scaled to |d| < 1 so float sums lose nothing that matters
   // before the centring in double. Eigen array reductions are vectorised (plain loops would
   // not be without -ffast-math).
@@ -148,10 +160,8 @@ void FitPoint(Neighbours& nb, int min_fit, Eigen::Vector3f& normal, float& curva
   const double sum = lambda.sum();
   curvature = sum > 0 ? float(lambda[0] / sum) : 0.f;
   const Eigen::Vector3f N = es.eigenvectors().col(0).cast<float>().normalized();
-  if (k < min_fit || !(lambda[1] > 1e-4 * lambda[2])) {
-    normal = N;
-    return;
-  }
+  fit.N = N;
+  if (k < min_fit || !(lambda[1] > 1e-4 * lambda[2])) return;
   const Eigen::Vector3f U = es.eigenvectors().col(2).cast<float>().normalized();
   const Eigen::Vector3f V = N.cross(U);
   // Origin: the query (offset 0) projected on the plane through the mean.
@@ -186,11 +196,23 @@ void FitPoint(Neighbours& nb, int min_fit, Eigen::Vector3f& normal, float& curva
   double A[6][6] = {{a00, a01, a02, a03, a04, a05}, {0, a11, a12, a13, a14, a15}, {0, 0, a22, a23, a24, a25},
                     {0, 0, 0, a33, a34, a35}, {0, 0, 0, 0, a44, a45}, {0, 0, 0, 0, 0, a55}};
   double y[6] = {y0, y1, y2, y3, y4, y5}, c[6];
-  if (!SolveSpd6(A, y, c) || !std::isfinite(c[1]) || !std::isfinite(c[2])) {
-    normal = N;
-    return;
-  }
-  normal = (N - float(c[1]) * U - float(c[2]) * V).normalized();
+  if (!SolveSpd6(A, y, c) || !std::isfinite(c[1]) || !std::isfinite(c[2])) return;
+  for (int i = 0; i < 6; ++i) fit.c[i] = float(c[i]);
+  if (!std::isfinite(fit.c[3]) || !std::isfinite(fit.c[4]) || !std::isfinite(fit.c[5])) fit.c[3] = fit.c[4] = fit.c[5] = 0.f;
+  fit.poly = true;
+  fit.U = U, fit.V = V, fit.o = o;
+}
+
+// The normal of a fit at a point of offset d (scaled by 1/r) from its query: the fitted surface's
+// at the point's (u, v); at the query itself (d = 0) N - c1 U - c2 V, as a fit of that point alone.
+Eigen::Vector3f NormalAt(const LocalFit& f, const Eigen::Vector3f& d) {
+  if (!f.valid) return Eigen::Vector3f::Constant(kNaN);
+  if (!f.poly) return f.N;
+  if (d.isZero(0.f)) return (f.N - f.c[1] * f.U - f.c[2] * f.V).normalized();
+  const Eigen::Vector3f e = d - f.o;
+  const float u = e.dot(f.U), v = e.dot(f.V);
+  const float hu = f.c[1] + f.c[3] * v + 2.f * f.c[4] * u, hv = f.c[2] + f.c[3] * u + 2.f * f.c[5] * v;
+  return (f.N - hu * f.U - hv * f.V).normalized();
 }
 
 // The centroids of the voxels of edge grid.cell / q inside cell c of `grid` (voxels aligned
@@ -244,6 +266,8 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
   // Dense cells and the voxel centroids of every cell next to one.
   const int K = o.max_normal_points;
   const int q = kCentroidVoxelsPerRadius;
+  Eigen::Vector3f lo = lc.pts[0];  // VoxelIndex's anchor, computed alike
+  for (const auto& p : lc.pts) lo = lo.cwiseMin(p);
   std::vector<char> dense(size_t(cells), 0);
   std::vector<std::vector<Eigen::Vector4f>> centroids;
   if (K > 0) {
@@ -264,8 +288,6 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
                     "voxel centroids (voxel {:.4f} m)",
                     dense_points, n, dense_above, r / float(q));
     if (dense_points > 0) {
-      Eigen::Vector3f lo = lc.pts[0];  // VoxelIndex's anchor, computed alike
-      for (const auto& p : lc.pts) lo = lo.cwiseMin(p);
       centroids.resize(size_t(cells));
       tbb::parallel_for(tbb::blocked_range<int>(0, cells, 64), [&](const tbb::blocked_range<int>& range) {
         CentroidScratch w;
@@ -281,11 +303,13 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
   tbb::parallel_for(tbb::blocked_range<int>(0, cells, 16), [&](const tbb::blocked_range<int>& range) {
     Neighbours nb;
     std::vector<float> cx, cy, cz, cw;
-    std::vector<int> slots;
-    // Neighbours of (px, py, pz) among the m candidates (cx, cy, cz) into nb, scaled by 1/r;
-    // with kCentroids also their point counts cw.
-    auto collect = [&](auto centroids_tag, float px, float py, float pz) {
+    std::vector<int> slots, key, start, members, pending;
+    std::vector<Eigen::Vector3f> query;
+    // Neighbours of p among the m candidates (cx, cy, cz) into nb, scaled by 1/r; with
+    // kCentroids also their point counts cw.
+    auto collect = [&](auto centroids_tag, const Eigen::Vector3f& p) {
       constexpr bool kCentroids = decltype(centroids_tag)::value;
+      const float px = p.x(), py = p.y(), pz = p.z();
       const int m = int(cx.size());
       // Branch-free compaction: every candidate is written, only hits advance the cursor.
       nb.reserve(m);
@@ -300,15 +324,22 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
       }
       nb.count = cnt;
     };
-    auto fit = [&](auto centroids_tag, int s) {
-      const float px = grid.x[s], py = grid.y[s], pz = grid.z[s];
-      Eigen::Vector3f nrm;
+    // Fits the neighbourhood in nb around query point qp and gives the slots [first, last) of
+    // `list` the normal of that surface at their own positions (NormalAt; a slot at qp itself
+    // gets the fit's normal at the query, as before voxels were shared).
+    auto fit = [&](auto centroids_tag, const Eigen::Vector3f& qp, const int* first, const int* last) {
+      LocalFit f;
       float curv;
-      FitPoint<decltype(centroids_tag)::value>(nb, o.min_fit_points, nrm, curv);
-      if (nrm.dot(view_local - Eigen::Vector3f(px, py, pz)) < 0) nrm = -nrm;
-      const uint32_t i = grid.order[s];
-      normals[i] = nrm;
-      curvature[i] = curv;
+      FitPoint<decltype(centroids_tag)::value>(nb, o.min_fit_points, f, curv);
+      for (const int* it = first; it != last; ++it) {
+        const int s = *it;
+        const Eigen::Vector3f p(grid.x[s], grid.y[s], grid.z[s]);
+        Eigen::Vector3f nrm = NormalAt(f, (p - qp) * inv_r);
+        if (nrm.dot(view_local - p) < 0) nrm = -nrm;
+        const uint32_t i = grid.order[s];
+        normals[i] = nrm;
+        curvature[i] = curv;
+      }
     };
     // The exact normals of `slots` (points of cell c) from every point of their ball.
     auto exact = [&](int c) {
@@ -324,41 +355,77 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
         });
       for (size_t t = 0; t < slots.size(); ++t) {
         const int s = slots[t];
-        const float px = grid.x[s], py = grid.y[s], pz = grid.z[s];
+        const Eigen::Vector3f p(grid.x[s], grid.y[s], grid.z[s]);
         if (copies && t > 0) {
           const int prev = slots[t - 1];
-          if (grid.x[prev] == px && grid.y[prev] == py && grid.z[prev] == pz) {
+          if (grid.x[prev] == p.x() && grid.y[prev] == p.y() && grid.z[prev] == p.z()) {
             normals[grid.order[s]] = normals[grid.order[prev]];
             curvature[grid.order[s]] = curvature[grid.order[prev]];
             continue;
           }
         }
-        collect(std::false_type(), px, py, pz);
-        fit(std::false_type(), s);
+        collect(std::false_type(), p);
+        fit(std::false_type(), p, &slots[t], &slots[t] + 1);
       }
     };
     for (int c = range.begin(); c != range.end(); ++c) {
-      slots.clear();
-      if (dense[c]) {
-        // Voxel centroids of the 27 cells; a point with fewer than 3 of them in its ball (a
-        // clump, e.g. copies of one point) takes the exact path below.
-        cx.clear(), cy.clear(), cz.clear(), cw.clear();
-        for (int k = grid.nb_start[c]; k < grid.nb_start[c + 1]; ++k)
-          for (const auto& p : centroids[grid.nb[k]])
-            cx.push_back(p.x()), cy.push_back(p.y()), cz.push_back(p.z()), cw.push_back(p.w());
-        for (int s = grid.cell_start[c]; s < grid.cell_start[c + 1]; ++s) {
-          collect(std::true_type(), grid.x[s], grid.y[s], grid.z[s]);
-          if (nb.count < 3) {
-            slots.push_back(s);
-            continue;
-          }
-          fit(std::true_type(), s);
-        }
-        if (!slots.empty()) exact(c);
-      } else {
+      if (!dense[c]) {
         slots.resize(size_t(grid.cell_start[c + 1] - grid.cell_start[c]));
         std::iota(slots.begin(), slots.end(), grid.cell_start[c]);
         exact(c);
+        continue;
+      }
+      // A dense cell: its points by voxel (edge r / q; a counting sort, slot order within a
+      // voxel) and each voxel's centroid (summed in slot order in double, as CellCentroids
+      // does). The points of a voxel share one fit centred on its centroid, each taking the
+      // normal of the fitted surface at its own position, so the fits are bounded by the
+      // voxels, not the points: the cost per point stops growing with the density.
+      const int b = grid.cell_start[c], e = grid.cell_start[c + 1];
+      const Eigen::Vector3i cc = grid.CellCoords(c);
+      const float inv_v = float(q) / grid.cell;
+      auto sub = [&](float p, float l, int a) { return std::clamp(int((p - l) * inv_v) - q * cc[a], 0, q - 1); };
+      const int q3 = q * q * q;
+      key.resize(size_t(e - b));
+      start.assign(size_t(q3 + 1), 0);
+      for (int s = b; s < e; ++s) {
+        key[s - b] = sub(grid.x[s], lo.x(), 0) + q * (sub(grid.y[s], lo.y(), 1) + q * sub(grid.z[s], lo.z(), 2));
+        ++start[key[s - b] + 1];
+      }
+      for (int k = 0; k < q3; ++k) start[k + 1] += start[k];
+      members.resize(size_t(e - b));
+      pending.assign(start.begin(), start.end() - 1);  // write cursor per voxel
+      for (int s = b; s < e; ++s) members[pending[key[s - b]]++] = s;
+      int nv = 0;  // the non-empty voxels, renumbered
+      for (int k = 0; k < q3; ++k)
+        if (start[k + 1] > start[k]) start[nv++] = start[k];
+      start.resize(size_t(nv) + 1);
+      start[nv] = e - b;
+      query.resize(size_t(nv));
+      for (int v = 0; v < nv; ++v) {
+        Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+        for (int t = start[v]; t < start[v + 1]; ++t)
+          sum += Eigen::Vector3d(grid.x[members[t]], grid.y[members[t]], grid.z[members[t]]);
+        query[size_t(v)] = (sum / double(start[v + 1] - start[v])).cast<float>();
+      }
+      // Voxel centroids of the 27 cells; a voxel with fewer than 3 of them in its ball (a clump,
+      // e.g. copies of one point) is fitted to every point of its ball instead.
+      cx.clear(), cy.clear(), cz.clear(), cw.clear();
+      for (int k = grid.nb_start[c]; k < grid.nb_start[c + 1]; ++k)
+        for (const auto& p : centroids[grid.nb[k]])
+          cx.push_back(p.x()), cy.push_back(p.y()), cz.push_back(p.z()), cw.push_back(p.w());
+      pending.clear();
+      for (int v = 0; v < nv; ++v) {
+        collect(std::true_type(), query[size_t(v)]);
+        if (nb.count < 3)
+          pending.push_back(v);
+        else
+          fit(std::true_type(), query[size_t(v)], members.data() + start[v], members.data() + start[v + 1]);
+      }
+      if (pending.empty()) continue;
+      grid.GatherNeighbourhood(c, cx, cy, cz);
+      for (int v : pending) {
+        collect(std::false_type(), query[size_t(v)]);
+        fit(std::false_type(), query[size_t(v)], members.data() + start[v], members.data() + start[v + 1]);
       }
     }
   });

@@ -41,9 +41,12 @@ struct RegionGrowingOptions {
 // 0.5 m sphere at 1 cm spacing; with 1 mm noise ~1 deg inside a surface but up to ~25 deg in
 // corners, where the quadratic extrapolates from a one-sided neighbourhood.
 // Dense neighbourhoods (see max_normal_points) fit the voxel centroids instead, each weighted
-// by its number of points (as that many points at the centroid); the query itself is not among
-// them. A point whose centroid ball holds fewer than 3
-// centroids (a clump smaller than two voxels) falls back to the exact ball.
+// by its number of points (as that many points at the centroid), once per voxel: the fit is
+// centred on the voxel's centroid and each point of the voxel takes the normal of the fitted
+// height function at its own position, so a dense scan costs one fit per voxel, not per point
+// (3.7 M points of a 0.09 deg room: 3.2 M in dense cells, ~0.5 M voxels). A voxel whose
+// centroid ball holds fewer than 3 centroids (a clump smaller than two voxels) is fitted to
+// every point of its ball.
 struct NormalResult {
   Points normals;
   std::vector<float> curvature;
