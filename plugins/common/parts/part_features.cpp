@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdint>
 #include <numeric>
 #include <tuple>
 #include <utility>
@@ -100,6 +101,7 @@ float BoundaryRatio(const Points& q, const Points& normals, const Eigen::Vector3
   const float r2 = r * r;
   const float cos_t = float(std::cos(o.boundary_angle_deg * M_PI / 180.0));
   const bool wide = o.boundary_angle_deg >= 90.0;
+  const size_t max_tests = o.boundary_tests_per_cell > 0 ? size_t(o.boundary_tests_per_cell) : SIZE_MAX;
   VoxelIndex grid;
   grid.Build(q, r, VoxelIndex::Anchor::kBoundingBox, TbbFor());
   // Normals in slot order, gathered in one pass: read inside the loop below they would be a
@@ -114,31 +116,51 @@ float BoundaryRatio(const Points& q, const Points& normals, const Eigen::Vector3
   tbb::parallel_for(tbb::blocked_range<int>(0, grid.NumCells(), 32), [&](const tbb::blocked_range<int>& range) {
     std::vector<Dir> dirs;
     std::vector<float> cx, cy, cz, pa, pb, keys;
-    std::vector<int> slots;
+    std::vector<int> slots, weights;
     int count = 0;
     for (int c = range.begin(); c != range.end(); ++c) {
       grid.GatherNeighbourhood(c, cx, cy, cz);
       const int m = int(cx.size());
-      // Copies of one point (with one normal) have one answer: test it once, or N copies (a
-      // (0, 0, 0) flood) cost N tests of N neighbours each. Only cells that could hold many
-      // copies are sorted; a small cell costs at most its size times its neighbourhood.
-      slots.resize(size_t(grid.cell_start[c + 1] - grid.cell_start[c]));
+      // Copies of one point (with one normal) have one answer: test it once, weighted by its
+      // copies, or N copies (a (0, 0, 0) flood) cost N tests of N neighbours each. Only cells
+      // that could hold many copies are sorted; a small cell costs at most its size times its
+      // neighbourhood. A cell of more than boundary_tests_per_cell distinct points (a scan much
+      // denser than the boundary radius needs) tests an even sample of them, each standing for
+      // the points up to the next, so the cost per point stops growing with the density (the
+      // ratio is then an estimate; each test still sees every neighbour).
+      const int cell_n = grid.cell_start[c + 1] - grid.cell_start[c];
+      slots.resize(size_t(cell_n));
       std::iota(slots.begin(), slots.end(), grid.cell_start[c]);
-      const bool copies = slots.size() > 32;
       auto key = [&](int t) {
         const Eigen::Vector3f& n = slot_normal[t];
         return std::make_tuple(grid.x[t], grid.y[t], grid.z[t], n.x(), n.y(), n.z());
       };
-      if (copies)
+      weights.assign(size_t(cell_n), 1);
+      if (cell_n > 32 || size_t(cell_n) > max_tests) {
         std::sort(slots.begin(), slots.end(),
                   [&](int a, int b) { return std::make_pair(key(a), a) < std::make_pair(key(b), b); });
-      bool last = false;  // the answer for the previous slot in `slots`
+        size_t u = 0;  // distinct points to the front, weighted by their copies
+        for (size_t t = 0; t < slots.size(); ++t)
+          if (t > 0 && key(slots[t]) == key(slots[u - 1]))
+            ++weights[u - 1];
+          else
+            slots[u] = slots[t], weights[u++] = 1;
+        slots.resize(u), weights.resize(u);
+        if (u > max_tests) {
+          const size_t stride = (u + max_tests - 1) / max_tests;
+          size_t k = 0;
+          for (size_t t = 0; t < u; t += stride) {
+            int w = 0;
+            for (size_t j = t; j < std::min(u, t + stride); ++j) w += weights[j];
+            slots[k] = slots[t], weights[k++] = w;
+          }
+          slots.resize(k), weights.resize(k);
+        }
+      }
+      bool last = false;  // the answer of the last slot tested
       for (size_t t = 0; t < slots.size(); ++t) {
         const int s = slots[t];
-        if (copies && t > 0 && key(slots[t - 1]) == key(s)) {
-          count += last;
-          continue;
-        }
+        const int w = weights[t];
         const Eigen::Vector3f& n = slot_normal[s];
         // Any tangent basis: the gap test is rotation invariant in the plane.
         const Eigen::Vector3f u =
@@ -177,7 +199,7 @@ float BoundaryRatio(const Points& q, const Points& normals, const Eigen::Vector3
           for (int j = 0; j < cnt; ++j) dirs.push_back({PseudoAngle(pa[j], pb[j]), pa[j], pb[j]});
           last = HasGap(dirs, cos_t);
         }
-        count += last;
+        count += last ? w : 0;
       }
     }
     boundary += count;
@@ -315,6 +337,7 @@ void PartFeatureOptions::Check() const {
   if (!(boundary_radius_m > 0)) throw StageError("boundary_radius_m must be > 0");
   if (!(boundary_angle_deg > 0 && boundary_angle_deg < 180))
     throw StageError("boundary_angle_deg must be in (0, 180)");
+  if (boundary_tests_per_cell < 0) throw StageError("boundary_tests_per_cell must be >= 0 (0: every point)");
 }
 
 const std::vector<std::string>& Paper24Names() {

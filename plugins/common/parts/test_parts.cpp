@@ -75,6 +75,7 @@ TEST(PartFeatures, DeclaredParametersResolveToTheDefaults) {
   EXPECT_EQ(o.voxel_m, d.voxel_m);
   EXPECT_EQ(o.boundary_radius_m, d.boundary_radius_m);
   EXPECT_EQ(o.boundary_angle_deg, d.boundary_angle_deg);
+  EXPECT_EQ(o.boundary_tests_per_cell, d.boundary_tests_per_cell);
   EXPECT_EQ(b.Schema().Find("voxel_m")->default_value, 0.02);
   EXPECT_EQ(b.Schema().Find("boundary_angle_deg")->unit, "deg");
   EXPECT_THROW(b.Parse({{"boundary_angle_deg", 180}}), InputError);

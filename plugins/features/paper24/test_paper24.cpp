@@ -210,6 +210,29 @@ TEST(Paper24, CopiesKeepTheBoundaryRatioAndStayLinear) {
   EXPECT_FLOAT_EQ(f.values(0, Col(f, "boundary_ratio")), 1.f);
 }
 
+// A scan much denser than the boundary radius needs: feature 1 tests an even sample of each
+// cell's points (boundary_tests_per_cell), each standing for the points up to the next; the
+// ratio stays that of testing every point (0), within the sampling's noise.
+TEST(Paper24, DenseBoundaryRatioFromASampleMatchesEveryPoint) {
+  std::mt19937_64 rng(21);
+  std::uniform_real_distribution<float> u(0.f, 0.5f);
+  Scan scan;
+  for (int i = 0; i < 60000; ++i) scan.points.emplace_back(u(rng), u(rng), 0.f);  // ~216 points per 3 cm cell
+  Segmentation seg;
+  furnihost::Part part;
+  for (size_t i = 0; i < scan.points.size(); ++i) part.indices.push_back(int(i));
+  seg.parts.push_back(part);
+  seg.normals.assign(scan.points.size(), Eigen::Vector3f::UnitZ());
+  seg.curvature.assign(scan.points.size(), 0.f);
+  for (double angle : {90.0, 60.0}) {
+    const auto every = Compute(scan, seg, {{"boundary_tests_per_cell", 0}, {"boundary_angle_deg", angle}});
+    const auto sample = Compute(scan, seg, {{"boundary_angle_deg", angle}});
+    const double e = every.values(0, Col(every, "boundary_ratio")), s = sample.values(0, Col(sample, "boundary_ratio"));
+    EXPECT_GT(e, 0.001) << angle;
+    EXPECT_NEAR(s, e, 0.2 * e) << angle;
+  }
+}
+
 TEST(Paper24, DegeneratePartsGiveFiniteValues) {
   Scan scan;
   scan.points = {{1, 1, 1}, {1, 1, 1}, {1, 1, 1}, {2, 0, 0}};
