@@ -545,6 +545,29 @@ Segmentation Segment(const Scan& scan, const RegionGrowingOptions& o, SegmentTim
   std::vector<size_t> part_begin{0};
   members.reserve(n);
 
+  // Each cell's tight box: a neighbour cell whose box lies delta or farther from a point holds
+  // none of its neighbours (in float too: the box's distance is never above a member's), so the
+  // growth skips it. A cell of delta touches ~21 of the 27 around a point on average, fewer
+  // where surfaces are thin.
+  std::vector<float> box(size_t(cells) * 6);
+  tbb::parallel_for(tbb::blocked_range<int>(0, cells, 1024), [&](const tbb::blocked_range<int>& range) {
+    for (int c = range.begin(); c != range.end(); ++c) {
+      float* b = &box[size_t(c) * 6];
+      b[0] = b[1] = b[2] = std::numeric_limits<float>::infinity();
+      b[3] = b[4] = b[5] = -std::numeric_limits<float>::infinity();
+      for (int s = grid.cell_start[c]; s < grid.cell_start[c + 1]; ++s) {
+        b[0] = std::min(b[0], grid.x[s]), b[1] = std::min(b[1], grid.y[s]), b[2] = std::min(b[2], grid.z[s]);
+        b[3] = std::max(b[3], grid.x[s]), b[4] = std::max(b[4], grid.y[s]), b[5] = std::max(b[5], grid.z[s]);
+      }
+    }
+  });
+  auto far = [&](int c, float px, float py, float pz) {
+    const float* b = &box[size_t(c) * 6];
+    const float dx = std::max({b[0] - px, 0.f, px - b[3]}), dy = std::max({b[1] - py, 0.f, py - b[4]}),
+                dz = std::max({b[2] - pz, 0.f, pz - b[5]});
+    return dx * dx + dy * dy + dz * dz >= delta2;
+  };
+
   // Breadth-first growth from `seed` over unlabelled slots accepted by `admit`.
   auto grow = [&](uint32_t seed, int id, auto&& admit) {
     const size_t begin = members.size();
@@ -557,6 +580,7 @@ Segmentation Segment(const Scan& scan, const RegionGrowingOptions& o, SegmentTim
       const int c = grid.cell_of[p];
       for (int k = grid.nb_start[c]; k < grid.nb_start[c + 1]; ++k) {
         const int nc = grid.nb[k];
+        if (free_in_cell[nc] == 0 || far(nc, px, py, pz)) continue;
         const int b = grid.cell_start[nc];
         for (int i = b; i < b + free_in_cell[nc];) {
           const uint32_t q = free_slots[i];
