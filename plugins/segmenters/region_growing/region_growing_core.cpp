@@ -247,6 +247,34 @@ void CellCentroids(const VoxelIndex& grid, int c, const Eigen::Vector3f& lo, int
   }
 }
 
+// The tight box of each cell's points, 6 floats per cell (min x y z, max x y z).
+std::vector<float> CellBoxes(const VoxelIndex& grid) {
+  const int cells = grid.NumCells();
+  std::vector<float> box(size_t(cells) * 6);
+  tbb::parallel_for(tbb::blocked_range<int>(0, cells, 1024), [&](const tbb::blocked_range<int>& range) {
+    for (int c = range.begin(); c != range.end(); ++c) {
+      float* b = &box[size_t(c) * 6];
+      b[0] = b[1] = b[2] = std::numeric_limits<float>::infinity();
+      b[3] = b[4] = b[5] = -std::numeric_limits<float>::infinity();
+      for (int s = grid.cell_start[c]; s < grid.cell_start[c + 1]; ++s) {
+        b[0] = std::min(b[0], grid.x[s]), b[1] = std::min(b[1], grid.y[s]), b[2] = std::min(b[2], grid.z[s]);
+        b[3] = std::max(b[3], grid.x[s]), b[4] = std::max(b[4], grid.y[s]), b[5] = std::max(b[5], grid.z[s]);
+      }
+    }
+  });
+  return box;
+}
+
+// True when cell c's tight box lies at squared distance >= d2 from p: none of its points is
+// closer (in float too: per axis the box's gap is never above a point's, and rounding is
+// monotonic).
+bool Far(const std::vector<float>& box, int c, const Eigen::Vector3f& p, float d2) {
+  const float* b = &box[size_t(c) * 6];
+  const float dx = std::max({b[0] - p.x(), 0.f, p.x() - b[3]}), dy = std::max({b[1] - p.y(), 0.f, p.y() - b[4]}),
+              dz = std::max({b[2] - p.z(), 0.f, p.z() - b[5]});
+  return dx * dx + dy * dy + dz * dz >= d2;
+}
+
 // Normals of `lc` (by local index) with the grid of cell = radius. Per cell, the candidates of
 // its 27 neighbour cells are copied once into a contiguous buffer that every point of the cell
 // then scans (a tight, vectorisable loop). Cells whose neighbourhood is dense (see
@@ -300,10 +328,12 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
     }
   }
 
+  const std::vector<float> cell_box = CellBoxes(grid);
+  const float r2 = r * r;
   tbb::parallel_for(tbb::blocked_range<int>(0, cells, 16), [&](const tbb::blocked_range<int>& range) {
     Neighbours nb;
     std::vector<float> cx, cy, cz, cw;
-    std::vector<int> slots, key, start, members, pending;
+    std::vector<int> slots, key, start, members, pending, seg, segc;
     std::vector<Eigen::Vector3f> query;
     // Neighbours of p among the m candidates (cx, cy, cz) into nb, scaled by 1/r; with
     // kCentroids also their point counts cw.
@@ -343,7 +373,16 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
     };
     // The exact normals of `slots` (points of cell c) from every point of their ball.
     auto exact = [&](int c) {
-      grid.GatherNeighbourhood(c, cx, cy, cz);
+      // The 27 cells' points, cell after cell (segment k: [seg[k], seg[k + 1]) from cell segc[k]).
+      cx.clear(), cy.clear(), cz.clear(), seg.clear(), segc.clear();
+      for (int k = grid.nb_start[c]; k < grid.nb_start[c + 1]; ++k) {
+        const int nc = grid.nb[k], b = grid.cell_start[nc], e = grid.cell_start[nc + 1];
+        seg.push_back(int(cx.size())), segc.push_back(nc);
+        cx.insert(cx.end(), grid.x.begin() + b, grid.x.begin() + e);
+        cy.insert(cy.end(), grid.y.begin() + b, grid.y.begin() + e);
+        cz.insert(cz.end(), grid.z.begin() + b, grid.z.begin() + e);
+      }
+      seg.push_back(int(cx.size()));
       // Copies of one point have the same neighbourhood, so one fit serves them all: without
       // this, N identical points (a (0, 0, 0) flood) cost N fits of N neighbours each. Only
       // cells that could hold many copies are sorted; a small cell costs at most its size
@@ -364,7 +403,21 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
             continue;
           }
         }
-        collect(std::false_type(), p);
+        // The neighbours, skipping the cells whose tight box lies r or farther from p (they
+        // hold none: the same neighbours in the same order as scanning all 27).
+        nb.reserve(int(cx.size()));
+        int cnt = 0;
+        float *nx = nb.x.data(), *ny = nb.y.data(), *nz = nb.z.data(), *nd = nb.d2.data();
+        for (size_t k = 0; k + 1 < seg.size(); ++k) {
+          if (Far(cell_box, segc[k], p, r2)) continue;
+          for (int j = seg[k]; j < seg[k + 1]; ++j) {
+            const float dx = (cx[j] - p.x()) * inv_r, dy = (cy[j] - p.y()) * inv_r, dz = (cz[j] - p.z()) * inv_r;
+            const float d2 = dx * dx + dy * dy + dz * dz;
+            nx[cnt] = dx, ny[cnt] = dy, nz[cnt] = dz, nd[cnt] = d2;
+            cnt += d2 < 1.f;
+          }
+        }
+        nb.count = cnt;
         fit(std::false_type(), p, &slots[t], &slots[t] + 1);
       }
     };
@@ -545,28 +598,10 @@ Segmentation Segment(const Scan& scan, const RegionGrowingOptions& o, SegmentTim
   std::vector<size_t> part_begin{0};
   members.reserve(n);
 
-  // Each cell's tight box: a neighbour cell whose box lies delta or farther from a point holds
-  // none of its neighbours (in float too: the box's distance is never above a member's), so the
-  // growth skips it. A cell of delta touches ~21 of the 27 around a point on average, fewer
-  // where surfaces are thin.
-  std::vector<float> box(size_t(cells) * 6);
-  tbb::parallel_for(tbb::blocked_range<int>(0, cells, 1024), [&](const tbb::blocked_range<int>& range) {
-    for (int c = range.begin(); c != range.end(); ++c) {
-      float* b = &box[size_t(c) * 6];
-      b[0] = b[1] = b[2] = std::numeric_limits<float>::infinity();
-      b[3] = b[4] = b[5] = -std::numeric_limits<float>::infinity();
-      for (int s = grid.cell_start[c]; s < grid.cell_start[c + 1]; ++s) {
-        b[0] = std::min(b[0], grid.x[s]), b[1] = std::min(b[1], grid.y[s]), b[2] = std::min(b[2], grid.z[s]);
-        b[3] = std::max(b[3], grid.x[s]), b[4] = std::max(b[4], grid.y[s]), b[5] = std::max(b[5], grid.z[s]);
-      }
-    }
-  });
-  auto far = [&](int c, float px, float py, float pz) {
-    const float* b = &box[size_t(c) * 6];
-    const float dx = std::max({b[0] - px, 0.f, px - b[3]}), dy = std::max({b[1] - py, 0.f, py - b[4]}),
-                dz = std::max({b[2] - pz, 0.f, pz - b[5]});
-    return dx * dx + dy * dy + dz * dz >= delta2;
-  };
+  // A neighbour cell whose tight box lies delta or farther from a member holds none of its
+  // neighbours, so the growth skips it (a cell of delta touches ~21 of the 27 around a point on
+  // average, fewer where surfaces are thin).
+  const std::vector<float> box = CellBoxes(grid);
 
   // Breadth-first growth from `seed` over unlabelled slots accepted by `admit`.
   auto grow = [&](uint32_t seed, int id, auto&& admit) {
@@ -580,7 +615,7 @@ Segmentation Segment(const Scan& scan, const RegionGrowingOptions& o, SegmentTim
       const int c = grid.cell_of[p];
       for (int k = grid.nb_start[c]; k < grid.nb_start[c + 1]; ++k) {
         const int nc = grid.nb[k];
-        if (free_in_cell[nc] == 0 || far(nc, px, py, pz)) continue;
+        if (free_in_cell[nc] == 0 || Far(box, nc, Eigen::Vector3f(px, py, pz), delta2)) continue;
         const int b = grid.cell_start[nc];
         for (int i = b; i < b + free_in_cell[nc];) {
           const uint32_t q = free_slots[i];
