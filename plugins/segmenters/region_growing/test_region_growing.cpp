@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <cstdio>
 #include <cstring>
 #include <random>
 #include <set>
@@ -542,6 +543,67 @@ TEST(RegionGrowing, DenseNormalsFollowTheSurfaceInsideAVoxel) {
   }
   EXPECT_LT(sum / double(scan.points.size()), 0.2);
   EXPECT_LT(worst, 1.0);
+}
+
+// Equal quality at density: a furniture-like scene (floor, a chair's seat box, back and legs,
+// a ball) at ~2.6 mm spacing with 1 mm noise, segmented with the density-adaptive normals (the
+// default: voxel centroids, one fit per voxel) and with every point of every ball
+// (max_normal_points 0). Every part holding >= 1 % of the points in the exact result (>= 80 %
+// of the points are in such parts) has a part in the adaptive one that shares >= 85 % of their
+// union, and the counts of such parts differ by at most one.
+TEST(RegionGrowing, DenseSegmentationAgreesWithEveryPointSegmentation) {
+  std::mt19937_64 rng(31);
+  const float d = 150000.f;
+  Scan scan;
+  const Eigen::Vector3f X(1, 0, 0), Y(0, 1, 0), Z(0, 0, 1);
+  AddQuad(scan.points, nullptr, 0, Eigen::Vector3f(-0.5f, -0.5f, 0.f), 1.2f * X, 1.2f * Y, d, rng);  // floor
+  const Eigen::Vector3f s0(0.f, 0.f, 0.40f);                                                      // seat box
+  AddQuad(scan.points, nullptr, 0, s0 + 0.05f * Z, 0.45f * X, 0.45f * Y, d, rng);
+  AddQuad(scan.points, nullptr, 0, s0, 0.45f * X, 0.05f * Z, d, rng);
+  AddQuad(scan.points, nullptr, 0, s0 + 0.45f * Y, 0.45f * X, 0.05f * Z, d, rng);
+  AddQuad(scan.points, nullptr, 0, s0 + 0.45f * X, 0.45f * Y, 0.05f * Z, d, rng);
+  AddQuad(scan.points, nullptr, 0, s0 + 0.45f * Y + 0.05f * Z, 0.45f * X, 0.45f * Z, d, rng);  // back
+  for (const Eigen::Vector3f& corner : {Eigen::Vector3f(0.02f, 0.02f, 0.f), Eigen::Vector3f(0.40f, 0.02f, 0.f),
+                                       Eigen::Vector3f(0.02f, 0.40f, 0.f), Eigen::Vector3f(0.40f, 0.40f, 0.f)}) {
+    AddQuad(scan.points, nullptr, 0, corner, 0.03f * X, 0.40f * Z, d, rng);  // legs: two faces each
+    AddQuad(scan.points, nullptr, 0, corner, 0.03f * Y, 0.40f * Z, d, rng);
+  }
+  const Points ball = Sphere(Eigen::Vector3f(-0.25f, 0.45f, 0.2f), 0.12f, d, rng);
+  for (const auto& p : ball)
+    if (p.z() > 0.02f) scan.points.push_back(p);
+  std::normal_distribution<float> noise(0.f, 0.001f);
+  for (auto& p : scan.points) p += Eigen::Vector3f(noise(rng), noise(rng), noise(rng));
+  scan.origin = Eigen::Vector3f(1.5f, -1.0f, 1.5f);
+  const nlohmann::json paper_radius = {{"normal_radius_m", 0.03}};
+  const auto exact = RunSeg(scan, {{"normal_radius_m", 0.03}, {"max_normal_points", 0}});
+  const auto fast = RunSeg(scan, paper_radius);
+  const size_t n = scan.points.size(), big = n / 100;
+  std::vector<int> label(n, -1);
+  for (size_t k = 0; k < fast.parts.size(); ++k)
+    for (int i : fast.parts[k].indices) label[size_t(i)] = int(k);
+  int big_exact = 0, big_fast = 0;
+  size_t agreeing = 0, in_big = 0;
+  double worst = 1.0;
+  for (const auto& part : fast.parts) big_fast += part.indices.size() >= big;
+  for (const auto& part : exact.parts) {
+    if (part.indices.size() < big) continue;
+    ++big_exact;
+    in_big += part.indices.size();
+    std::map<int, size_t> shared;
+    for (int i : part.indices) ++shared[label[size_t(i)]];
+    const auto best = std::max_element(shared.begin(), shared.end(), [](auto& a, auto& b) { return a.second < b.second; });
+    const size_t other = best->first >= 0 ? fast.parts[size_t(best->first)].indices.size() : 0;
+    const double iou = double(best->second) / double(part.indices.size() + other - best->second);
+    worst = std::min(worst, iou);
+    if (iou >= 0.85) agreeing += part.indices.size();
+  }
+  std::printf("%zu points; parts of >= 1 %%: %d exact, %d adaptive, holding %.3f of the points; worst IoU %.3f\n", n,
+              big_exact, big_fast, double(in_big) / double(n), worst);
+  EXPECT_GE(big_exact, 4);
+  EXPECT_LE(std::abs(big_exact - big_fast), 1);
+  EXPECT_GE(worst, 0.85);
+  EXPECT_GE(double(in_big), 0.8 * double(n));
+  EXPECT_EQ(agreeing, in_big);
 }
 
 TEST(RegionGrowing, DenseNormalsGiveTheBoxTheSamePartsAsSparse) {
