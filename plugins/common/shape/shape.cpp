@@ -174,6 +174,32 @@ float Quantile(std::vector<float>& v, double q) {
   std::nth_element(v.begin(), v.begin() + k, v.end());
   return v[k];
 }
+
+// The m (<= kCap) smallest (PushLow) or largest (PushHigh) values pushed, sorted from the
+// extreme inwards; Last() is then the m-th smallest (largest) value: the order statistic
+// Quantile finds, whatever order the values come in.
+class ExtremeBuffer {
+ public:
+  static constexpr size_t kCap = 16;
+  explicit ExtremeBuffer(size_t m) : m_(m) {}
+  void PushLow(float x) {
+    if (size_ == m_ && !(x < v_[size_ - 1])) return;
+    size_t i = size_ == m_ ? size_ - 1 : size_++;
+    for (; i > 0 && x < v_[i - 1]; --i) v_[i] = v_[i - 1];
+    v_[i] = x;
+  }
+  void PushHigh(float x) {
+    if (size_ == m_ && !(x > v_[size_ - 1])) return;
+    size_t i = size_ == m_ ? size_ - 1 : size_++;
+    for (; i > 0 && x > v_[i - 1]; --i) v_[i] = v_[i - 1];
+    v_[i] = x;
+  }
+  float Last() const { return v_[size_ - 1]; }
+
+ private:
+  size_t m_, size_ = 0;
+  std::array<float, kCap> v_{};
+};
 }  // namespace
 
 Footprint OrientedFootprint(const std::vector<Eigen::Vector2f>& xy, float axis_margin) {
@@ -208,9 +234,26 @@ Footprint OrientedFootprint(const std::vector<Eigen::Vector2f>& xy, float axis_m
   for (size_t i = 0; i < xy.size(); i += stride) sub.push_back(xy[i]);
   auto extents = [](const std::vector<Eigen::Vector2f>& pts, float a, std::vector<float>& u, std::vector<float>& v) {
     const float c = std::cos(a), s = std::sin(a);
-    u.resize(pts.size());
-    v.resize(pts.size());
-    for (size_t i = 0; i < pts.size(); ++i) {
+    const size_t n = pts.size();
+    // The 1st and 99th percentiles are the k-th smallest and the k'-th largest values with k,
+    // k' small for the subsample: one pass keeping the few extreme values of each side finds
+    // the same order statistics as four nth_element calls, at a fraction of their cost (the
+    // footprint's directions were ~60 % of proposals.clusters' and voters.catalog_shape's
+    // footprint time on a ScanNet room).
+    const size_t k_lo = std::min(n - 1, size_t(0.01 * double(n - 1) + 0.5));
+    const size_t k_hi = std::min(n - 1, size_t(0.99 * double(n - 1) + 0.5));
+    if (k_lo < ExtremeBuffer::kCap && n - 1 - k_hi < ExtremeBuffer::kCap) {
+      ExtremeBuffer ulo(k_lo + 1), uhi(n - k_hi), vlo(k_lo + 1), vhi(n - k_hi);
+      for (size_t i = 0; i < n; ++i) {
+        const float ui = c * pts[i].x() + s * pts[i].y();
+        const float vi = -s * pts[i].x() + c * pts[i].y();
+        ulo.PushLow(ui), uhi.PushHigh(ui), vlo.PushLow(vi), vhi.PushHigh(vi);
+      }
+      return Eigen::Vector4f(ulo.Last(), uhi.Last(), vlo.Last(), vhi.Last());
+    }
+    u.resize(n);
+    v.resize(n);
+    for (size_t i = 0; i < n; ++i) {
       u[i] = c * pts[i].x() + s * pts[i].y();
       v[i] = -s * pts[i].x() + c * pts[i].y();
     }
