@@ -117,19 +117,34 @@ void KnnIndex::Query(const Eigen::Vector3f& q, int k, std::vector<uint32_t>& ind
   dist2.swap(d);
 }
 
+std::vector<uint32_t> KnnIndex::LeafOrder() const {
+  const auto& leaves = impl_->tree.vAcc;
+  if (impl_->distinct.empty()) return std::vector<uint32_t>(leaves.begin(), leaves.end());
+  std::vector<uint32_t> order;
+  order.reserve(points_.size());
+  for (uint32_t u : leaves)
+    order.insert(order.end(), impl_->members.begin() + impl_->start[u], impl_->members.begin() + impl_->start[u + 1]);
+  return order;
+}
+
 LocalShape EstimateLocalShape(const KnnIndex& index, int k) {
   const Points& pts = index.Cloud();
   LocalShape out;
   out.normals.assign(pts.size(), Eigen::Vector3f::UnitZ());
   out.nn.assign(pts.size(), 0.f);
   out.nn4.assign(pts.size(), 0.f);
+  // Queries in the tree's leaf order (each point's result is its own): a scan's file order is
+  // random for ScanNet's sampled vertices, and queries in it miss the cache on every level.
+  const std::vector<uint32_t> order = index.LeafOrder();
   tbb::parallel_for(tbb::blocked_range<size_t>(0, pts.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
     std::vector<uint32_t> idx;
     std::vector<float> d2;
-    for (size_t i = r.begin(); i != r.end(); ++i) {
+    std::vector<float> others;
+    for (size_t t = r.begin(); t != r.end(); ++t) {
+      const size_t i = order[t];
       index.Query(pts[i], k + 1, idx, d2);
       // Distances to other points: skip the query itself (and exact duplicates count as 0).
-      std::vector<float> others;
+      others.clear();
       bool self = false;
       for (size_t j = 0; j < idx.size(); ++j) {
         if (!self && idx[j] == i) {
