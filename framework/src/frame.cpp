@@ -218,10 +218,15 @@ Eigen::Isometry3d EstimateCanonicalFrame(const Points& upright) {
     tree.buildIndex();
     const size_t k = 12;
     std::vector<Eigen::Vector3d> acc(sample.size(), Eigen::Vector3d::Zero());  // (cos, sin, weight)
+    // Queries in the tree's leaf order (each point's result is its own, summed below in point
+    // order): neighbouring queries walk the same branches, which a scan's file order (random
+    // for ScanNet's sampled vertices) does not.
+    const auto& leaf_order = tree.vAcc;
     tbb::parallel_for(tbb::blocked_range<size_t>(0, sample.size(), 2048), [&](const tbb::blocked_range<size_t>& r) {
       std::vector<uint32_t> idx(k);
       std::vector<float> d2(k);
-      for (size_t i = r.begin(); i != r.end(); ++i) {
+      for (size_t t = r.begin(); t != r.end(); ++t) {
+        const size_t i = leaf_order[t];
         nanoflann::KNNResultSet<float, uint32_t> rs(k);
         rs.init(idx.data(), d2.data());
         tree.findNeighbors(rs, sample[i].data(), nanoflann::SearchParams());

@@ -23,6 +23,67 @@ uint64_t VoxelKey(const Eigen::Vector3f& p, float voxel, int dx = 0, int dy = 0,
   return q(p.x(), dx) | (q(p.y(), dy) << 21) | (q(p.z(), dz) << 42);
 }
 
+// Voxel key -> slot, open addressing (linear probing) over a power-of-two table that doubles
+// at half load: the normals' 27 neighbour lookups per voxel were most of the height map's
+// time through std::unordered_map's node chains.
+class FlatSlots {
+ public:
+  explicit FlatSlots(size_t expected) {
+    size_t cap = 16;
+    while (cap < 2 * expected) cap <<= 1;
+    keys_.assign(cap, 0);
+    vals_.assign(cap, -1);
+  }
+  // The slot of `key`, inserting `fresh_val` when absent; `fresh` tells which.
+  int Insert(uint64_t key, int fresh_val, bool& fresh) {
+    if (2 * (size_ + 1) > keys_.size()) Grow();
+    size_t h = Home(key);
+    while (vals_[h] >= 0) {
+      if (keys_[h] == key) {
+        fresh = false;
+        return vals_[h];
+      }
+      h = (h + 1) & (keys_.size() - 1);
+    }
+    keys_[h] = key;
+    vals_[h] = fresh_val;
+    ++size_;
+    fresh = true;
+    return fresh_val;
+  }
+  // The slot of `key`, -1 when absent.
+  int Find(uint64_t key) const {
+    size_t h = Home(key);
+    while (vals_[h] >= 0) {
+      if (keys_[h] == key) return vals_[h];
+      h = (h + 1) & (keys_.size() - 1);
+    }
+    return -1;
+  }
+
+ private:
+  size_t Home(uint64_t key) const {
+    uint64_t x = key * 0x9E3779B97F4A7C15ull;
+    x ^= x >> 29;
+    return size_t(x) & (keys_.size() - 1);
+  }
+  void Grow() {
+    std::vector<uint64_t> keys;
+    std::vector<int> vals;
+    keys.swap(keys_);
+    vals.swap(vals_);
+    keys_.assign(2 * keys.size(), 0);
+    vals_.assign(2 * keys.size(), -1);
+    size_ = 0;
+    bool fresh;
+    for (size_t i = 0; i < keys.size(); ++i)
+      if (vals[i] >= 0) Insert(keys[i], vals[i], fresh);
+  }
+  std::vector<uint64_t> keys_;
+  std::vector<int> vals_;
+  size_t size_ = 0;
+};
+
 }  // namespace
 
 Points VoxelDownsample(const Points& points, float voxel, std::vector<int>* kept) {
@@ -59,20 +120,20 @@ Points VoxelDownsample(const Points& points, float voxel, std::vector<int>* kept
 
 VoxelNormals EstimateVoxelNormals(const Points& points, float voxel) {
   VoxelNormals out;
-  std::unordered_map<uint64_t, int> slot;
-  slot.reserve(points.size() / 4 + 16);
+  FlatSlots slot(points.size() / 4 + 16);
   std::vector<Eigen::Vector3d> sum;
   std::vector<int> count;
   out.voxel_of.resize(points.size());
   for (size_t i = 0; i < points.size(); ++i) {
-    auto [it, fresh] = slot.try_emplace(VoxelKey(points[i], voxel), int(sum.size()));
+    bool fresh;
+    const int v = slot.Insert(VoxelKey(points[i], voxel), int(sum.size()), fresh);
     if (fresh) {
       sum.emplace_back(Eigen::Vector3d::Zero());
       count.push_back(0);
     }
-    sum[it->second] += points[i].cast<double>();
-    ++count[it->second];
-    out.voxel_of[i] = it->second;
+    sum[v] += points[i].cast<double>();
+    ++count[v];
+    out.voxel_of[i] = v;
   }
   const size_t n = sum.size();
   out.centroids.resize(n);
@@ -86,9 +147,9 @@ VoxelNormals EstimateVoxelNormals(const Points& points, float voxel) {
     for (int dz = -1; dz <= 1; ++dz)
       for (int dy = -1; dy <= 1; ++dy)
         for (int dx = -1; dx <= 1; ++dx) {
-          auto it = slot.find(VoxelKey(out.centroids[v], voxel, dx, dy, dz));
-          if (it == slot.end()) continue;
-          const Eigen::Vector3d p = out.centroids[size_t(it->second)].cast<double>();
+          const int u = slot.Find(VoxelKey(out.centroids[v], voxel, dx, dy, dz));
+          if (u < 0) continue;
+          const Eigen::Vector3d p = out.centroids[size_t(u)].cast<double>();
           mean += p;
           cov += p * p.transpose();
           ++k;

@@ -117,19 +117,34 @@ void KnnIndex::Query(const Eigen::Vector3f& q, int k, std::vector<uint32_t>& ind
   dist2.swap(d);
 }
 
+std::vector<uint32_t> KnnIndex::LeafOrder() const {
+  const auto& leaves = impl_->tree.vAcc;
+  if (impl_->distinct.empty()) return std::vector<uint32_t>(leaves.begin(), leaves.end());
+  std::vector<uint32_t> order;
+  order.reserve(points_.size());
+  for (uint32_t u : leaves)
+    order.insert(order.end(), impl_->members.begin() + impl_->start[u], impl_->members.begin() + impl_->start[u + 1]);
+  return order;
+}
+
 LocalShape EstimateLocalShape(const KnnIndex& index, int k) {
   const Points& pts = index.Cloud();
   LocalShape out;
   out.normals.assign(pts.size(), Eigen::Vector3f::UnitZ());
   out.nn.assign(pts.size(), 0.f);
   out.nn4.assign(pts.size(), 0.f);
+  // Queries in the tree's leaf order (each point's result is its own): a scan's file order is
+  // random for ScanNet's sampled vertices, and queries in it miss the cache on every level.
+  const std::vector<uint32_t> order = index.LeafOrder();
   tbb::parallel_for(tbb::blocked_range<size_t>(0, pts.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
     std::vector<uint32_t> idx;
     std::vector<float> d2;
-    for (size_t i = r.begin(); i != r.end(); ++i) {
+    std::vector<float> others;
+    for (size_t t = r.begin(); t != r.end(); ++t) {
+      const size_t i = order[t];
       index.Query(pts[i], k + 1, idx, d2);
       // Distances to other points: skip the query itself (and exact duplicates count as 0).
-      std::vector<float> others;
+      others.clear();
       bool self = false;
       for (size_t j = 0; j < idx.size(); ++j) {
         if (!self && idx[j] == i) {
@@ -174,6 +189,32 @@ float Quantile(std::vector<float>& v, double q) {
   std::nth_element(v.begin(), v.begin() + k, v.end());
   return v[k];
 }
+
+// The m (<= kCap) smallest (PushLow) or largest (PushHigh) values pushed, sorted from the
+// extreme inwards; Last() is then the m-th smallest (largest) value: the order statistic
+// Quantile finds, whatever order the values come in.
+class ExtremeBuffer {
+ public:
+  static constexpr size_t kCap = 16;
+  explicit ExtremeBuffer(size_t m) : m_(m) {}
+  void PushLow(float x) {
+    if (size_ == m_ && !(x < v_[size_ - 1])) return;
+    size_t i = size_ == m_ ? size_ - 1 : size_++;
+    for (; i > 0 && x < v_[i - 1]; --i) v_[i] = v_[i - 1];
+    v_[i] = x;
+  }
+  void PushHigh(float x) {
+    if (size_ == m_ && !(x > v_[size_ - 1])) return;
+    size_t i = size_ == m_ ? size_ - 1 : size_++;
+    for (; i > 0 && x > v_[i - 1]; --i) v_[i] = v_[i - 1];
+    v_[i] = x;
+  }
+  float Last() const { return v_[size_ - 1]; }
+
+ private:
+  size_t m_, size_ = 0;
+  std::array<float, kCap> v_{};
+};
 }  // namespace
 
 Footprint OrientedFootprint(const std::vector<Eigen::Vector2f>& xy, float axis_margin) {
@@ -208,9 +249,26 @@ Footprint OrientedFootprint(const std::vector<Eigen::Vector2f>& xy, float axis_m
   for (size_t i = 0; i < xy.size(); i += stride) sub.push_back(xy[i]);
   auto extents = [](const std::vector<Eigen::Vector2f>& pts, float a, std::vector<float>& u, std::vector<float>& v) {
     const float c = std::cos(a), s = std::sin(a);
-    u.resize(pts.size());
-    v.resize(pts.size());
-    for (size_t i = 0; i < pts.size(); ++i) {
+    const size_t n = pts.size();
+    // The 1st and 99th percentiles are the k-th smallest and the k'-th largest values with k,
+    // k' small for the subsample: one pass keeping the few extreme values of each side finds
+    // the same order statistics as four nth_element calls, at a fraction of their cost (the
+    // footprint's directions were ~60 % of proposals.clusters' and voters.catalog_shape's
+    // footprint time on a ScanNet room).
+    const size_t k_lo = std::min(n - 1, size_t(0.01 * double(n - 1) + 0.5));
+    const size_t k_hi = std::min(n - 1, size_t(0.99 * double(n - 1) + 0.5));
+    if (k_lo < ExtremeBuffer::kCap && n - 1 - k_hi < ExtremeBuffer::kCap) {
+      ExtremeBuffer ulo(k_lo + 1), uhi(n - k_hi), vlo(k_lo + 1), vhi(n - k_hi);
+      for (size_t i = 0; i < n; ++i) {
+        const float ui = c * pts[i].x() + s * pts[i].y();
+        const float vi = -s * pts[i].x() + c * pts[i].y();
+        ulo.PushLow(ui), uhi.PushHigh(ui), vlo.PushLow(vi), vhi.PushHigh(vi);
+      }
+      return Eigen::Vector4f(ulo.Last(), uhi.Last(), vlo.Last(), vhi.Last());
+    }
+    u.resize(n);
+    v.resize(n);
+    for (size_t i = 0; i < n; ++i) {
       u[i] = c * pts[i].x() + s * pts[i].y();
       v[i] = -s * pts[i].x() + c * pts[i].y();
     }

@@ -22,6 +22,9 @@ class KnnIndex {
   // The k nearest points to q (q itself included when it is in the cloud), nearest first.
   void Query(const Eigen::Vector3f& q, int k, std::vector<uint32_t>& index, std::vector<float>& dist2) const;
   const Points& Cloud() const { return points_; }
+  // Every point index once, in the tree's leaf order (points close in space close in the
+  // list): queries issued in this order reuse the tree's memory.
+  std::vector<uint32_t> LeafOrder() const;
 
  private:
   struct Impl;

@@ -201,21 +201,30 @@ class ClusterProposer : public Proposer {
       int parent = -1;
     };
     std::vector<Raw> raw;
-    for (const auto* rule : {"all", "segs"}) {
-      const auto& keep = std::string(rule) == "all" ? keep_all : keep_segs;
-      for (double m : o_.radii)
-        for (auto& c : Cluster(P, keep, ls.nn4, sp, float(m), adaptive)) {
+    // The two rules' clusterings are independent: one task each.
+    const char* const rules[2] = {"all", "segs"};
+    std::vector<std::vector<std::vector<int>>> per_radius[2];
+    tbb::parallel_for(0, 2, [&](int k) {
+      per_radius[k] = Cluster(P, k == 0 ? keep_all : keep_segs, ls.nn4, sp, o_.radii, adaptive);
+    });
+    for (int k = 0; k < 2; ++k) {
+      const std::string rule = rules[k];
+      for (size_t mi = 0; mi < o_.radii.size(); ++mi)
+        for (auto& c : per_radius[k][mi]) {
           Raw r;
           r.idx = std::move(c);
           r.rule = rule;
-          r.how = std::string(rule) + "/r" + Fixed1(m);
+          r.how = rule + "/r" + Fixed1(o_.radii[mi]);
           raw.push_back(std::move(r));
         }
     }
     const size_t clusters = raw.size();
     for (size_t i = 0; i < clusters; ++i) raw[i].parent = int(i);
+    // The clusters' cuts are independent: found in parallel, appended in cluster order.
+    std::vector<std::vector<std::pair<std::vector<int>, int>>> parts(clusters);
+    tbb::parallel_for(size_t(0), clusters, [&](size_t i) { parts[i] = SplitLong(P, hz, raw[i].idx); });
     for (size_t i = 0; i < clusters; ++i)
-      for (auto& part : SplitLong(P, hz, raw[i].idx)) {
+      for (auto& part : parts[i]) {
         Raw r;
         r.idx = std::move(part.first);
         r.rule = raw[i].rule;
@@ -530,10 +539,15 @@ class ClusterProposer : public Proposer {
   }
 
   // Connected components of `keep` with edges between points closer than m x spacing (or, for
-  // single views, m x the larger local spacing of the two), >= min_points each, in first-point order.
-  std::vector<std::vector<int>> Cluster(const Points& P, const std::vector<uint32_t>& keep, const std::vector<float>& nn4,
-                                        float sp, float m, bool adaptive) const {
-    std::vector<std::vector<int>> out;
+  // single views, m x the larger local spacing of the two), >= min_points each, in first-point
+  // order; one list per radius m of `radii`. The neighbourhoods are searched once, at the
+  // largest radius, and every pair joins the components of each radius it is within (a
+  // component's partition, hence its list, does not depend on the order the pairs come in).
+  std::vector<std::vector<std::vector<int>>> Cluster(const Points& P, const std::vector<uint32_t>& keep,
+                                                     const std::vector<float>& nn4, float sp,
+                                                     const std::vector<double>& radii, bool adaptive) const {
+    const size_t R = radii.size();
+    std::vector<std::vector<std::vector<int>>> out(R);
     if (keep.empty()) return out;
     // Exact duplicates are one point for the neighbourhood search (a (0, 0, 0) flood stays linear).
     std::unordered_map<uint64_t, uint32_t> first;
@@ -555,32 +569,47 @@ class ClusterProposer : public Proposer {
       }
       rep[k] = it->second;
     }
-    float rmax = m * sp;
-    if (adaptive) rmax = std::max(rmax, m * Quantile(lsp, 0.99));
+    // Per radius: the search radius and the base edge length, as a search of its own would use.
+    std::vector<float> ms(R), rmax(R), r2(R), base(R);
+    const float q99 = adaptive ? Quantile(lsp, 0.99) : 0.f;
+    float reach = 0.f;
+    for (size_t a = 0; a < R; ++a) {
+      const float m = float(radii[a]);
+      ms[a] = m;
+      rmax[a] = m * sp;
+      if (adaptive) rmax[a] = std::max(rmax[a], m * q99);
+      r2[a] = rmax[a] * rmax[a];
+      base[a] = m * sp;
+      reach = std::max(reach, rmax[a]);
+    }
     VoxelIndex index;
-    index.Build(uniq, rmax);
-    UnionFind uf(uniq.size());
-    const float base = m * sp;
+    index.Build(uniq, reach);
+    std::vector<UnionFind> uf(R, UnionFind(uniq.size()));
     for (size_t s = 0; s < index.size(); ++s) {
       const uint32_t i = index.order[s];
-      index.ForEachWithin(index.cell_of[s], index.x[s], index.y[s], index.z[s], rmax,
+      index.ForEachWithin(index.cell_of[s], index.x[s], index.y[s], index.z[s], reach,
                           [&](int t, float, float, float, float d2) {
                             const uint32_t j = index.order[size_t(t)];
                             if (j <= i) return;
-                            const float lim = adaptive ? std::max(base, m * std::max(lsp[i], lsp[j])) : base;
-                            if (d2 < lim * lim) uf.Join(i, j);
+                            for (size_t a = 0; a < R; ++a) {
+                              if (!(d2 < r2[a])) continue;
+                              const float lim = adaptive ? std::max(base[a], ms[a] * std::max(lsp[i], lsp[j])) : base[a];
+                              if (d2 < lim * lim) uf[a].Join(i, j);
+                            }
                           });
     }
-    std::unordered_map<uint32_t, size_t> slot;
-    std::vector<std::vector<int>> groups;
-    for (size_t k = 0; k < keep.size(); ++k) {
-      const uint32_t root = uf.Find(rep[k]);
-      auto [it, fresh] = slot.try_emplace(root, groups.size());
-      if (fresh) groups.emplace_back();
-      groups[it->second].push_back(int(keep[k]));
+    for (size_t a = 0; a < R; ++a) {
+      std::unordered_map<uint32_t, size_t> slot;
+      std::vector<std::vector<int>> groups;
+      for (size_t k = 0; k < keep.size(); ++k) {
+        const uint32_t root = uf[a].Find(rep[k]);
+        auto [it, fresh] = slot.try_emplace(root, groups.size());
+        if (fresh) groups.emplace_back();
+        groups[it->second].push_back(int(keep[k]));
+      }
+      for (auto& g : groups)
+        if (int(g.size()) >= o_.min_points) out[a].push_back(std::move(g));
     }
-    for (auto& g : groups)
-      if (int(g.size()) >= o_.min_points) out.push_back(std::move(g));
     return out;
   }
 

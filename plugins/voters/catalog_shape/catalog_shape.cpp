@@ -26,6 +26,8 @@
 // Training: the catalog models' sizes (TrainingView::object_size), and the profile and open
 // floor of each model's mesh as a sensor around it sees them (views without a mesh: of their
 // simulated views fused).
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -465,9 +467,11 @@ class CatalogShapeVoter : public Voter {
       std::vector<std::vector<int>> best_model(C, std::vector<int>(n, -1));
       std::vector<std::vector<std::map<std::string, float>>> evidence(C, std::vector<std::map<std::string, float>>(n));
       std::vector<shape::Footprint> foot(n);
-      for (size_t i = 0; i < n; ++i) {
+      // Each proposal's footprint, profile and scores are its own: scored in parallel (in
+      // order when tracing, so the trace reads as before).
+      auto score_one = [&](size_t i) {
         const Proposal& p = items[i];
-        if (p.indices.size() < 10) continue;
+        if (p.indices.size() < 10) return;
         std::vector<Eigen::Vector2f> xy(p.indices.size());
         std::vector<float> h(p.indices.size());
         for (size_t k = 0; k < p.indices.size(); ++k) {
@@ -520,6 +524,11 @@ class CatalogShapeVoter : public Voter {
                           p.box.max().y(), p.box.max().z(), L, W, T, B, p.surround, seen,
                           models_[size_t(best_model[c][i])].id, score[c][i]);
         }
+      };
+      if (spdlog::should_log(spdlog::level::trace)) {
+        for (size_t i = 0; i < n; ++i) score_one(i);
+      } else {
+        tbb::parallel_for(size_t(0), n, score_one);
       }
       // Class competition within each group (the variants of one cluster are one object).
       std::map<int, float> group_best;
