@@ -623,10 +623,9 @@ Scan ReadPly(const std::string& path, Tally& tally, size_t max_points) {
     Eigen::Vector3f v;
     if (!tally.Keep(Eigen::Vector3d(vals[ix], vals[iy], vals[iz]), v)) return;
     scan.points.push_back(v);
-    if (colour)
-      scan.colors.push_back({static_cast<uint8_t>(std::clamp(vals[ir], 0.0, 255.0)),
-                             static_cast<uint8_t>(std::clamp(vals[ig], 0.0, 255.0)),
-                             static_cast<uint8_t>(std::clamp(vals[ib], 0.0, 255.0))});
+    // Colour channels may be float properties holding NaN: 0 then (casting NaN is UB).
+    auto byte = [](double c) { return static_cast<uint8_t>(std::isfinite(c) ? std::clamp(c, 0.0, 255.0) : 0.0); };
+    if (colour) scan.colors.push_back({byte(vals[ir]), byte(vals[ig]), byte(vals[ib])});
     // Integer attributes may be uint32 (or ascii text of any size): clamp to int32 (UB otherwise).
     for (size_t k = 0; k < attr_props.size(); ++k) {
       const int a = attr_props[k];
