@@ -28,7 +28,8 @@ int RunPlugins(const std::vector<std::string>& args) {
   std::cout << reg->Plugins().size() << " plugins (search path:";
   for (const auto& d : reg->SearchDirs()) std::cout << " " << d;
   std::cout << ")\n";
-  for (StageKind k : {StageKind::Sensor, StageKind::Segmenter, StageKind::Features, StageKind::Voter, StageKind::Fitter}) {
+  for (StageKind k : {StageKind::Sensor, StageKind::Segmenter, StageKind::Features, StageKind::Proposer, StageKind::Voter,
+                      StageKind::Fitter}) {
     for (const auto& p : reg->Plugins()) {
       if (p.kind != k) continue;
       std::cout << "\n" << p.type << "  [" << ToString(p.kind) << ", v" << p.version << "]\n  " << p.description

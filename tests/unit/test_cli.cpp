@@ -48,6 +48,9 @@ TEST(Cli, PluginsListsEveryKindFound) {
   ASSERT_EQ(j.code, 0);
   auto parsed = nlohmann::json::parse(j.out);
   EXPECT_GE(parsed["plugins"].size(), 2u);
+  // Every plugin found is listed in the text too, whatever its kind (proposers were left out once).
+  for (const auto& p : parsed["plugins"])
+    EXPECT_NE(r.out.find("\n" + p["type"].get<std::string>() + "  ["), std::string::npos) << p["type"];
 }
 
 TEST(Cli, BadInputsExitTwoWithOneLine) {

@@ -52,6 +52,10 @@ struct ClustersOptions {
   float leak_shell = 0.10f;       // shell around a box for the surround measure [m]
   std::string adaptive = "auto";  // radius per local spacing: "auto" (with a sensor origin), "on", "off"
   int neighbours = 16;            // for normals and local spacing
+  bool top_variants = true;       // work-top variants of clusters with more above a table-height level
+  float top_min = 0.55f, top_max = 0.86f;  // heights a work top may have [m] (desks 0.72-0.8, counters 0.9)
+  float top_cover = 0.4f;         // share of the cluster's top-view cells the work top occupies
+  float top_above = 0.05f;        // share of the cluster's points more than 8 cm over it
 
 };
 
@@ -83,7 +87,19 @@ const ParamBinding<ClustersOptions>& Binding() {
                 "scale the radius by each point's local spacing (single views thin out with range): 'auto' = when the "
                 "scan has a sensor origin")
           .Int("neighbours", &O::neighbours, 4, 64, "", "neighbours of the normal and local-spacing estimates")
-          .Rule([](const O& o) { return o.radii.empty() ? "radii: give at least one clustering radius" : ""; });
+          .Bool("work_top_variants", &O::top_variants,
+                "a cluster holding a large horizontal level at table height with more over it (a desk under monitors) "
+                "also gives the level and what is under it as a proposal")
+          .Number("work_top_min_m", &O::top_min, 0, 5, "m", "lowest height of a work top (above chair seats)")
+          .Number("work_top_max_m", &O::top_max, 0, 5, "m", "highest height of a work top")
+          .Number("work_top_cover", &O::top_cover, 0, 1, "",
+                  "top-view cells the work top's upward-facing points occupy, as a share of those the whole cluster occupies")
+          .Number("work_top_above", &O::top_above, 0, 1, "",
+                  "share of the cluster's points that must lie more than 8 cm over the work top")
+          .Rule([](const O& o) { return o.radii.empty() ? "radii: give at least one clustering radius" : ""; })
+          .Rule([](const O& o) {
+            return o.top_max > o.top_min + 0.05f ? "" : "work_top_max_m: must exceed work_top_min_m by more than 5 cm";
+          });
   return b;
 }
 
@@ -232,7 +248,23 @@ class ClusterProposer : public Proposer {
         r.parent = int(i);
         raw.push_back(std::move(r));
       }
-    // Boxes, then the extend-down variants of every proposal (clusters and splits).
+    // Work-top variants: a cluster holding a large horizontal level at table height with more
+    // above it (a desk under monitors, shelves or lamps) also gives the level and what is under it.
+    if (o_.top_variants) {
+      const size_t upto = raw.size();
+      std::vector<std::vector<int>> tops(upto);
+      tbb::parallel_for(size_t(0), upto, [&](size_t i) { tops[i] = WorkTop(P, hz, ls, sp, raw[i].idx); });
+      for (size_t i = 0; i < upto; ++i)
+        if (!tops[i].empty()) {
+          Raw r;
+          r.idx = std::move(tops[i]);
+          r.rule = raw[i].rule;
+          r.how = raw[i].how + "+top";
+          r.parent = raw[i].parent;
+          raw.push_back(std::move(r));
+        }
+    }
+    // Boxes, then the extend-down variants of every proposal (clusters, splits and work tops).
     BoxIndex column_index(P, keep_segs), leak_index(P, keep_all);
     auto make = [&](const Raw& r) {
       Proposal p;
@@ -285,6 +317,58 @@ class ClusterProposer : public Proposer {
   }
 
  private:
+  // The points of cluster `idx` at or below its work top, or nothing. The work top is the 4 cm
+  // level between work_top_min_m and work_top_max_m above the ground whose upward-facing points
+  // (|n_z| > 0.9) occupy the most top-view cells (2.5 spacings, >= 5 cm: a count of cells, not of
+  // points, so the scan's density does not matter); it must occupy work_top_cover of the cells
+  // the whole cluster occupies (a desk or table top, not a shelf or an armrest), and at least
+  // work_top_above of the cluster's points must lie more than 8 cm over it (else it is the top).
+  std::vector<int> WorkTop(const Points& P, const std::vector<float>& hz, const shape::LocalShape& ls, float sp,
+                           const std::vector<int>& idx) const {
+    constexpr float bin = 0.02f;
+    const int nb = int(std::ceil((o_.top_max - o_.top_min) / bin));
+    if (nb < 2 || idx.size() < size_t(o_.min_points)) return {};
+    const float cell = std::max(0.05f, 2.5f * sp);
+    auto key = [&](const Eigen::Vector3f& p) {
+      return (uint64_t(uint32_t(int32_t(std::floor(p.x() / cell)))) << 32) | uint32_t(int32_t(std::floor(p.y() / cell)));
+    };
+    std::vector<uint64_t> all;
+    std::vector<std::pair<int, uint64_t>> level;  // (bin, cell) of the upward-facing points in range
+    all.reserve(idx.size());
+    for (int i : idx) {
+      const Eigen::Vector3f& p = P[size_t(i)];
+      all.push_back(key(p));
+      const float h = hz[size_t(i)];
+      if (!(std::abs(ls.normals[size_t(i)].z()) > 0.9f) || !(h >= o_.top_min) || !(h < o_.top_max)) continue;
+      level.emplace_back(std::min(nb - 1, int((h - o_.top_min) / bin)), key(p));
+    }
+    std::sort(all.begin(), all.end());
+    const size_t cells = size_t(std::unique(all.begin(), all.end()) - all.begin());
+    size_t best = 0;
+    int k = -1;
+    std::vector<uint64_t> w;
+    for (int b = 0; b + 1 < nb; ++b) {
+      w.clear();
+      for (const auto& [lb, c] : level)
+        if (lb == b || lb == b + 1) w.push_back(c);
+      std::sort(w.begin(), w.end());
+      const size_t occupied = size_t(std::unique(w.begin(), w.end()) - w.begin());
+      if (occupied > best) best = occupied, k = b;
+    }
+    if (k < 0 || double(best) < o_.top_cover * double(cells)) return {};
+    const float level_top = o_.top_min + float(k + 2) * bin;  // the window's upper edge
+    std::vector<int> out;
+    size_t above = 0;
+    for (int i : idx) {
+      const float h = hz[size_t(i)];
+      if (h <= level_top + 0.02f) out.push_back(i);
+      else if (h > level_top + 0.08f) ++above;
+    }
+    spdlog::trace("worktop: {} pts {} cells, level {:.2f} m {} cells, {} above", idx.size(), cells, level_top, best, above);
+    if (double(above) < o_.top_above * double(idx.size()) || out.size() < size_t(o_.min_points)) return {};
+    return out;
+  }
+
   static std::string Fixed1(double v) {
     char b[16];
     std::snprintf(b, sizeof b, "%.1f", v);
@@ -747,6 +831,6 @@ class ClusterProposer : public Proposer {
 }  // namespace
 }  // namespace furnihost
 
-FURNIHOST_PLUGIN(furnihost::ClusterProposer, "proposals.clusters", "1.1.0",
+FURNIHOST_PLUGIN(furnihost::ClusterProposer, "proposals.clusters", "1.2.0",
                  "object proposals: ground, walls and ceiling removed, Euclidean clusters at radii scaled to the scan's "
                  "point spacing, long clusters split, floating ones extended to the ground")

@@ -128,6 +128,66 @@ TEST(Clusters, ProposesObjectsSplitsAndExtends) {
   ASSERT_EQ(p.removed.size(), room.scan.points.size());
 }
 
+// A desk under a monitor: its cluster reaches the monitor's top, and a work-top variant gives the
+// desk alone (its top and what is under it). A bare table (nothing over its top) and a counter at
+// kitchen height (0.9 m, above work_top_max_m) get no such variant.
+TEST(Clusters, WorkTopVariantDropsWhatStandsOnADesk) {
+  CatalogModel m;
+  m.id = "office";
+  m.cls = "office";
+  const Eigen::Vector3f up(0, 0, kFloor);
+  AddBox(m.mesh, Eigen::Vector3f(-3.f, -3.f, -0.02f) + up, Eigen::Vector3f(3.f, 3.f, 0.f) + up);  // floor
+  auto table = [&](float x0, float y0, float len, float dep, float h) {
+    AddBox(m.mesh, Eigen::Vector3f(x0, y0, h - 0.04f) + up, Eigen::Vector3f(x0 + len, y0 + dep, h) + up);
+    for (float x : {x0 + 0.02f, x0 + len - 0.07f})
+      for (float y : {y0 + 0.02f, y0 + dep - 0.07f})
+        AddBox(m.mesh, Eigen::Vector3f(x, y, 0.f) + up, Eigen::Vector3f(x + 0.05f, y + 0.05f, h - 0.04f) + up);
+  };
+  const Eigen::AlignedBox3f desk = Box({-1.5f, -1.5f, 0.f}, {-0.1f, -0.8f, 0.75f});
+  table(-1.5f, -1.5f, 1.4f, 0.7f, 0.75f);
+  // Two monitors on stands at the desk's back, 0.45 m over its top.
+  for (float x : {-1.3f, -0.7f}) {
+    AddBox(m.mesh, Eigen::Vector3f(x, -0.95f, 0.75f) + up, Eigen::Vector3f(x + 0.5f, -0.9f, 1.2f) + up);
+  }
+  const Eigen::AlignedBox3f bare = Box({0.8f, 0.5f, 0.f}, {2.0f, 1.3f, 0.74f});
+  table(0.8f, 0.5f, 1.2f, 0.8f, 0.74f);
+  const Eigen::AlignedBox3f counter = Box({-1.5f, 1.0f, 0.f}, {0.3f, 1.6f, 0.9f});
+  AddBox(m.mesh, counter.min(), counter.max());
+  AddBox(m.mesh, Eigen::Vector3f(-1.2f, 1.1f, 0.9f) + up, Eigen::Vector3f(-0.7f, 1.5f, 1.2f) + up);  // a microwave on it
+
+  Scan scan;
+  SensorRequest req;
+  req.objects.push_back({&m, Eigen::Isometry3f::Identity()});
+  for (float a : {0.3f, 1.9f, 3.5f, 5.1f}) {
+    Eigen::Isometry3f s = Eigen::Isometry3f::Identity();
+    s.linear() = Eigen::AngleAxisf(a + 3.14159f, Eigen::Vector3f::UnitZ()).toRotationMatrix();
+    s.translation() = Eigen::Vector3f(2.6f * std::cos(a), 2.6f * std::sin(a), kFloor + 1.6f);
+    req.poses.push_back(s);
+  }
+  RunContext ctx;
+  auto sensor = Make<Sensor>("sensors.simulated_laser", {{"voxel_m", 0.015}});
+  for (auto& v : sensor->Acquire(req, ctx)) scan.points.insert(scan.points.end(), v.points.begin(), v.points.end());
+  scan.ground = EstimateGround(scan.points, GroundOptions{});
+
+  const Proposals p = Make<Proposer>("proposals.clusters")->Propose(scan, nullptr, ctx);
+  // The whole cluster is 1.2 m tall: its box is not the desk's.
+  Eigen::AlignedBox3f with_monitors = desk;
+  with_monitors.max().z() = kFloor + 1.2f;
+  EXPECT_GT(BestIou(p, with_monitors, "all"), 0.8f);
+  float cluster_only = 0.f;
+  for (const auto& q : p.items)
+    if (q.source == "all" && q.how.find("+top") == std::string::npos) cluster_only = std::max(cluster_only, Iou(q.box, desk));
+  EXPECT_LT(cluster_only, 0.7f);
+  EXPECT_GT(BestIou(p, desk, "all", "+top"), 0.8f);
+  // No work top where nothing stands on the table, or on a counter at kitchen height.
+  EXPECT_EQ(BestIou(p, bare, "all", "+top"), 0.f);
+  EXPECT_EQ(BestIou(p, counter, "all", "+top"), 0.f);
+  EXPECT_EQ(BestIou(p, counter, "segs", "+top"), 0.f);
+  // Off: no variant at all.
+  const Proposals off = Make<Proposer>("proposals.clusters", {{"work_top_variants", false}})->Propose(scan, nullptr, ctx);
+  for (const auto& q : off.items) EXPECT_EQ(q.how.find("+top"), std::string::npos) << q.how;
+}
+
 // Degenerate input: nothing to propose, a flood of identical points (10^6: linear time, else
 // beyond ctest's timeout), a cloud without a ground.
 TEST(Clusters, DegenerateScans) {
