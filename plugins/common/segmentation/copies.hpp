@@ -10,6 +10,9 @@
 #include <cstring>
 #include <vector>
 
+#include <limits>
+
+#include "furnihost/stage.hpp"
 #include "furnihost/types.hpp"
 
 namespace furnihost {
@@ -98,5 +101,28 @@ inline Segmentation SpreadOverCopies(const Segmentation& d, const ScanCopies& c,
   s.discarded_points = d.discarded_points + extra_discarded;
   return s;
 }
+
+// A segmenter built on such a library: Segment() finds the copies and hands SegmentDistinct()
+// a scan of distinct positions (or the scan itself when it has none).
+class DistinctPointsSegmenter : public Segmenter {
+ public:
+  Segmentation Segment(const Scan& scan, const RunContext& ctx) final {
+    const ScanCopies copies = FindCopies(scan);
+    if (copies.any) return SpreadOverCopies(SegmentDistinct(copies.distinct, ctx), copies, scan);
+    return SegmentDistinct(scan, ctx);
+  }
+
+ protected:
+  virtual Segmentation SegmentDistinct(const Scan& scan, const RunContext& ctx) = 0;
+
+  // A segmentation of n points with no part yet: NaN normals and curvature.
+  static Segmentation Unsegmented(size_t n) {
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    Segmentation seg;
+    seg.normals.assign(n, Eigen::Vector3f::Constant(nan));
+    seg.curvature.assign(n, nan);
+    return seg;
+  }
+};
 
 }  // namespace furnihost

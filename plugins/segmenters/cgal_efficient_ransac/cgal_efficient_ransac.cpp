@@ -84,26 +84,19 @@ const furnihost::ParamBinding<CgalEfficientRansacOptions>& Binding() {
   return b;
 }
 
-class CgalEfficientRansac : public furnihost::Segmenter {
+class CgalEfficientRansac : public furnihost::DistinctPointsSegmenter {
  public:
   static ParamSchema Schema() { return Binding().Schema(); }
   explicit CgalEfficientRansac(const nlohmann::json& p) : o_(Binding().Parse(p)) {}
 
-  furnihost::Segmentation Segment(const furnihost::Scan& scan,
-                                  const furnihost::RunContext& ctx) override {
-    // Copies of a point would make the library's k-d tree quadratic (see copies.hpp).
-    const furnihost::ScanCopies copies = furnihost::FindCopies(scan);
-    if (copies.any) return furnihost::SpreadOverCopies(SegmentDistinct(copies.distinct, ctx), copies, scan);
-    return SegmentDistinct(scan, ctx);
-  }
+  // Segment() (DistinctPointsSegmenter) passes the distinct positions: copies of a point would make
+  // the library's k-d tree quadratic (see copies.hpp).
 
  private:
-  furnihost::Segmentation SegmentDistinct(const furnihost::Scan& scan, const furnihost::RunContext& ctx) {
+  furnihost::Segmentation SegmentDistinct(const furnihost::Scan& scan, const furnihost::RunContext& ctx) override {
     const size_t n = scan.points.size();
+    furnihost::Segmentation seg = Unsegmented(n);
     const float nan = std::numeric_limits<float>::quiet_NaN();
-    furnihost::Segmentation seg;
-    seg.normals.assign(n, Eigen::Vector3f::Constant(nan));
-    seg.curvature.assign(n, nan);
 
     const cgal_common::LocalFrame frame = cgal_common::MakeLocalFrame(scan);
     const std::vector<int>& ids = frame.ids;  // local -> scan index

@@ -117,26 +117,19 @@ std::vector<std::vector<std::size_t>> Grow(const PwnVector& pwn, Query& query,
   return regions;
 }
 
-class CgalRegionGrowing : public furnihost::Segmenter {
+class CgalRegionGrowing : public furnihost::DistinctPointsSegmenter {
  public:
   static ParamSchema Schema() { return Binding().Schema(); }
   explicit CgalRegionGrowing(const nlohmann::json& p) : o_(Binding().Parse(p)) {}
 
-  furnihost::Segmentation Segment(const furnihost::Scan& scan,
-                                  const furnihost::RunContext& ctx) override {
-    // Copies of a point would make the library's k-d tree quadratic (see copies.hpp).
-    const furnihost::ScanCopies copies = furnihost::FindCopies(scan);
-    if (copies.any) return furnihost::SpreadOverCopies(SegmentDistinct(copies.distinct, ctx), copies, scan);
-    return SegmentDistinct(scan, ctx);
-  }
+  // Segment() (DistinctPointsSegmenter) passes the distinct positions: copies of a point would make
+  // the library's k-d tree quadratic (see copies.hpp).
 
  private:
-  furnihost::Segmentation SegmentDistinct(const furnihost::Scan& scan, const furnihost::RunContext& ctx) {
+  furnihost::Segmentation SegmentDistinct(const furnihost::Scan& scan, const furnihost::RunContext& ctx) override {
     const size_t n = scan.points.size();
+    furnihost::Segmentation seg = Unsegmented(n);
     const float nan = std::numeric_limits<float>::quiet_NaN();
-    furnihost::Segmentation seg;
-    seg.normals.assign(n, Eigen::Vector3f::Constant(nan));
-    seg.curvature.assign(n, nan);
 
     // Finite points only, shifted to their bounding-box centre.
     const cgal_common::LocalFrame frame = cgal_common::MakeLocalFrame(scan);

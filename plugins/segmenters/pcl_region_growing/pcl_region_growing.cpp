@@ -70,26 +70,19 @@ const furnihost::ParamBinding<PclRegionGrowingOptions>& Binding() {
   return b;
 }
 
-class PclRegionGrowing : public furnihost::Segmenter {
+class PclRegionGrowing : public furnihost::DistinctPointsSegmenter {
  public:
   static ParamSchema Schema() { return Binding().Schema(); }
   explicit PclRegionGrowing(const nlohmann::json& p) : o_(Binding().Parse(p)) {}
 
-  furnihost::Segmentation Segment(const furnihost::Scan& scan,
-                                  const furnihost::RunContext& ctx) override {
-    // Copies of a point would make the library's k-d tree quadratic (see copies.hpp).
-    const furnihost::ScanCopies copies = furnihost::FindCopies(scan);
-    if (copies.any) return furnihost::SpreadOverCopies(SegmentDistinct(copies.distinct, ctx), copies, scan);
-    return SegmentDistinct(scan, ctx);
-  }
+  // Segment() (DistinctPointsSegmenter) passes the distinct positions: copies of a point would make
+  // the library's k-d tree quadratic (see copies.hpp).
 
  private:
-  furnihost::Segmentation SegmentDistinct(const furnihost::Scan& scan, const furnihost::RunContext& ctx) {
+  furnihost::Segmentation SegmentDistinct(const furnihost::Scan& scan, const furnihost::RunContext& ctx) override {
     const size_t n = scan.points.size();
-    furnihost::Segmentation seg;
+    furnihost::Segmentation seg = Unsegmented(n);
     const float nan = std::numeric_limits<float>::quiet_NaN();
-    seg.normals.assign(n, Eigen::Vector3f::Constant(nan));
-    seg.curvature.assign(n, nan);
     if (n == 0) return seg;
     const unsigned threads = ctx.threads > 0 ? unsigned(ctx.threads)
                                              : std::max(1u, std::thread::hardware_concurrency());
