@@ -1,6 +1,7 @@
 // proposals.clusters on a room simulated by sensors.simulated_laser (floor, two walls, objects
 // built of boxes), its floor 0.8 m below z = 0: objects are proposed with their boxes, walls are
-// not part of any "all" proposal, a cabinet against a wall survives in the "segs" proposals,
+// not part of any "all" proposal, a cabinet against a wall survives in the "segs" proposals, a
+// wardrobe's tall front in the "fronts" proposals,
 // two objects that touch are split apart, and a top floating over its (disconnected) legs gets
 // a variant that reaches the ground.
 #include <gtest/gtest.h>
@@ -36,7 +37,7 @@ Eigen::AlignedBox3f Box(Eigen::Vector3f lo, Eigen::Vector3f hi) {
 
 struct Room {
   Scan scan;
-  Eigen::AlignedBox3f low, high, cabinet, top, legs_and_top;
+  Eigen::AlignedBox3f low, high, cabinet, wardrobe, top, legs_and_top;
 };
 
 Room MakeRoom() {
@@ -56,6 +57,10 @@ Room MakeRoom() {
   // A cabinet against the wall y = 3 (its back on the wall).
   r.cabinet = Box({-1.5f, 2.5f, 0.f}, {-0.6f, 3.f, 1.2f});
   AddBox(m.mesh, r.cabinet.min(), r.cabinet.max());
+  // A wardrobe against the wall x = -3: its front is 2 m tall and 1 m long, a wall segment to
+  // the "segs" rule, not to the "fronts" rule (shorter than 1.3 m).
+  r.wardrobe = Box({-3.f, -2.5f, 0.f}, {-2.4f, -1.5f, 2.0f});
+  AddBox(m.mesh, r.wardrobe.min(), r.wardrobe.max());
   // A table top whose legs stop 20 cm under it (disconnected clusters).
   r.top = Box({1.5f, 1.f, 0.7f}, {2.5f, 1.6f, 0.75f});
   AddBox(m.mesh, r.top.min(), r.top.max());
@@ -89,7 +94,7 @@ TEST(Clusters, ProposesObjectsSplitsAndExtends) {
   const Room room = MakeRoom();
   EXPECT_NEAR(room.scan.ground->HeightAt(0.5f, 0.f), kFloor, 0.02f);
   RunContext ctx;
-  const Proposals p = Make<Proposer>("proposals.clusters")->Propose(room.scan, nullptr, ctx);
+  const Proposals p = Make<Proposer>("proposals.clusters", {{"fronts_length_m", 1.3}})->Propose(room.scan, nullptr, ctx);
   EXPECT_GT(p.spacing, 0.002f);
   EXPECT_LT(p.spacing, 0.03f);
   ASSERT_FALSE(p.items.empty());
@@ -107,6 +112,9 @@ TEST(Clusters, ProposesObjectsSplitsAndExtends) {
   // The cabinet's front is > 1 m tall and 0.9 m long: the "all" removal takes it for a wall;
   // "segs" keeps it (its top is below wall height), and its proposal is the cabinet.
   EXPECT_GT(BestIou(p, room.cabinet, "segs"), 0.6f);
+  // The wardrobe's 2 m front is a wall to "segs"; "fronts" (on here) keeps it whole.
+  EXPECT_LT(BestIou(p, room.wardrobe, "segs"), 0.5f);
+  EXPECT_GT(BestIou(p, room.wardrobe, "fronts"), 0.7f);
   // The top alone, and extended down to its legs (the column under it): the table's box.
   EXPECT_GT(BestIou(p, room.top, "all"), 0.4f);  // a 5 cm slab: a centimetre of noise costs IoU
   EXPECT_GT(BestIou(p, room.legs_and_top, "all", "+ext"), 0.8f);

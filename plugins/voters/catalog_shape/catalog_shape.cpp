@@ -93,12 +93,26 @@ struct Options {
   }
 };
 
+// Whether rule is one of the comma-separated names of `list` ("all,segs").
+bool RuleListed(const std::string& list, const std::string& rule) {
+  size_t start = 0;
+  while (start <= list.size()) {
+    const size_t end = std::min(list.find(',', start), list.size());
+    if (list.compare(start, end - start, rule) == 0) return true;
+    start = end + 1;
+  }
+  return false;
+}
+
 ClassParams ParseClassParams(const nlohmann::json& j, ClassParams p, const std::string& where) {
   if (!j.is_object()) throw InputError(where + ": expected an object of spreads, e.g. {\"sig_top_big\": 0.2}");
   for (auto it = j.begin(); it != j.end(); ++it) {
     if (it.key() == "source") {
       if (!it->is_string()) throw InputError(where + "/source: expected a string");
       p.source = it->get<std::string>();
+      if (p.source.empty() || p.source.front() == ',' || p.source.back() == ',' || p.source.find(",,") != std::string::npos)
+        throw InputError(where + "/source: expected 'catalog', 'any' or rule names, comma-separated (e.g. \"all,segs\"), got \"" +
+                         p.source + "\"");
       continue;
     }
     auto f = std::find_if(Fields().begin(), Fields().end(), [&](const auto& x) { return x.first == it.key(); });
@@ -137,7 +151,7 @@ const ParamBinding<Options>& Binding() {
           .Object("class_params", nlohmann::json::object(),
                   "per detected class, spreads overriding the shared ones below ({\"table\": {\"sig_long_big\": 0.5}}); "
                   "also 'source': which proposals a class is scored on ('catalog' = segs for classes whose models are "
-                  "mostly taller than tall_class_m, else all; 'any'; or a proposer rule name)",
+                  "mostly taller than tall_class_m, else all; 'any'; or proposer rule names, comma-separated: 'all,segs')",
                   // Runs after the shared spreads are parsed: a class's spreads start from them.
                   [](O& o, const nlohmann::json& j) {
                     for (auto it = j.begin(); it != j.end(); ++it)
@@ -549,7 +563,7 @@ class CatalogShapeVoter : public Voter {
         const std::string& src = source_.at(classes_[c]);
         if (src != "any")
           for (size_t i = 0; i < n; ++i)
-            if (items[i].source != src) score[c][i] = 0.f;
+            if (!RuleListed(src, items[i].source)) score[c][i] = 0.f;
       }
       // Non-maximum suppression per class by box IoU, then the hypotheses.
       for (size_t c = 0; c < C; ++c) {
@@ -579,5 +593,5 @@ class CatalogShapeVoter : public Voter {
 }  // namespace
 }  // namespace furnihost
 
-FURNIHOST_PLUGIN(furnihost::CatalogShapeVoter, "voters.catalog_shape", "1.1.0",
+FURNIHOST_PLUGIN(furnihost::CatalogShapeVoter, "voters.catalog_shape", "1.2.0",
                  "recognises object proposals by the catalog models' metric sizes and top-view height profiles")

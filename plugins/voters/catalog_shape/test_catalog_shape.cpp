@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <optional>
+#include <set>
 
 #include "furnihost/ground.hpp"
 #include "furnihost/stage.hpp"
@@ -125,6 +126,39 @@ TEST(CatalogShape, FindsEachObjectAsItsClass) {
   };
   EXPECT_GT(score_at("table", {0.f, 0.f}), score_at("cabinet", {0.f, 0.f}));
   EXPECT_GT(score_at("cabinet", {2.0f, 0.3f}), score_at("table", {2.0f, 0.3f}));
+}
+
+// 'source' picks the proposer rules a class is scored on: one name, a comma-separated list
+// (whole names only), or "any".
+TEST(CatalogShape, SourceListsTheRulesAClassIsScoredOn) {
+  const CatalogModel table = Table();
+  RunContext ctx;
+  Eigen::Isometry3f tp = Eigen::Isometry3f::Identity();
+  const Scan scan = ScanRoom({{&table, tp}}, 0.f, ctx);
+  const Proposals props = Make<Proposer>("proposals.clusters")->Propose(scan, nullptr, ctx);
+  SceneParts parts;
+  parts.scan = &scan;
+  parts.proposals = &props;
+  auto tables_from = [&](const std::string& source) {
+    auto voter = Make<Voter>("voters.catalog_shape", {{"class_params", {{"table", {{"source", source}}}}},
+                                                      {"min_score", 1e-4}, {"nms_iou", 1.0}});
+    voter->Load(voter->Train(Views({&table}), ctx));
+    std::multiset<std::string> rules;
+    for (const auto& h : voter->Vote({parts}, ctx).hypotheses)
+      if (h.cls == "table") rules.insert(props.items.at(size_t(h.proposal)).source);
+    return rules;
+  };
+  const auto all = tables_from("all"), segs = tables_from("segs"), both = tables_from("segs,all");
+  ASSERT_FALSE(all.empty());
+  ASSERT_FALSE(segs.empty());
+  EXPECT_EQ(all.count("segs"), 0u);
+  EXPECT_EQ(segs.count("all"), 0u);
+  EXPECT_EQ(both.size(), all.size() + segs.size());
+  EXPECT_GE(tables_from("any").size(), both.size());
+  EXPECT_TRUE(tables_from("al").empty());  // a name, not a prefix
+  EXPECT_TRUE(tables_from("al,seg").empty());
+  EXPECT_THROW(tables_from(""), InputError);
+  EXPECT_THROW(tables_from("all,"), InputError);
 }
 
 // A kitchen wall cabinet (0.8 x 0.36 x 0.7 m) hanging 1.3 m above the floor: with its class
