@@ -357,28 +357,33 @@ class ClusterProposer : public Proposer {
       return (uint64_t(uint32_t(int32_t(std::floor(p.x() / cell)))) << 32) | uint32_t(int32_t(std::floor(p.y() / cell)));
     };
     std::vector<uint64_t> all;
-    std::vector<std::pair<int, uint64_t>> level;  // (bin, cell) of the upward-facing points in range
+    std::vector<std::pair<uint64_t, int>> level;  // (cell, bin) of the upward-facing points in range
     all.reserve(idx.size());
     for (int i : idx) {
       const Eigen::Vector3f& p = P[size_t(i)];
       all.push_back(key(p));
       const float h = hz[size_t(i)];
       if (!(std::abs(ls.normals[size_t(i)].z()) > 0.9f) || !(h >= o_.top_min) || !(h < o_.top_max)) continue;
-      level.emplace_back(std::min(nb - 1, int((h - o_.top_min) / bin)), key(p));
+      level.emplace_back(key(p), std::min(nb - 1, int((h - o_.top_min) / bin)));
     }
     std::sort(all.begin(), all.end());
     const size_t cells = size_t(std::unique(all.begin(), all.end()) - all.begin());
+    // Cells per window (bins b and b + 1): each cell's bins in ascending order, each window it
+    // touches counted once.
+    std::sort(level.begin(), level.end());
+    std::vector<size_t> occupied(size_t(nb), 0);
+    for (size_t a = 0; a < level.size();) {
+      int last = -1;
+      size_t e = a;
+      for (; e < level.size() && level[e].first == level[a].first; ++e)
+        for (int w : {level[e].second - 1, level[e].second})
+          if (w > last && w >= 0 && w + 1 < nb) ++occupied[size_t(w)], last = w;
+      a = e;
+    }
     size_t best = 0;
     int k = -1;
-    std::vector<uint64_t> w;
-    for (int b = 0; b + 1 < nb; ++b) {
-      w.clear();
-      for (const auto& [lb, c] : level)
-        if (lb == b || lb == b + 1) w.push_back(c);
-      std::sort(w.begin(), w.end());
-      const size_t occupied = size_t(std::unique(w.begin(), w.end()) - w.begin());
-      if (occupied > best) best = occupied, k = b;
-    }
+    for (int b = 0; b + 1 < nb; ++b)
+      if (occupied[size_t(b)] > best) best = occupied[size_t(b)], k = b;
     if (k < 0 || double(best) < o_.top_cover * double(cells)) return {};
     const float level_top = o_.top_min + float(k + 2) * bin;  // the window's upper edge
     std::vector<int> out;
