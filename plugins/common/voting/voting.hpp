@@ -249,4 +249,31 @@ class WordIndex {
 VoteResult VoteAndSelect(const Codebook& book, const WordIndex& index,
                          const std::vector<SceneParts>& scenes, const SelectionOptions& opt);
 
+// A voter whose model is a codebook of part words in `format`: Load() reads it and indexes its
+// words (k-d tree leaves of `leaf_size`), Vote() is VoteAndSelect with `opt_`. The voters differ
+// in how they train the codebook and set the options.
+class CodebookVoter : public Voter {
+ public:
+  void Load(const nlohmann::json& model) override {
+    auto book = std::make_unique<Codebook>(Codebook::FromJson(model, format_));
+    index_ = std::make_unique<WordIndex>(book->words, leaf_size_);
+    book_ = std::move(book);
+  }
+
+  VoteResult Vote(const std::vector<SceneParts>& scenes, const RunContext&) override {
+    if (!book_) throw StageError("voter has no model: Train or Load it first", false);
+    return VoteAndSelect(*book_, *index_, scenes, opt_);
+  }
+
+ protected:
+  CodebookVoter(const char* format, int leaf_size) : format_(format), leaf_size_(leaf_size) {}
+  SelectionOptions opt_;
+
+ private:
+  const char* format_;
+  int leaf_size_;
+  std::unique_ptr<Codebook> book_;
+  std::unique_ptr<WordIndex> index_;
+};
+
 }  // namespace furnihost::voting

@@ -41,11 +41,11 @@ const ParamBinding<Options>& Binding() {
 }
 }  // namespace
 
-class HoughVocabularyVoter : public Voter {
+class HoughVocabularyVoter : public voting::CodebookVoter {
  public:
   static ParamSchema Schema() { return Binding().Schema(); }
 
-  explicit HoughVocabularyVoter(const nlohmann::json& p) {
+  explicit HoughVocabularyVoter(const nlohmann::json& p) : CodebookVoter(kFormat, 10) {
     const Options o = Binding().Parse(p);
     km_ = o.km;
     opt_ = o.sel;
@@ -65,23 +65,8 @@ class HoughVocabularyVoter : public Voter {
     return model;
   }
 
-  void Load(const nlohmann::json& model) override {
-    auto book = std::make_unique<voting::Codebook>(voting::Codebook::FromJson(model, kFormat));
-    index_ = std::make_unique<voting::WordIndex>(book->words);
-    book_ = std::move(book);
-  }
-
-  VoteResult Vote(const std::vector<SceneParts>& scenes, const RunContext& ctx) override {
-    (void)ctx;
-    if (!book_) throw StageError("voter has no model: Train or Load it first", false);
-    return voting::VoteAndSelect(*book_, *index_, scenes, opt_);
-  }
-
  private:
   voting::KMeansOptions km_;
-  voting::SelectionOptions opt_;
-  std::unique_ptr<voting::Codebook> book_;
-  std::unique_ptr<voting::WordIndex> index_;
 };
 
 }  // namespace furnihost::voters

@@ -39,12 +39,13 @@ const ParamBinding<Options>& Binding() {
 }
 }  // namespace
 
-class NearestNeighborVoter : public Voter {
+class NearestNeighborVoter : public voting::CodebookVoter {
  public:
   static ParamSchema Schema() { return Binding().Schema(); }
 
   // One activation: eq. 4 and 5 give exactly weight 1 (or the inverse distance).
-  explicit NearestNeighborVoter(const nlohmann::json& p) {
+  // One word per training part (~6000 x 24): bigger leaves search faster in 24-D.
+  explicit NearestNeighborVoter(const nlohmann::json& p) : CodebookVoter(kFormat, 32) {
     const Options o = Binding().Parse(p);
     opt_ = o.sel;
     opt_.activations = 1;
@@ -61,24 +62,6 @@ class NearestNeighborVoter : public Voter {
     Load(model);
     return model;
   }
-
-  void Load(const nlohmann::json& model) override {
-    auto book = std::make_unique<voting::Codebook>(voting::Codebook::FromJson(model, kFormat));
-    // One word per training part (~6000 x 24): bigger leaves search faster in 24-D.
-    index_ = std::make_unique<voting::WordIndex>(book->words, 32);
-    book_ = std::move(book);
-  }
-
-  VoteResult Vote(const std::vector<SceneParts>& scenes, const RunContext& ctx) override {
-    (void)ctx;
-    if (!book_) throw StageError("voter has no model: Train or Load it first", false);
-    return voting::VoteAndSelect(*book_, *index_, scenes, opt_);
-  }
-
- private:
-  voting::SelectionOptions opt_;
-  std::unique_ptr<voting::Codebook> book_;
-  std::unique_ptr<voting::WordIndex> index_;
 };
 
 }  // namespace furnihost::voters
