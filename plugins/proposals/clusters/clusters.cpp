@@ -119,6 +119,11 @@ const ParamBinding<ClustersOptions>& Binding() {
           .Rule([](const O& o) { return o.radii.empty() ? "radii: give at least one clustering radius" : ""; })
           .Rule([](const O& o) {
             return o.top_max > o.top_min + 0.05f ? "" : "work_top_max_m: must exceed work_top_min_m by more than 5 cm";
+          })
+          .Rule([](const O& o) {
+            return o.fronts_length == 0.f || o.fronts_length > kSegsLength
+                       ? ""
+                       : "fronts_length_m: 0 (no 'fronts' rule) or longer than the 'segs' rule's 0.6 m";
           });
   return b;
 }
@@ -731,6 +736,17 @@ class ClusterProposer : public Proposer {
   // past 1.7 x split_length), each cut at the sparsest 5 cm slice within a third of a part of
   // the nominal cut, kept only where the top-view height profile there steps by split_flatness
   // from the profile 20-25 cm to either side. Returns (part, k) pairs.
+  // How far slice b of a top-view profile stands above (> 0) or below its sides: the median of
+  // the finite slices 4 and 5 away on either side (how many in *sides; 0 when there is none).
+  static float ProfileStep(const std::vector<float>& prof, int b, size_t* sides) {
+    const int nb = int(prof.size());
+    std::vector<float> side;
+    for (int x : {b - 5, b - 4, b + 4, b + 5})
+      if (x >= 0 && x < nb && std::isfinite(prof[size_t(x)])) side.push_back(prof[size_t(x)]);
+    *sides = side.size();
+    return side.empty() ? 0.f : prof[size_t(b)] - Quantile(side, 0.5);
+  }
+
   // The centre slice of the strongest run of slices in [b0, b1) whose profile stands above (a
   // ridge) or below (a valley) the median of its sides (4-5 slices away) by split_flatness or
   // more; strength = the run's summed difference. -1 when there is none.
@@ -739,12 +755,9 @@ class ClusterProposer : public Proposer {
     std::vector<float> d(size_t(nb), 0.f);
     for (int b = b0; b < b1; ++b) {
       if (!std::isfinite(prof[size_t(b)])) continue;
-      std::vector<float> side;
-      for (int x : {b - 5, b - 4, b + 4, b + 5})
-        if (x >= 0 && x < nb && std::isfinite(prof[size_t(x)])) side.push_back(prof[size_t(x)]);
-      if (side.size() < 2) continue;
-      const float v = prof[size_t(b)] - Quantile(side, 0.5);
-      if (std::abs(v) >= o_.split_flatness) d[size_t(b)] = v;
+      size_t sides = 0;
+      const float v = ProfileStep(prof, b, &sides);
+      if (sides >= 2 && std::abs(v) >= o_.split_flatness) d[size_t(b)] = v;
     }
     int best = -1;
     float strength = 0.f;
@@ -827,10 +840,9 @@ class ClusterProposer : public Proposer {
     auto steps = [&](float c) {
       const int b = int(std::floor(c / bin)) - B0;
       if (b < 0 || b >= nb || !std::isfinite(prof[b])) return true;
-      std::vector<float> side;
-      for (int x : {b - 5, b - 4, b + 4, b + 5})
-        if (x >= 0 && x < nb && std::isfinite(prof[x])) side.push_back(prof[x]);
-      return side.empty() || std::abs(prof[b] - Quantile(side, 0.5)) >= o_.split_flatness;
+      size_t sides = 0;
+      const float step = ProfileStep(prof, b, &sides);
+      return sides == 0 || std::abs(step) >= o_.split_flatness;
     };
     auto emit = [&](const std::vector<float>& cuts, int k) {
       std::vector<float> edges = {-INFINITY};

@@ -191,6 +191,13 @@ TEST(Clusters, WorkTopVariantDropsWhatStandsOnADesk) {
   EXPECT_EQ(BestIou(p, bare, "all", "+top"), 0.f);
   EXPECT_EQ(BestIou(p, counter, "all", "+top"), 0.f);
   EXPECT_EQ(BestIou(p, counter, "segs", "+top"), 0.f);
+  // A 'fronts' length the 'segs' rule already covers would add nothing: refused, naming it.
+  try {
+    Make<Proposer>("proposals.clusters", {{"fronts_length_m", 0.4}});
+    ADD_FAILURE() << "fronts_length_m 0.4 accepted";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("fronts_length_m"), std::string::npos) << e.what();
+  }
   // Off: no variant at all.
   const Proposals off = Make<Proposer>("proposals.clusters", {{"work_top_variants", false}})->Propose(scan, nullptr, ctx);
   for (const auto& q : off.items) EXPECT_EQ(q.how.find("+top"), std::string::npos) << q.how;
