@@ -10,6 +10,7 @@
 #include <dlfcn.h>
 #include <filesystem>
 #include <map>
+#include <mutex>
 #include <set>
 
 #include "furnihost/plugin.hpp"
@@ -25,7 +26,40 @@ struct Registry::Impl {
   };
   std::map<std::string, Loaded> by_type;
   std::set<std::string> seen_files;
+  std::vector<std::string> files;  // every candidate library of the search path, in search order
+  bool all_loaded = false;
+  std::recursive_mutex mu;  // libraries are loaded on first use, possibly from several threads
 };
+
+namespace {
+// True when a library's file name follows the convention libfurnihost_<kind>_<name>.so for
+// `type` = "<kinds>.<name>" (e.g. libfurnihost_segmenter_region_growing.so for
+// segmenters.region_growing): <kind> is one word, the rest must equal the name.
+bool NamedFor(const std::string& path, const std::string& type) {
+  const std::string file = fs::path(path).filename().string(), prefix = "libfurnihost_", ext = ".so";
+  const size_t dot = type.find('.');
+  if (dot == std::string::npos || file.size() <= prefix.size() + ext.size()) return false;
+  const std::string stem = file.substr(prefix.size(), file.size() - prefix.size() - ext.size());
+  const size_t us = stem.find('_');
+  return us != std::string::npos && stem.substr(us + 1) == type.substr(dot + 1);
+}
+
+
+// The folders the project's own plugins are built and installed to.
+std::vector<std::string> ShippedDirs() {
+  std::vector<std::string> dirs{FURNIHOST_PLUGIN_BUILD_DIR};
+  boost::system::error_code ec;
+  auto exe = boost::dll::program_location(ec);
+  if (!ec) dirs.push_back((fs::path(exe.string()).parent_path() / ".." / "lib" / "furnihost" / "plugins").string());
+  dirs.push_back(FURNIHOST_PLUGIN_INSTALL_DIR);
+  return dirs;
+}
+
+std::string Canonical(const std::string& path) {
+  std::error_code ec;
+  return fs::weakly_canonical(path, ec).string();
+}
+}  // namespace
 
 std::vector<std::string> Registry::DefaultSearchPath(const std::vector<std::string>& extra_dirs) {
   std::vector<std::string> dirs = extra_dirs;
@@ -39,16 +73,21 @@ std::vector<std::string> Registry::DefaultSearchPath(const std::vector<std::stri
       start = end + 1;
     }
   }
-  dirs.push_back(FURNIHOST_PLUGIN_BUILD_DIR);
-  boost::system::error_code ec;
-  auto exe = boost::dll::program_location(ec);
-  if (!ec) dirs.push_back((fs::path(exe.string()).parent_path() / ".." / "lib" / "furnihost" / "plugins").string());
-  dirs.push_back(FURNIHOST_PLUGIN_INSTALL_DIR);
+  for (const auto& d : ShippedDirs()) dirs.push_back(d);
   return dirs;
 }
 
 Registry::Registry(const std::vector<std::string>& search_dirs) : impl_(new Impl), dirs_(search_dirs) {
-  for (const auto& d : dirs_) {
+  // The user's folders (--plugin-path, $FURNIHOST_PLUGIN_PATH, or any not the project's own) are
+  // loaded now, so each bad library there is reported at once and their types take precedence;
+  // the project's own folders after the last of them load on demand (see Find).
+  std::set<std::string> shipped;
+  for (const auto& d : ShippedDirs()) shipped.insert(Canonical(d));
+  size_t eager = 0;  // dirs_[0, eager) load now
+  for (size_t i = 0; i < dirs_.size(); ++i)
+    if (!shipped.count(Canonical(dirs_[i]))) eager = i + 1;
+  for (size_t i = 0; i < dirs_.size(); ++i) {
+    const std::string& d = dirs_[i];
     std::error_code ec;
     if (!fs::is_directory(d, ec)) continue;
     std::vector<std::string> files;
@@ -57,8 +96,27 @@ Registry::Registry(const std::vector<std::string>& search_dirs) : impl_(new Impl
       if (name.rfind("libfurnihost_", 0) == 0 && e.path().extension() == ".so") files.push_back(e.path().string());
     }
     std::sort(files.begin(), files.end());
-    for (const auto& f : files) LoadFile(f);
+    impl_->files.insert(impl_->files.end(), files.begin(), files.end());
+    if (i < eager)
+      for (const auto& f : files) Load(f);
   }
+}
+
+void Registry::LoadAll() const {
+  std::lock_guard<std::recursive_mutex> lock(impl_->mu);
+  if (impl_->all_loaded) return;
+  for (const auto& f : impl_->files) Load(f);
+  impl_->all_loaded = true;
+}
+
+const std::deque<PluginEntry>& Registry::Plugins() const {
+  LoadAll();
+  return plugins_;
+}
+
+const std::vector<PluginRefusal>& Registry::Refusals() const {
+  LoadAll();
+  return refusals_;
 }
 
 Registry::~Registry() {
@@ -69,6 +127,11 @@ Registry::~Registry() {
 }
 
 bool Registry::LoadFile(const std::string& path) {
+  std::lock_guard<std::recursive_mutex> lock(impl_->mu);
+  return Load(path);
+}
+
+bool Registry::Load(const std::string& path) const {
   std::error_code ec;
   const std::string canonical = fs::weakly_canonical(path, ec).string();
   if (impl_->seen_files.count(canonical)) return false;  // the same file found twice
@@ -98,7 +161,7 @@ bool Registry::LoadFile(const std::string& path) {
     if (!kind)
       return refuse("type name '" + info.type +
                     "' does not start with sensors., segmenters., features., voters. or fitters.");
-    if (auto* other = Find(info.type))
+    if (auto* other = FindLoaded(info.type))
       return refuse("duplicate type " + info.type + " (already loaded from " + other->path + ")");
     // Accepted plugins stay mapped until the process ends (RTLD_NODELETE, set on the already
     // loaded library; the extra reference is never dropped). TBB worker threads can still be
@@ -119,13 +182,30 @@ bool Registry::LoadFile(const std::string& path) {
   }
 }
 
-const PluginEntry* Registry::Find(const std::string& type) const {
+const PluginEntry* Registry::FindLoaded(const std::string& type) const {
   for (const auto& p : plugins_)
     if (p.type == type) return &p;
   return nullptr;
 }
 
+const PluginEntry* Registry::Find(const std::string& type) const {
+  std::lock_guard<std::recursive_mutex> lock(impl_->mu);
+  if (const PluginEntry* e = FindLoaded(type)) return e;
+  if (impl_->all_loaded) return nullptr;
+  // Loading every library costs ~0.15 s per process (PCL's and VTK's relocations alone ~0.1 s),
+  // more than a whole detection on a 50k-point scan: the libraries named for the type are tried
+  // first, in search order, and the others only when none of them declares it.
+  for (const auto& f : impl_->files)
+    if (NamedFor(f, type)) {
+      Load(f);
+      if (const PluginEntry* e = FindLoaded(type)) return e;
+    }
+  LoadAll();
+  return FindLoaded(type);
+}
+
 std::vector<std::string> Registry::TypeNames() const {
+  LoadAll();
   std::vector<std::string> names;
   for (const auto& p : plugins_) names.push_back(p.type);
   std::sort(names.begin(), names.end());
@@ -133,6 +213,8 @@ std::vector<std::string> Registry::TypeNames() const {
 }
 
 std::shared_ptr<Stage> Registry::Create(const std::string& type, const nlohmann::json& params) const {
+  std::unique_lock<std::recursive_mutex> lock(impl_->mu);
+  Find(type);
   auto it = impl_->by_type.find(type);
   if (it == impl_->by_type.end()) {
     std::string known;
@@ -140,9 +222,11 @@ std::shared_ptr<Stage> Registry::Create(const std::string& type, const nlohmann:
     throw InputError("unknown plugin " + type + "; known: " + (known.empty() ? "(none found)" : known));
   }
   const auto lib = it->second.lib;
+  const auto create = it->second.create;
+  lock.unlock();  // the factory runs unlocked: stages may be created in parallel
   Stage* raw = nullptr;
   try {
-    raw = it->second.create(params);
+    raw = create(params);
   } catch (const InputError& e) {
     throw InputError(type + ": " + e.what());
   } catch (const StageError& e) {

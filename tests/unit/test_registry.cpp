@@ -1,6 +1,8 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
+#include <fstream>
 
 #include "furnihost/config.hpp"
 #include "furnihost/io.hpp"
@@ -73,6 +75,35 @@ TEST(Registry, OutsidePluginFoundThroughSearchPath) {
   Segmentation seg;
   seg.parts.push_back({{0, 1, 2}, Eigen::Vector3f::Zero()});
   EXPECT_FLOAT_EQ(f->Compute(Scan{}, seg, {}).values(0, 0), 6.f);
+}
+
+namespace {
+bool Mapped(const std::string& library) {
+  std::ifstream maps("/proc/self/maps");
+  std::string line;
+  while (std::getline(maps, line))
+    if (line.find(library) != std::string::npos) return true;
+  return false;
+}
+}  // namespace
+
+// The project's own plugin folder loads on demand: a look-up loads the library named for the
+// type and not PCL's segmenter (~0.1 s of relocations); the full listing loads every library.
+TEST(Registry, ShippedLibrariesLoadWhenFirstNeeded) {
+  const std::string pcl = "libfurnihost_segmenter_pcl_region_growing.so";
+  if (Mapped(pcl)) GTEST_SKIP() << pcl << " was loaded by an earlier test of this process";
+  Registry reg({furnihost::testing::PluginDir()});
+  ASSERT_NE(reg.Find("features.centroid"), nullptr);
+  const PluginEntry* first = reg.Find("features.centroid");
+  EXPECT_TRUE(Mapped("libfurnihost_features_centroid.so"));
+  EXPECT_FALSE(Mapped(pcl));
+  EXPECT_NE(reg.Create("features.centroid", first->params.Resolve(nlohmann::json::object(), "t")), nullptr);
+  EXPECT_FALSE(Mapped(pcl));
+  EXPECT_EQ(reg.Find("voters.no_such_voter"), nullptr);  // an unknown type looks everywhere
+  EXPECT_TRUE(Mapped(pcl));
+  EXPECT_EQ(reg.Find("features.centroid"), first);  // entries stay in place as others load
+  const std::vector<std::string> names = reg.TypeNames();
+  EXPECT_NE(std::find(names.begin(), names.end(), "segmenters.pcl_region_growing"), names.end());
 }
 
 // ---- graph configs ----------------------------------------------------------------------
