@@ -137,6 +137,85 @@ int PointIndex::Nearest(const Eigen::Vector3f& q, float* dist) const {
   return static_cast<int>(idx);
 }
 
+RadiusGrid::RadiusGrid(const Points* points, float radius) : radius_(radius), r2_(radius * radius) {
+  const Points& pts = *points;
+  if (pts.empty()) return;
+  Eigen::AlignedBox3f box;
+  for (const auto& p : pts) box.extend(p);
+  // 1 % wider than the radius: rounding in the cell coordinates never puts a point within the
+  // radius two cells away.
+  const float cell = 1.01f * radius;
+  inv_cell_ = 1.f / cell;
+  lo_ = box.min();
+  double cells = 1.0;
+  for (int a = 0; a < 3; ++a) {
+    dims_[a] = int(std::min(double(1 << 24), std::floor(double(box.max()[a] - lo_[a]) * inv_cell_) + 1.0));
+    cells *= dims_[a];
+  }
+  if (!(radius > 0.f) || !box.sizes().allFinite() || cells > double(1 << 24)) {
+    fallback_ = std::make_unique<PointIndex>(points);
+    return;
+  }
+  auto cell_of = [&](const Eigen::Vector3f& p) {
+    int i[3];
+    for (int a = 0; a < 3; ++a) i[a] = std::clamp(int((p[a] - lo_[a]) * inv_cell_), 0, dims_[a] - 1);
+    return (size_t(i[2]) * dims_[1] + i[1]) * dims_[0] + i[0];
+  };
+  start_.assign(size_t(cells) + 1, 0);
+  std::vector<uint32_t> key(pts.size());
+  for (size_t i = 0; i < pts.size(); ++i) ++start_[(key[i] = uint32_t(cell_of(pts[i]))) + 1];
+  for (size_t c = 1; c < start_.size(); ++c) start_[c] += start_[c - 1];
+  x_.resize(pts.size()), y_.resize(pts.size()), z_.resize(pts.size());
+  std::vector<uint32_t> fill(start_.begin(), start_.end() - 1);
+  for (size_t i = 0; i < pts.size(); ++i) {
+    const uint32_t s = fill[key[i]]++;
+    x_[s] = pts[i].x(), y_[s] = pts[i].y(), z_[s] = pts[i].z();
+  }
+}
+
+RadiusGrid::~RadiusGrid() = default;
+
+bool RadiusGrid::AnyWithin(const Eigen::Vector3f& q) const {
+  if (fallback_) return fallback_->AnyWithin(q, radius_);
+  if (x_.empty()) return false;
+  // The same distance as nanoflann's L2_Simple_Adaptor (x, y, z summed in that order) and the
+  // same strict comparison, so the answers are PointIndex's bit for bit.
+  auto scan = [&](uint32_t b, uint32_t e) {
+    for (uint32_t s = b; s < e; ++s) {
+      const float dx = q.x() - x_[s], dy = q.y() - y_[s], dz = q.z() - z_[s];
+      if (dx * dx + dy * dy + dz * dz < r2_) return true;
+    }
+    return false;
+  };
+  int own[3], lo[3], hi[3];
+  for (int a = 0; a < 3; ++a) {
+    const float f = (q[a] - lo_[a]) * inv_cell_;
+    // A query a whole cell (> the radius) outside the box has no point within the radius.
+    if (!(f > -1.f && f < float(dims_[a]) + 1.f)) return false;
+    own[a] = int(std::floor(f));
+    lo[a] = std::max(own[a] - 1, 0);
+    hi[a] = std::min(own[a] + 1, dims_[a] - 1);
+  }
+  const bool inside = own[0] >= 0 && own[0] < dims_[0] && own[1] >= 0 && own[1] < dims_[1] && own[2] >= 0 &&
+                      own[2] < dims_[2];
+  auto at = [&](int x, int y, int z) { return (size_t(z) * dims_[1] + y) * dims_[0] + x; };
+  if (inside) {  // on a surface the hit is almost always in the query's own cell
+    const size_t c = at(own[0], own[1], own[2]);
+    if (scan(start_[c], start_[c + 1])) return true;
+  }
+  for (int z = lo[2]; z <= hi[2]; ++z)
+    for (int y = lo[1]; y <= hi[1]; ++y) {
+      const size_t row = at(0, y, z);
+      if (inside && z == own[2] && y == own[1]) {  // the query's row, without its own cell
+        if (scan(start_[row + lo[0]], start_[row + own[0]]) || scan(start_[row + own[0] + 1], start_[row + hi[0] + 1]))
+          return true;
+      } else if (scan(start_[row + lo[0]], start_[row + hi[0] + 1])) {
+        return true;
+      }
+    }
+  return false;
+}
+
 ModelCloud::ModelCloud(const CatalogModel& model, const SamplingOptions& o, uint64_t seed)
     : id_(model.id), inlier_(o.inlier_distance), min_h_(o.min_horizontal_normal) {
   const Mesh& mesh = model.mesh;
@@ -208,6 +287,7 @@ void ModelCloud::BuildIndices() {
   }
 
   kd_ = std::make_unique<PointIndex>(&points_);
+  near_ = std::make_unique<RadiusGrid>(&points_, inlier_);
 }
 
 ModelCloud::~ModelCloud() = default;

@@ -37,6 +37,29 @@ class PointIndex {
   std::unique_ptr<Impl> impl_;
 };
 
+// "Is any point within `radius` of q" over a fixed point set, for one radius: a dense grid of
+// cells a little larger than the radius, so the points within it lie in the 3 x 3 x 3 cells
+// around q (9 runs of 3 consecutive cells, the query's own cell first, scanned until the first
+// hit). The same answers as PointIndex::AnyWithin with that radius (the same float distance,
+// strictly below radius^2); built in O(points + cells). A set whose box would need more than
+// 2^24 cells is answered by a PointIndex instead.
+class RadiusGrid {
+ public:
+  RadiusGrid(const Points* points, float radius);  // the caller keeps `points` alive
+  ~RadiusGrid();
+  RadiusGrid(const RadiusGrid&) = delete;
+  RadiusGrid& operator=(const RadiusGrid&) = delete;
+  bool AnyWithin(const Eigen::Vector3f& q) const;
+
+ private:
+  float radius_ = 0.f, r2_ = 0.f, inv_cell_ = 0.f;
+  Eigen::Vector3f lo_ = Eigen::Vector3f::Zero();
+  int dims_[3] = {0, 0, 0};
+  std::vector<uint32_t> start_;  // points of cell c: [start_[c], start_[c + 1]) of x_, y_, z_
+  std::vector<float> x_, y_, z_;
+  std::unique_ptr<PointIndex> fallback_;
+};
+
 // One sampled model. All arrays have one entry per point.
 class ModelCloud {
  public:
@@ -85,7 +108,7 @@ class ModelCloud {
     if (s == kOutside) return false;
     return CoveredExact(q);
   }
-  bool CoveredExact(const Eigen::Vector3f& q) const { return kd_->AnyWithin(q, inlier_); }
+  bool CoveredExact(const Eigen::Vector3f& q) const { return near_->AnyWithin(q); }
   int Nearest(const Eigen::Vector3f& q, float* dist) const { return kd_->Nearest(q, dist); }
   // Share of Covered() answers that needed the kd-tree; for benchmarks.
   double AmbiguousCellShare() const;
@@ -115,7 +138,9 @@ class ModelCloud {
   int dims_[3] = {0, 0, 0}, bdims_[3] = {0, 0, 0};
   std::vector<int32_t> blocks_;
   std::vector<uint8_t> cells_;
-  std::unique_ptr<PointIndex> kd_;
+  std::unique_ptr<PointIndex> kd_;    // nearest-point queries (ICP)
+  std::unique_ptr<RadiusGrid> near_;  // CoveredExact: the grid's ambiguous cells, ~1/3 of the
+                                      // RANSAC's look-ups on dense scans (3x faster than kd_)
 };
 
 // SplitMix64 finaliser: derives independent seeds from related ones (x, x + 1, a hash).

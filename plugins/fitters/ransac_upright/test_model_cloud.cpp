@@ -130,3 +130,42 @@ TEST(ModelCloud, CacheRoundTripAndDamagedFiles) {
 }
 
 }  // namespace
+
+// RadiusGrid (CoveredExact's look-up) answers as the kd-tree does for every query: points of a
+// plane, a cluster of copies of one point and scattered points; queries jittered around them at
+// about the radius (both sides of it), exactly at it along an axis (the strict comparison), far
+// away, and on cell borders. Sets whose box needs too many cells take the kd-tree itself.
+TEST(RadiusGrid, SameAnswersAsTheKdTree) {
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  Points pts;
+  for (int i = 0; i < 3000; ++i) pts.emplace_back(u(rng), u(rng), 0.25f);             // a plane
+  for (int i = 0; i < 500; ++i) pts.emplace_back(0.3f, -0.2f, 0.7f);                   // copies
+  for (int i = 0; i < 1000; ++i) pts.emplace_back(u(rng), u(rng), 0.5f + 0.5f * u(rng));  // scatter
+  for (const float r : {0.005f, 0.02f, 0.1f}) {
+    const PointIndex kd(&pts);
+    const RadiusGrid grid(&pts, r);
+    int hits = 0, misses = 0;
+    for (int i = 0; i < 40000; ++i) {
+      const Eigen::Vector3f& p = pts[size_t(i) % pts.size()];
+      Eigen::Vector3f q;
+      switch (i % 4) {
+        case 0: q = p + Eigen::Vector3f(u(rng), u(rng), u(rng)) * (1.5f * r); break;
+        case 1: q = p + Eigen::Vector3f::Unit(i % 3) * (u(rng) > 0 ? r : -r); break;  // exactly r away
+        case 2: q = Eigen::Vector3f(u(rng), u(rng), u(rng)) * 3.f; break;             // also outside the box
+        default: q = Eigen::Vector3f(std::round(p.x() / r) * r * 1.01f, p.y(), p.z());  // near cell borders
+      }
+      const bool want = kd.AnyWithin(q, r);
+      ASSERT_EQ(grid.AnyWithin(q), want) << "r " << r << " query " << q.transpose();
+      (want ? hits : misses)++;
+    }
+    EXPECT_GT(hits, 5000);  // both answers are exercised
+    EXPECT_GT(misses, 5000);
+  }
+  const Points none;
+  EXPECT_FALSE(RadiusGrid(&none, 0.02f).AnyWithin(Eigen::Vector3f::Zero()));
+  const Points wide{{0.f, 0.f, 0.f}, {1000.f, 1000.f, 1000.f}};  // 5e4^3 cells: the kd-tree answers
+  const RadiusGrid sparse(&wide, 0.02f);
+  EXPECT_TRUE(sparse.AnyWithin({1000.f, 1000.f, 1000.01f}));
+  EXPECT_FALSE(sparse.AnyWithin({500.f, 500.f, 500.f}));
+}
