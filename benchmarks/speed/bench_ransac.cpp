@@ -8,6 +8,7 @@
 #include <tbb/task_arena.h>
 
 #include <memory>
+#include <random>
 
 #include "model_cloud.hpp"
 #include "occupancy.hpp"
@@ -167,7 +168,34 @@ void BM_FreeSpaceTest(benchmark::State& st) {
   st.counters["free_ratio"] = c.visible ? double(c.free) / c.visible : -1.0;
 }
 
+// CoveredExact's look-up, "any model point within the inlier distance of q": RadiusGrid (what
+// the fitter uses) against the nanoflann k-d tree (PointIndex, its peer and former
+// implementation) on the same 15k-point model and the same queries, the model's points jittered
+// by up to 1.5x the inlier distance (the band where the coverage grid cannot decide). Arg 0:
+// RadiusGrid, 1: k-d tree; compare the two rows' time per query.
+void BM_AnyWithin(benchmark::State& st) {
+  const ModelCloud& m = *F().cloud_a;
+  const float r = m.InlierDistance();
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  Points queries;
+  for (size_t i = 0; i < 20000; ++i)
+    queries.push_back(m.Cloud()[(i * 7919) % m.Cloud().size()] + Eigen::Vector3f(u(rng), u(rng), u(rng)) * (1.5f * r));
+  const RadiusGrid grid(&m.Cloud(), r);
+  const PointIndex kd(&m.Cloud());
+  int hits = 0;
+  for (auto _ : st) {
+    hits = 0;
+    for (const auto& q : queries) hits += st.range(0) == 0 ? grid.AnyWithin(q) : kd.AnyWithin(q, r);
+    benchmark::DoNotOptimize(hits);
+  }
+  st.counters["hit_share"] = double(hits) / double(queries.size());
+  st.counters["ns_per_query"] =
+      benchmark::Counter(double(queries.size()), benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+}
+
 BENCHMARK(BM_SampleModel)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_AnyWithin)->Unit(benchmark::kMillisecond)->Arg(0)->Arg(1);
 // Arg = TBB threads (1 and the 2 cores of the target machine).
 BENCHMARK(BM_FitRightModel)->Unit(benchmark::kMillisecond)->UseRealTime()->Arg(1)->Arg(2);
 BENCHMARK(BM_FitRightModelRefined)->Unit(benchmark::kMillisecond)->UseRealTime()->Args({2, 0})->Args({2, 1});
