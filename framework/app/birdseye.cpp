@@ -15,6 +15,7 @@
 #include "furnihost/geometry.hpp"
 #include "furnihost/io.hpp"
 #include "furnihost/pipeline.hpp"
+#include "png_writer.hpp"
 
 namespace furnihost::app {
 
@@ -226,6 +227,8 @@ void Draw(cairo_t* cr, const std::vector<Shown>& scans, const VoteResult& votes,
   // votes say nothing about the room.
   std::vector<Eigen::Vector2d> outline;
   SurfacePtr points = PointsRaster(scans, v, &outline);
+  // The SVG embeds the raster as a PNG: encoded here, fast, instead of by cairo's SVG surface.
+  if (cairo_surface_get_type(cairo_get_target(cr)) == CAIRO_SURFACE_TYPE_SVG) AttachPng(points.get(), "bird's-eye raster");
   cairo_set_source_surface(cr, points.get(), v.margin, v.margin);
   cairo_paint(cr);
   double area = 0.0;  // [px^2]; a scan seen edge-on (one wall) outlines nothing
@@ -398,17 +401,14 @@ void WriteBirdsEye(const std::string& stem, const std::vector<const Scan*>& scan
     cairo_surface_finish(s.get());  // flushes the file
     Check(cairo_surface_status(s.get()), stem + ".svg");
   });
-  AtomicWrite(stem + ".png", [&](const std::string& tmp) {
-    SurfacePtr s(cairo_image_surface_create(CAIRO_FORMAT_ARGB32, v.Width(), v.Height()),
-                 cairo_surface_destroy);
-    Check(cairo_surface_status(s.get()), stem + ".png");
-    {
-      ContextPtr cr(cairo_create(s.get()), cairo_destroy);
-      Draw(cr.get(), scans, votes, detections, v, display);
-      Check(cairo_status(cr.get()), stem + ".png");
-    }
-    Check(cairo_surface_write_to_png(s.get(), tmp.c_str()), stem + ".png");
-  });
+  SurfacePtr s(cairo_image_surface_create(CAIRO_FORMAT_ARGB32, v.Width(), v.Height()), cairo_surface_destroy);
+  Check(cairo_surface_status(s.get()), stem + ".png");
+  {
+    ContextPtr cr(cairo_create(s.get()), cairo_destroy);
+    Draw(cr.get(), scans, votes, detections, v, display);
+    Check(cairo_status(cr.get()), stem + ".png");
+  }
+  WritePng(s.get(), stem + ".png");
 }
 
 }  // namespace furnihost::app
