@@ -268,10 +268,14 @@ std::vector<float> CellBoxes(const VoxelIndex& grid) {
 // True when cell c's tight box lies at squared distance >= d2 from p: none of its points is
 // closer (in float too: per axis the box's gap is never above a point's, and rounding is
 // monotonic).
-bool Far(const std::vector<float>& box, int c, const Eigen::Vector3f& p, float d2) {
+// Called per point and neighbour cell in the normals and per member and neighbour cell in the
+// growth: forced inline, branch-free (std::max over an initializer list stayed an out-of-line
+// call, 2 % of a dense room's samples).
+[[gnu::always_inline]] inline bool Far(const std::vector<float>& box, int c, const Eigen::Vector3f& p, float d2) {
   const float* b = &box[size_t(c) * 6];
-  const float dx = std::max({b[0] - p.x(), 0.f, p.x() - b[3]}), dy = std::max({b[1] - p.y(), 0.f, p.y() - b[4]}),
-              dz = std::max({b[2] - p.z(), 0.f, p.z() - b[5]});
+  const float dx = std::max(std::max(b[0] - p.x(), 0.f), p.x() - b[3]);
+  const float dy = std::max(std::max(b[1] - p.y(), 0.f), p.y() - b[4]);
+  const float dz = std::max(std::max(b[2] - p.z(), 0.f), p.z() - b[5]);
   return dx * dx + dy * dy + dz * dz >= d2;
 }
 
