@@ -6,9 +6,11 @@
 
 #include <filesystem>
 #include <fstream>
+#include <vector>
 #include <sstream>
 
 #include "birdseye.hpp"
+#include "png_writer.hpp"
 #include "test_support.hpp"
 
 namespace furnihost {
@@ -160,6 +162,65 @@ TEST(BirdsEye, EmptyInputStillDrawsAndUnwritablePathThrows) {
   EXPECT_TRUE(fs::is_regular_file(dir + "/empty.png"));
   fs::remove_all(dir);
   EXPECT_THROW(app::WriteBirdsEye("/dev/null/not_a_dir/votes", {}, VoteResult{}, {}), InputError);
+}
+
+}  // namespace
+}  // namespace furnihost
+
+namespace furnihost {
+namespace {
+
+// The plots' fast PNG encoder against cairo's own writer: the same pixels once read back, for
+// opaque, translucent (premultiplied) and fully transparent pixels and for an RGB24 surface.
+TEST(PngWriter, SamePixelsAsCairosWriter) {
+  const std::string dir = testing::TempDir("png_writer");
+  for (const cairo_format_t format : {CAIRO_FORMAT_ARGB32, CAIRO_FORMAT_RGB24}) {
+    cairo_surface_t* img = cairo_image_surface_create(format, 37, 23);
+    cairo_t* cr = cairo_create(img);
+    cairo_set_source_rgba(cr, 0.2, 0.5, 0.9, 0.35);  // translucent
+    cairo_rectangle(cr, 3, 2, 20, 15);
+    cairo_fill(cr);
+    cairo_set_source_rgba(cr, 1.0, 0.1, 0.0, 1.0);  // opaque
+    cairo_arc(cr, 25, 12, 8, 0, 6.3);
+    cairo_fill(cr);
+    cairo_set_source_rgba(cr, 0.7, 0.7, 0.1, 0.02);  // nearly transparent
+    cairo_rectangle(cr, 0, 18, 37, 5);
+    cairo_fill(cr);
+    cairo_destroy(cr);
+    const std::string ours = dir + "/ours.png", theirs = dir + "/cairo.png";
+    app::WritePng(img, ours);
+    ASSERT_EQ(cairo_surface_write_to_png(img, theirs.c_str()), CAIRO_STATUS_SUCCESS);
+    cairo_surface_t* a = cairo_image_surface_create_from_png(ours.c_str());
+    cairo_surface_t* b = cairo_image_surface_create_from_png(theirs.c_str());
+    ASSERT_EQ(cairo_surface_status(a), CAIRO_STATUS_SUCCESS);
+    ASSERT_EQ(cairo_image_surface_get_width(a), 37);
+    ASSERT_EQ(cairo_image_surface_get_height(a), 23);
+    int differ = 0, translucent = 0;
+    for (int y = 0; y < 23; ++y)
+      for (int x = 0; x < 37; ++x) {
+        const auto pa = reinterpret_cast<const uint32_t*>(cairo_image_surface_get_data(a) + y * cairo_image_surface_get_stride(a))[x];
+        const auto pb = reinterpret_cast<const uint32_t*>(cairo_image_surface_get_data(b) + y * cairo_image_surface_get_stride(b))[x];
+        differ += pa != pb;
+        translucent += format == CAIRO_FORMAT_ARGB32 && (pb >> 24) > 0 && (pb >> 24) < 255;
+      }
+    EXPECT_EQ(differ, 0) << (format == CAIRO_FORMAT_ARGB32 ? "ARGB32" : "RGB24");
+    if (format == CAIRO_FORMAT_ARGB32) {
+      EXPECT_GT(translucent, 100);  // the un-premultiplying was exercised
+    }
+    cairo_surface_destroy(a);
+    cairo_surface_destroy(b);
+    cairo_surface_destroy(img);
+  }
+  // A surface that is not an image is refused with the path named, nothing written.
+  cairo_surface_t* rec = cairo_recording_surface_create(CAIRO_CONTENT_COLOR_ALPHA, nullptr);
+  try {
+    app::WritePng(rec, dir + "/nothing.png");
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("nothing.png"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(dir + "/nothing.png"));
+  cairo_surface_destroy(rec);
 }
 
 }  // namespace
