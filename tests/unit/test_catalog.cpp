@@ -1,5 +1,7 @@
 // Catalog loading: up-axis / unit normalisation of every shared model, and the documented
 // errors for broken entries.
+#include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -216,6 +218,66 @@ TEST(Catalog, HashCoversTheCatalogAndEveryMesh) {
   EXPECT_NE(h2, h1);
   t.Catalog(json::array({{{"id", "a"}, {"class", "chair"}, {"mesh", "a.obj"}, {"up", "+y"}, {"height_m", 0.9}}}));
   EXPECT_NE(LoadCatalog(path).hash, h2);
+}
+
+// Parsed meshes are cached by content ($FURNIHOST_CACHE_DIR/meshes): a second load reads the
+// cache and gives the same catalog bit for bit; a truncated or forged cache file is ignored and
+// rewritten; a changed mesh gets its own entry.
+TEST(Catalog, ParsedMeshesAreCachedByContent) {
+  TempCatalog t("mesh_cache");
+  const std::string cache = (t.dir / "cache").string();
+  const char* old = std::getenv("FURNIHOST_CACHE_DIR");
+  const std::string restore = old ? old : "";
+  ::setenv("FURNIHOST_CACHE_DIR", cache.c_str(), 1);
+  t.Write("a.obj", ObjBox(500.f, 900.f, 400.f));
+  const json models = json::array(
+      {{{"id", "a"}, {"class", "chair"}, {"mesh", "a.obj"}, {"up", "+y"}, {"scale", 0.001}}});
+  const std::string path = t.Catalog(models);
+  auto same = [](const Catalog& x, const Catalog& y) {
+    if (x.models.size() != y.models.size()) return false;
+    for (size_t i = 0; i < x.models.size(); ++i) {
+      const Mesh &a = x.models[i].mesh, &b = y.models[i].mesh;
+      if (a.vertices.size() != b.vertices.size() || a.triangles.size() != b.triangles.size()) return false;
+      if (std::memcmp(a.vertices.data(), b.vertices.data(), 12 * a.vertices.size()) ||
+          std::memcmp(a.triangles.data(), b.triangles.data(), 12 * a.triangles.size()) ||
+          x.models[i].size != y.models[i].size)
+        return false;
+    }
+    return x.hash == y.hash;
+  };
+  auto entries = [&] {
+    std::vector<fs::path> files;
+    std::error_code ec;
+    for (const auto& e : fs::directory_iterator(fs::path(cache) / "meshes", ec))
+      if (e.path().extension() == ".fhmesh") files.push_back(e.path());
+    return files;
+  };
+  const Catalog first = LoadCatalog(path);  // parsed, then written to the cache
+  ASSERT_EQ(entries().size(), 1u);
+  const fs::path entry = entries()[0];
+  const Catalog second = LoadCatalog(path);  // from the cache
+  EXPECT_TRUE(same(first, second));
+  const auto good = fs::file_size(entry);
+  for (const std::string& garbage : {std::string("FHMESH1"), std::string(size_t(good), 'x')}) {
+    std::ofstream(entry, std::ios::binary | std::ios::trunc) << garbage;
+    EXPECT_TRUE(same(first, LoadCatalog(path)));
+    EXPECT_EQ(fs::file_size(entry), good);  // rewritten
+  }
+  {  // the right header, a face index out of range
+    std::fstream f(entry, std::ios::binary | std::ios::in | std::ios::out);
+    f.seekp(std::streamoff(good) - 4);
+    const int32_t bad = 1000;
+    f.write(reinterpret_cast<const char*>(&bad), 4);
+  }
+  EXPECT_TRUE(same(first, LoadCatalog(path)));
+  t.Write("a.obj", ObjBox(500.f, 900.f, 600.f));  // the mesh changes
+  const Catalog changed = LoadCatalog(path);
+  EXPECT_NEAR(changed.models.at(0).size.y(), 0.6f, 1e-6f);  // z up after the turn: depth is y
+  EXPECT_EQ(entries().size(), 2u);
+  if (old)
+    ::setenv("FURNIHOST_CACHE_DIR", restore.c_str(), 1);
+  else
+    ::unsetenv("FURNIHOST_CACHE_DIR");
 }
 
 // data/: the bundled catalogs load, hold only redistributable models, and the demo scene
