@@ -127,25 +127,13 @@ bool PositiveFinite(const nlohmann::json& v) {
 // ---- parsed-mesh cache -------------------------------------------------------------------
 // assimp's parsing is most of a catalog's load (38 web models: ~60 ms of a ~0.4 s detection on a
 // ScanNet room), so the parsed mesh (LoadMeshFile's result, file units and axes) is kept on disk
-// by the file's content: $FURNIHOST_CACHE_DIR, else $XDG_CACHE_HOME/furnihost, else
-// ~/.cache/furnihost, + /meshes (the fitter's model clouds sit beside it). Only formats that
-// hold all their geometry in the one file are cached (a .gltf's buffers may live elsewhere). The
-// key hashes the bytes, the extension (assimp picks the reader by it), the assimp version and
-// this format's version; a cached mesh is the parsed one bit for bit. A missing, truncated or
-// otherwise odd cache file is ignored and rewritten; a cache that cannot be written only costs
-// the parsing.
+// by the file's content in CacheFolder("meshes") (the fitter's model clouds sit beside it). Only
+// formats that hold all their geometry in one file are cached (a .gltf's buffers may live
+// elsewhere). The key hashes the bytes, the extension (assimp picks the reader by it), the
+// assimp version and this format's version; a cached mesh is the parsed one bit for bit. A
+// missing, truncated or otherwise odd cache file is ignored and rewritten; a cache that cannot be
+// written only costs the parsing.
 constexpr char kMeshCacheMagic[8] = {'F', 'H', 'M', 'E', 'S', 'H', '1', '\0'};
-
-std::string MeshCacheDir() {
-  auto env = [](const char* name) {
-    const char* v = std::getenv(name);
-    return std::string(v && *v ? v : "");
-  };
-  std::string base = env("FURNIHOST_CACHE_DIR");
-  if (base.empty() && !env("XDG_CACHE_HOME").empty()) base = env("XDG_CACHE_HOME") + "/furnihost";
-  if (base.empty() && !env("HOME").empty()) base = env("HOME") + "/.cache/furnihost";
-  return base.empty() ? base : base + "/meshes";
-}
 
 std::optional<Mesh> ReadMeshCache(const std::string& file, uint64_t key) {
   std::error_code ec;
@@ -207,7 +195,7 @@ void WriteMeshCache(const std::string& dir, const std::string& file, uint64_t ke
 
 // LoadMeshFile through the cache.
 Mesh LoadMeshCached(const std::string& path) {
-  const std::string dir = MeshCacheDir();
+  const std::string dir = CacheFolder("meshes");
   std::string ext = fs::path(path).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
   static const std::set<std::string> kSelfContained{".obj", ".ply", ".off", ".stl", ".glb"};

@@ -44,7 +44,6 @@ bool NamedFor(const std::string& path, const std::string& type) {
   return us != std::string::npos && stem.substr(us + 1) == type.substr(dot + 1);
 }
 
-
 // The folders the project's own plugins are built and installed to.
 std::vector<std::string> ShippedDirs() {
   std::vector<std::string> dirs{FURNIHOST_PLUGIN_BUILD_DIR};

@@ -1,6 +1,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 
@@ -89,8 +91,10 @@ bool Mapped(const std::string& library) {
 
 // The project's own plugin folder loads on demand: a look-up loads the library named for the
 // type and no other (in a full build, not PCL's segmenter: ~0.1 s of relocations); the full
-// listing loads every library.
-TEST(Registry, ShippedLibrariesLoadWhenFirstNeeded) {
+// listing loads every library. The checks run in a fresh process (gtest re-executes this test
+// alone), so no earlier test of this binary can have mapped a library before; the child exits
+// 0 when all hold and names the first that does not.
+std::string LazyLoadingProblem() {
   const std::string centroid = "libfurnihost_features_centroid.so";
   std::vector<std::string> others;  // the other shipped libraries (which ones depends on the build)
   for (const auto& e : fs::directory_iterator(furnihost::testing::PluginDir())) {
@@ -98,20 +102,35 @@ TEST(Registry, ShippedLibrariesLoadWhenFirstNeeded) {
     if (name.rfind("libfurnihost_", 0) == 0 && e.path().extension() == ".so" && name != centroid)
       others.push_back(name);
   }
-  ASSERT_FALSE(others.empty());
+  if (others.empty()) return "no other shipped library";
   for (const auto& o : others)
-    if (Mapped(o) || Mapped(centroid)) GTEST_SKIP() << o << " was loaded by an earlier test of this process";
+    if (Mapped(o) || Mapped(centroid)) return o + " mapped before the registry";
   Registry reg({furnihost::testing::PluginDir()});
-  ASSERT_NE(reg.Find("features.centroid"), nullptr);
   const PluginEntry* first = reg.Find("features.centroid");
-  EXPECT_TRUE(Mapped(centroid));
-  for (const auto& o : others) EXPECT_FALSE(Mapped(o)) << o;
-  EXPECT_NE(reg.Create("features.centroid", first->params.Resolve(nlohmann::json::object(), "t")), nullptr);
-  for (const auto& o : others) EXPECT_FALSE(Mapped(o)) << o;
-  EXPECT_EQ(reg.Find("voters.no_such_voter"), nullptr);  // an unknown type looks everywhere
-  for (const auto& o : others) EXPECT_TRUE(Mapped(o)) << o;
-  EXPECT_EQ(reg.Find("features.centroid"), first);  // entries stay in place as others load
-  EXPECT_EQ(reg.TypeNames().size(), others.size() + 1);
+  if (!first) return "features.centroid not found";
+  if (!Mapped(centroid)) return "features.centroid found but its library not mapped";
+  for (const auto& o : others)
+    if (Mapped(o)) return o + " mapped by the look-up of features.centroid";
+  if (!reg.Create("features.centroid", first->params.Resolve(nlohmann::json::object(), "t"))) return "no stage";
+  for (const auto& o : others)
+    if (Mapped(o)) return o + " mapped by Create";
+  if (reg.Find("voters.no_such_voter")) return "an unknown type was found";
+  for (const auto& o : others)  // an unknown type looks everywhere
+    if (!Mapped(o)) return o + " not mapped after looking for an unknown type";
+  if (reg.Find("features.centroid") != first) return "the entry moved as other libraries loaded";
+  if (reg.TypeNames().size() != others.size() + 1) return "TypeNames does not list every library";
+  return "";
+}
+
+TEST(Registry, ShippedLibrariesLoadWhenFirstNeeded) {
+  GTEST_FLAG_SET(death_test_style, "threadsafe");  // re-executes the binary: nothing mapped before
+  EXPECT_EXIT(
+      {
+        const std::string problem = LazyLoadingProblem();
+        std::fprintf(stderr, "%s\n", problem.empty() ? "lazy loading ok" : problem.c_str());
+        std::_Exit(problem.empty() ? 0 : 1);
+      },
+      ::testing::ExitedWithCode(0), "lazy loading ok");
 }
 
 // ---- graph configs ----------------------------------------------------------------------

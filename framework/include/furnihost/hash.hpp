@@ -23,4 +23,10 @@ constexpr uint64_t kFnvOffsetTruncated = 1469598103934665603ull;
 FURNIHOST_API uint64_t Fnv1a(const void* data, size_t size, uint64_t h = kFnvOffset);
 inline uint64_t Fnv1a(const std::string& s, uint64_t h = kFnvOffset) { return Fnv1a(s.data(), s.size(), h); }
 
+// The folder where results keyed by such hashes are kept between runs: $FURNIHOST_CACHE_DIR,
+// else $XDG_CACHE_HOME/furnihost, else $HOME/.cache/furnihost, + "/" + `sub`; empty when none
+// of the three is set (then nothing is cached). Used by the catalog's parsed meshes ("meshes")
+// and fitters.ransac_upright's model clouds ("model_clouds").
+FURNIHOST_API std::string CacheFolder(const std::string& sub);
+
 }  // namespace furnihost

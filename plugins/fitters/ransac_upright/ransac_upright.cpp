@@ -47,19 +47,11 @@ namespace {
 
 using namespace ransac_upright;
 
-// "off" -> none; "auto" -> $FURNIHOST_CACHE_DIR, else $XDG_CACHE_HOME/furnihost, else
-// $HOME/.cache/furnihost (none when all are unset), each + /model_clouds; else the folder given.
+// "off" -> none; "auto" -> CacheFolder("model_clouds") ($FURNIHOST_CACHE_DIR, else
+// $XDG_CACHE_HOME/furnihost, else ~/.cache/furnihost, + /model_clouds); else the folder given.
 std::string CloudCacheDir(const std::string& v) {
   if (v == "off" || v.empty()) return {};
-  if (v != "auto") return v;
-  auto env = [](const char* name) {
-    const char* e = std::getenv(name);
-    return std::string(e && *e ? e : "");
-  };
-  std::string base = env("FURNIHOST_CACHE_DIR");
-  if (base.empty() && !env("XDG_CACHE_HOME").empty()) base = env("XDG_CACHE_HOME") + "/furnihost";
-  if (base.empty() && !env("HOME").empty()) base = env("HOME") + "/.cache/furnihost";
-  return base.empty() ? base : base + "/model_clouds";
+  return v == "auto" ? CacheFolder("model_clouds") : v;
 }
 
 struct RansacUprightOptions {
