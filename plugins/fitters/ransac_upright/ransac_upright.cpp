@@ -40,6 +40,7 @@
 #include "furnihost/plugin.hpp"
 #include "model_cloud.hpp"
 #include "occupancy.hpp"
+#include "shape/shape.hpp"
 #include "upright_ransac.hpp"
 
 namespace furnihost {
@@ -66,6 +67,9 @@ struct RansacUprightOptions {
   float reach_margin = 0.3f;
   float part_inside_fraction = 0.8f;
   bool crop_parts = true;
+  bool keep_accepted = false;  // a detection its recogniser accepted stays accepted when the fit fails
+  float keep_min_coverage = 0.25f;  // ... unless the best model covers less than this share
+  bool free_space_alternatives = false;  // a pose refused by free space: try the near-tied ones
   std::string cloud_cache_setting = "auto";  // as given: "auto", "off" or a folder
   std::string cloud_cache;  // folder of sampled model clouds (from cloud_cache_setting); empty = none
 
@@ -145,6 +149,18 @@ const ParamBinding<RansacUprightOptions>& Binding() {
                   "reject when the model covers less than this share of the part points (paper: 0.5)")
           .Number("max_free_space_ratio", &O::max_free_space_ratio, 0, 1, "",
                   "reject when more than this share of the visible model surface is in free space")
+          .Bool("free_space_alternatives", &O::free_space_alternatives,
+                "when free space refuses the best pose, try the model's near-tied poses (within "
+                "model_tie_tolerance of its coverage, best first): the first that still covers min_coverage "
+                "and passes the free-space test is taken (false: the best pose is verified alone, paper)")
+          .Bool("keep_accepted", &O::keep_accepted,
+                "a detection that its recogniser accepted on its own (a score over the class threshold, e.g. "
+                "voters.catalog_shape) stays accepted, with the recogniser's box, when no model fits it (objects "
+                "unlike every catalog model of their class are not lost); every other candidate, those below the "
+                "recogniser's threshold too, is the fit's to accept; false = the fit decides alone (paper)")
+          .Number("keep_min_coverage", &O::keep_min_coverage, 0, 1, "",
+                  "with keep_accepted: ... unless the class's best model covers less than this share of its points "
+                  "(the fit contradicts the recogniser: a dresser taken for a table by its size)")
           .Number("grid_resolution_m", [](O& o) -> double& { return o.grid.resolution; }, 0.005, 1, "",
                   "OctoMap voxel edge [m] of the per-scan occupancy grids")
           .Number("grid_max_range_m", [](O& o) -> double& { return o.grid.max_range; }, 0, 1000, "",
@@ -226,6 +242,19 @@ class RansacUprightFitter : public Fitter {
     const int threads = ctx.run.threads > 0 ? ctx.run.threads : tbb::task_arena::automatic;
     tbb::task_arena arena(threads);
     arena.execute([&] { FitAll(&out, ctx); });
+    if (o_.keep_accepted)
+      for (size_t d = 0; d < out.size(); ++d)
+        if (input[d].verified.value_or(false) && !out[d].verified.value_or(false) &&
+            out[d].coverage.value_or(0.f) >= o_.keep_min_coverage) {
+          // The recogniser's verdict, pose and box stand; the failed fit is kept as a note.
+          std::vector<std::string> notes = std::move(out[d].notes);
+          const std::string why = out[d].Rejection();
+          const std::optional<float> coverage = out[d].coverage;
+          out[d] = input[d];
+          out[d].notes.insert(out[d].notes.end(), notes.begin(), notes.end());
+          out[d].notes.push_back("no catalog model fits it (" + why + "): kept, its recogniser accepted it");
+          if (coverage) out[d].evidence["fit_coverage"] = *coverage;
+        }
     return out;
   }
 
@@ -354,16 +383,44 @@ class RansacUprightFitter : public Fitter {
       const ModelCloud& m = *by_class.at(det.cls)[fits[d].model];
       FreeSpaceOptions fo = o_.free_space;
       fo.point_spacing = m.Spacing();
-      long visible = 0, free = 0;
-      for (size_t s = 0; s < scans.size(); ++s) {
-        const Eigen::Isometry3f to_scan = scans[s]->pose.inverse() * det.model_pose;
-        Points pts(m.Cloud().size());
-        for (size_t i = 0; i < pts.size(); ++i) pts[i] = to_scan * m.Cloud()[i];
-        const FreeSpaceCount c = CountFreeSpace(*grids[s], pts, *scans[s]->origin, fo);
-        visible += c.visible;
-        free += c.free;
+      auto free_ratio = [&](const Eigen::Isometry3f& model_pose) {
+        long visible = 0, free = 0;
+        for (size_t s = 0; s < scans.size(); ++s) {
+          const Eigen::Isometry3f to_scan = scans[s]->pose.inverse() * model_pose;
+          Points pts(m.Cloud().size());
+          for (size_t i = 0; i < pts.size(); ++i) pts[i] = to_scan * m.Cloud()[i];
+          const FreeSpaceCount c = CountFreeSpace(*grids[s], pts, *scans[s]->origin, fo);
+          visible += c.visible;
+          free += c.free;
+        }
+        return visible > 0 ? float(double(free) / double(visible)) : 0.f;
+      };
+      det.free_space_ratio = free_ratio(det.model_pose);
+      if (*det.free_space_ratio > o_.max_free_space_ratio && o_.free_space_alternatives) {
+        // Coverage cannot tell near-tied poses apart (a model unlike the object, or a view of
+        // one side); what the sensor saw through can: the first that covers enough and is
+        // not in free space replaces the refused one.
+        const RansacOptions& ro_d = ro[d];
+        for (const Eigen::Vector3f& alt : fits[d].alternatives) {
+          const FitResult f = FinishAt(scenes[d], m, fits[d].model, ro_d, alt.x(), alt.y(), alt.z());
+          if (f.coverage < o_.min_coverage) continue;
+          const float ratio = free_ratio(f.pose);
+          if (ratio > o_.max_free_space_ratio) continue;
+          det.notes.push_back("free space refused the best pose (" + Fixed2(*det.free_space_ratio) +
+                              "); a near-tied pose passes");
+          det.model_pose = f.pose;
+          det.center = f.pose * m.Bounds().center();
+          det.yaw = f.yaw;
+          det.coverage = f.coverage;
+          det.rms.reset();
+          if (f.rms >= 0.f) det.rms = f.rms;
+          det.box = OrientedBox{det.center, m.Bounds().sizes(), f.yaw};
+          for (Check& c : det.checks)
+            if (c.name == "coverage") c = Check::AtLeast("coverage", f.coverage, o_.min_coverage);
+          det.free_space_ratio = ratio;
+          break;
+        }
       }
-      det.free_space_ratio = visible > 0 ? float(double(free) / double(visible)) : 0.f;
       det.checks.push_back(Check::AtMost("free_space_ratio", *det.free_space_ratio, o_.max_free_space_ratio));
       det.verified = det.checks.back().passed;
     });
@@ -476,7 +533,48 @@ class RansacUprightFitter : public Fitter {
       sp.points.insert(sp.points.end(), part.points.begin(), part.points.end());
       sp.normals.insert(sp.normals.end(), part.normals.begin(), part.normals.end());
     }
+    if (det.support.empty() && det.proposal >= 0) ProposalPoints(det, ctx, filter ? low : -INFINITY, &sp);
     return sp;
+  }
+
+  // A recogniser of object proposals (voters.catalog_shape) names no parts: the points to fit
+  // are the proposal's own (world frame), those below `low` (the floor) left out; normals from
+  // the segmentation when the graph has one.
+  static void ProposalPoints(const Detection& det, const FitContext& ctx, float low, ScenePoints* sp) {
+    const int s = det.proposal_scene;
+    if (s < 0 || s >= int(ctx.scenes.size()))
+      throw StageError("detection names the proposal of scene " + std::to_string(s) + " but there are " +
+                       std::to_string(ctx.scenes.size()));
+    const SceneParts& scene = ctx.scenes[size_t(s)];
+    if (!scene.scan || !scene.proposals || det.proposal >= int(scene.proposals->items.size()))
+      throw StageError("detection names proposal " + std::to_string(det.proposal) + " of scene " + std::to_string(s) +
+                       ", which has " + std::to_string(scene.proposals ? scene.proposals->items.size() : 0));
+    const Scan& scan = *scene.scan;
+    const Points* normals =
+        scene.segmentation && scene.segmentation->normals.size() == scan.points.size() ? &scene.segmentation->normals
+                                                                                       : nullptr;
+    const Eigen::Matrix3f R = scan.pose.linear();
+    const size_t first = sp->points.size();
+    for (int i : scene.proposals->items[size_t(det.proposal)].indices) {
+      if (i < 0 || i >= int(scan.points.size()))
+        throw StageError("proposal " + std::to_string(det.proposal) + " indexes point " + std::to_string(i) + " of " +
+                         std::to_string(scan.points.size()));
+      if (!scan.points[size_t(i)].allFinite()) continue;
+      const Eigen::Vector3f p = scan.pose * scan.points[size_t(i)];
+      if (p.z() < low) continue;
+      sp->points.push_back(p);
+      sp->normals.push_back(normals ? Eigen::Vector3f(R * (*normals)[size_t(i)]) : Eigen::Vector3f::Constant(NAN));
+    }
+    // Without a segmentation's normals, every RANSAC sample would draw a random yaw (a few in
+    // hundreds near the right one): the proposal's own k-NN plane normals give each sample the
+    // yaw of its face, as parts' normals do.
+    constexpr int kNeighbours = 16;
+    if (!normals && sp->points.size() - first > size_t(kNeighbours)) {
+      const Points own(sp->points.begin() + std::ptrdiff_t(first), sp->points.end());
+      const shape::KnnIndex index(own);
+      const shape::LocalShape local = shape::EstimateLocalShape(index, kNeighbours);
+      std::copy(local.normals.begin(), local.normals.end(), sp->normals.begin() + std::ptrdiff_t(first));
+    }
   }
 
   // Sampled clouds of `models` (same order), building the missing ones in parallel.
@@ -577,5 +675,5 @@ class RansacUprightFitter : public Fitter {
 }  // namespace
 }  // namespace furnihost
 
-FURNIHOST_PLUGIN(furnihost::RansacUprightFitter, "fitters.ransac_upright", "1.4.0",
+FURNIHOST_PLUGIN(furnihost::RansacUprightFitter, "fitters.ransac_upright", "1.5.0",
                  "upright RANSAC fit of catalog models (x, y, yaw) with coverage and OctoMap free-space verification")

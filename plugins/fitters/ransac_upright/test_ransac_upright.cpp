@@ -477,6 +477,124 @@ TEST(RansacUpright, ScanWithoutOriginSkipsTheFreeSpaceTest) {
             out[0].notes.end());
 }
 
+// A recogniser of object proposals (voters.catalog_shape) names a proposal, not parts, and the
+// graph has no segmentation: the fitter takes the proposal's points and estimates their normals
+// itself (without them every sample would draw a random yaw, and 10 samples rarely find the
+// pose).
+TEST(RansacUpright, ProposalHypothesesFitTheProposalsPointsAndFreeSpaceChoosesAmongTiedPoses) {
+  const Catalog cat = FurnitureCatalog();
+  const CatalogModel& chair = cat.Get("chair_b");
+  const SimScan sim = ScanOf(chair, kChairPose, 11);
+  Proposals props;
+  Proposal prop;
+  Eigen::Vector3f sum = Eigen::Vector3f::Zero();
+  for (size_t i = 0; i < sim.scan.points.size(); ++i)
+    if (sim.object[i] == 0) {
+      prop.indices.push_back(static_cast<int>(i));
+      sum += sim.scan.pose * sim.scan.points[i];
+    }
+  ASSERT_GT(prop.indices.size(), 1000u);
+  props.items.push_back(prop);
+  FitContext ctx;
+  ctx.scenes.push_back({&sim.scan, nullptr, nullptr, &props});  // no segmentation: no normals
+  ctx.catalog = cat.Ptrs();
+  ctx.run.seed = 3;
+  Detection h;
+  h.cls = "chair";
+  h.score = 0.3f;
+  h.center = sum / float(prop.indices.size());
+  h.proposal = 0;
+  // Seen from one side, the chair is covered as well by its turn by 180 degrees pushed back,
+  // which free space refuses: free_space_alternatives then takes the near-tied right pose.
+  int refused_by_free_space = 0;
+  for (uint64_t seed = 1; seed <= 8; ++seed) {
+    ctx.run.seed = seed;
+    const auto plain = MakeFitter()->Fit({h}, ctx);
+    ASSERT_EQ(plain.size(), 1u);
+    EXPECT_EQ(plain[0].model, "chair_b") << "seed " << seed;
+    EXPECT_GT(plain[0].coverage.value_or(0.f), 0.95f) << "seed " << seed;
+    refused_by_free_space += !plain[0].verified.value_or(false);
+    const auto out = MakeFitter({{"free_space_alternatives", true}})->Fit({h}, ctx);
+    const PoseError e = ErrorOf(out[0], chair, kChairPose);
+    EXPECT_TRUE(out[0].verified.value_or(false)) << "seed " << seed << ": " << out[0].Rejection();
+    EXPECT_LT(e.centre, kCentreTol) << "seed " << seed;
+    EXPECT_LT(e.yaw, kYawTol) << "seed " << seed;
+    if (!plain[0].verified.value_or(false)) {
+      EXPECT_EQ(plain[0].Rejection().rfind("free_space_ratio ", 0), 0u) << plain[0].Rejection();
+      EXPECT_NE(out[0].notes.back().find("a near-tied pose passes"), std::string::npos) << out[0].notes.back();
+    }
+  }
+  EXPECT_GT(refused_by_free_space, 0);  // the case the option is for occurred
+  // A proposal the scene does not have is refused.
+  h.proposal = 1;
+  EXPECT_THROW(MakeFitter()->Fit({h}, ctx), StageError);
+}
+
+// keep_accepted: what the recogniser accepted on its own stays accepted, with its checks and box,
+// when the fit fails, unless the fit covers less than keep_min_coverage (it contradicts it).
+TEST(RansacUpright, KeepAcceptedTrustsTheRecogniserUnlessTheFitContradictsIt) {
+  Catalog cat;
+  cat.models.push_back(Model("table_as_chair", "chair", Table(1.2f, 0.8f, 0.75f).mesh));
+  const CatalogModel chair = Model("real_chair", "chair", Chair(0.45f, 0.45f, 0.45f, 0.45f).mesh);
+  Scenes sc;
+  std::vector<int> parts;
+  const int s = sc.Add(ScanOf(chair, Upright(1.8f, 0.9f, 2.2f), 3), 0, &parts);
+  Detection h = Hypothesis(sc, "chair", s, parts);
+  const auto plain = MakeFitter()->Fit({h}, sc.Ctx(cat));
+  ASSERT_TRUE(plain[0].coverage.has_value());
+  const float c = *plain[0].coverage;
+  ASSERT_FALSE(plain[0].verified.value_or(true));
+  ASSERT_GT(c, 0.02f);
+  h.verified = true;  // as voters.catalog_shape leaves an accepted proposal
+  h.checks = {Check::AtLeast("score", 0.3, 0.2)};
+  h.box = OrientedBox{h.center, Eigen::Vector3f(0.45f, 0.45f, 0.9f), 0.f};
+  h.box_source = "proposal";
+  for (const float floor : {c - 0.01f, c + 0.01f}) {
+    const auto out = MakeFitter({{"keep_accepted", true}, {"keep_min_coverage", floor}})->Fit({h}, sc.Ctx(cat));
+    ASSERT_EQ(out.size(), 1u);
+    const Detection& d = out[0];
+    if (floor < c) {
+      EXPECT_TRUE(d.verified.value_or(false));
+      ASSERT_EQ(d.checks.size(), 1u);
+      EXPECT_EQ(d.checks[0].name, "score");
+      EXPECT_EQ(d.Rejection(), "");
+      EXPECT_EQ(d.box_source, "proposal");
+      EXPECT_EQ(d.center, h.center);
+      ASSERT_TRUE(d.evidence.count("fit_coverage"));
+      EXPECT_FLOAT_EQ(d.evidence.at("fit_coverage"), c);
+      EXPECT_NE(d.notes.back().find("kept, its recogniser accepted it"), std::string::npos) << d.notes.back();
+    } else {
+      EXPECT_FALSE(d.verified.value_or(true));
+      EXPECT_EQ(d.Rejection().rfind("coverage ", 0), 0u) << d.Rejection();
+    }
+  }
+  // A hypothesis its recogniser left undecided (or refused) is the fit's to decide.
+  h.verified.reset();
+  EXPECT_FALSE(MakeFitter({{"keep_accepted", true}, {"keep_min_coverage", 0.0}})
+                   ->Fit({h}, sc.Ctx(cat))[0]
+                   .verified.value_or(true));
+}
+
+// free_space_alternatives consults the near-tied poses only when free space refuses the best:
+// a fit that passes is unchanged bit for bit, and a chair the laser saw through stays refused
+// (no near-tied pose of it escapes the free space).
+TEST(RansacUpright, FreeSpaceAlternativesOnlyReplaceARefusedPose) {
+  const Catalog cat = FurnitureCatalog();
+  const CatalogModel& chair = cat.Get("chair_a");
+  for (bool chair_in_laser_scan : {false, true}) {
+    Scenes sc;
+    std::vector<int> parts;
+    sc.Add(ScanOf(chair, kChairPose, 4, true, chair_in_laser_scan), -2, nullptr);
+    const int s = sc.Add(ScanOf(chair, kChairPose, 5, false), 0, &parts);
+    const Detection h = Hypothesis(sc, "chair", s, parts);
+    const auto base = MakeFitter()->Fit({h}, sc.Ctx(cat));
+    const auto alt = MakeFitter({{"free_space_alternatives", true}})->Fit({h}, sc.Ctx(cat));
+    ASSERT_EQ(alt.size(), 1u);
+    EXPECT_EQ(alt[0].verified.value_or(false), chair_in_laser_scan) << alt[0].Rejection();
+    if (chair_in_laser_scan) ExpectSameFit(base[0], alt[0]);
+  }
+}
+
 TEST(RansacUpright, ClassWithoutModelsAndBadSupport) {
   const Catalog cat = FurnitureCatalog();
   Scenes sc;

@@ -94,6 +94,100 @@ Eigen::Isometry3f UprightIsometry(float x, float y, float z, float yaw) {
   return t;
 }
 
+// Optional upright ICP from `pose`, then the final figures of model `m` (index `win`) there.
+static void Finish(const ScenePoints& scene, const ModelCloud& m, int win, const RansacOptions& o, Pose2 pose, FitResult* out) {
+  const int n = static_cast<int>(scene.points.size());
+
+  // Optional upright ICP: nearest model point per scene point. "point": closed-form 2D rigid
+  // update of the point-to-point distances; "plane": linearised least squares of the distances
+  // along the model's horizontal normals (points on near-horizontal faces carry no x, y, yaw
+  // information and are left out), which slides along walls of the model instead of pulling
+  // each scene point onto its nearest model sample.
+  // ICP and the final figures use every `stride`-th scene point: all of them unless there are
+  // more than 4 x max_score_points (dense scans), then an even subset of about that many.
+  const size_t fig_cap = o.max_score_points > 0 ? 4 * static_cast<size_t>(o.max_score_points) : 0;
+  const size_t stride = fig_cap > 0 && size_t(n) > fig_cap ? (size_t(n) + fig_cap - 1) / fig_cap : 1;
+  for (int r = 0; r < o.refine_iterations; ++r) {
+    const Eigen::Isometry3f Tw = UprightIsometry(pose.tx, pose.ty, o.floor_z, pose.yaw);
+    const Eigen::Isometry3f Ti = Tw.inverse();
+    std::vector<Eigen::Vector2f> a, b, nrm;
+    for (size_t q = 0; q < scene.points.size(); q += stride) {
+      const Eigen::Vector3f& p = scene.points[q];
+      float d = 0.f;
+      const int j = m.Nearest(Ti * p, &d);
+      if (j < 0 || d > 2.f * m.InlierDistance()) continue;
+      if (o.refine_plane) {
+        const Eigen::Vector2f n = (Tw.linear() * m.Normals()[j]).head<2>();
+        if (n.norm() < 0.5f) continue;
+        nrm.push_back(n.normalized());
+      }
+      a.push_back((Tw * m.Cloud()[j]).head<2>());
+      b.push_back(p.head<2>());
+    }
+    if (a.size() < 3) break;
+    Eigen::Vector2f ca = Eigen::Vector2f::Zero(), cb = Eigen::Vector2f::Zero();
+    for (size_t q = 0; q < a.size(); ++q) {
+      ca += a[q];
+      cb += b[q];
+    }
+    ca /= float(a.size());
+    cb /= float(a.size());
+    float dth = 0.f;
+    Eigen::Vector2f t = Eigen::Vector2f::Zero();
+    if (o.refine_plane) {
+      // Model moved by a rotation dth about ca then t: a' ~ a + dth perp(a - ca) + t.
+      Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+      Eigen::Vector3d g = Eigen::Vector3d::Zero();
+      for (size_t q = 0; q < a.size(); ++q) {
+        const Eigen::Vector2f u = a[q] - ca;
+        const Eigen::Vector3d J(double(-u.y() * nrm[q].x() + u.x() * nrm[q].y()), nrm[q].x(), nrm[q].y());
+        const double res = double((a[q] - b[q]).dot(nrm[q]));
+        A += J * J.transpose();
+        g += J * res;
+      }
+      A.diagonal().array() += 1e-6 * (A.trace() + 1e-12);
+      const Eigen::Vector3d x = A.ldlt().solve(-g);
+      if (!x.allFinite()) break;
+      dth = static_cast<float>(x(0));
+      t = ca - Eigen::Rotation2Df(dth) * ca + Eigen::Vector2f(float(x(1)), float(x(2)));
+    } else {
+      double sxy = 0, sdot = 0;
+      for (size_t q = 0; q < a.size(); ++q) {
+        const Eigen::Vector2f u = a[q] - ca, v = b[q] - cb;
+        sxy += u.x() * v.y() - u.y() * v.x();
+        sdot += u.x() * v.x() + u.y() * v.y();
+      }
+      dth = static_cast<float>(std::atan2(sxy, sdot));
+      t = cb - Eigen::Rotation2Df(dth) * ca;
+    }
+    const Eigen::Rotation2Df R(dth);
+    const Eigen::Vector2f nt = R * Eigen::Vector2f(pose.tx, pose.ty) + t;
+    pose = {WrapAngle(pose.yaw + dth), nt.x(), nt.y()};
+    if (std::fabs(dth) < 1e-5f && (t - (ca - R * ca)).norm() < 1e-5f) break;
+  }
+
+  // Final figures on all scene points.
+  out->model = win;
+  out->x = pose.tx;
+  out->y = pose.ty;
+  out->yaw = pose.yaw;
+  out->pose = UprightIsometry(pose.tx, pose.ty, o.floor_z, pose.yaw);
+  const Eigen::Isometry3f Ti = out->pose.inverse();
+  double se = 0.0;
+  int tested = 0;
+  for (size_t q = 0; q < scene.points.size(); q += stride, ++tested) {
+    float d = 0.f;
+    m.Nearest(Ti * scene.points[q], &d);
+    if (d <= m.InlierDistance()) {
+      ++out->covered;
+      se += double(d) * d;
+    }
+  }
+  out->total = tested;
+  out->coverage = float(out->covered) / float(tested);
+  out->rms = out->covered > 0 ? static_cast<float>(std::sqrt(se / out->covered)) : -1.f;
+}
+
 FitResult FitUpright(const ScenePoints& scene, const std::vector<const ModelCloud*>& models,
                      const RansacOptions& o, uint64_t seed) {
   o.Check();
@@ -319,97 +413,26 @@ FitResult FitUpright(const ScenePoints& scene, const std::vector<const ModelClou
   } else {
     return out;
   }
-  const ModelCloud& m = *models[win];
-
-  // Optional upright ICP: nearest model point per scene point. "point": closed-form 2D rigid
-  // update of the point-to-point distances; "plane": linearised least squares of the distances
-  // along the model's horizontal normals (points on near-horizontal faces carry no x, y, yaw
-  // information and are left out), which slides along walls of the model instead of pulling
-  // each scene point onto its nearest model sample.
-  // ICP and the final figures use every `stride`-th scene point: all of them unless there are
-  // more than 4 x max_score_points (dense scans), then an even subset of about that many.
-  const size_t fig_cap = o.max_score_points > 0 ? 4 * static_cast<size_t>(o.max_score_points) : 0;
-  const size_t stride = fig_cap > 0 && size_t(n) > fig_cap ? (size_t(n) + fig_cap - 1) / fig_cap : 1;
-  for (int r = 0; r < o.refine_iterations; ++r) {
-    const Eigen::Isometry3f Tw = UprightIsometry(pose.tx, pose.ty, o.floor_z, pose.yaw);
-    const Eigen::Isometry3f Ti = Tw.inverse();
-    std::vector<Eigen::Vector2f> a, b, nrm;
-    for (size_t q = 0; q < scene.points.size(); q += stride) {
-      const Eigen::Vector3f& p = scene.points[q];
-      float d = 0.f;
-      const int j = m.Nearest(Ti * p, &d);
-      if (j < 0 || d > 2.f * m.InlierDistance()) continue;
-      if (o.refine_plane) {
-        const Eigen::Vector2f n = (Tw.linear() * m.Normals()[j]).head<2>();
-        if (n.norm() < 0.5f) continue;
-        nrm.push_back(n.normalized());
-      }
-      a.push_back((Tw * m.Cloud()[j]).head<2>());
-      b.push_back(p.head<2>());
-    }
-    if (a.size() < 3) break;
-    Eigen::Vector2f ca = Eigen::Vector2f::Zero(), cb = Eigen::Vector2f::Zero();
-    for (size_t q = 0; q < a.size(); ++q) {
-      ca += a[q];
-      cb += b[q];
-    }
-    ca /= float(a.size());
-    cb /= float(a.size());
-    float dth = 0.f;
-    Eigen::Vector2f t = Eigen::Vector2f::Zero();
-    if (o.refine_plane) {
-      // Model moved by a rotation dth about ca then t: a' ~ a + dth perp(a - ca) + t.
-      Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
-      Eigen::Vector3d g = Eigen::Vector3d::Zero();
-      for (size_t q = 0; q < a.size(); ++q) {
-        const Eigen::Vector2f u = a[q] - ca;
-        const Eigen::Vector3d J(double(-u.y() * nrm[q].x() + u.x() * nrm[q].y()), nrm[q].x(), nrm[q].y());
-        const double res = double((a[q] - b[q]).dot(nrm[q]));
-        A += J * J.transpose();
-        g += J * res;
-      }
-      A.diagonal().array() += 1e-6 * (A.trace() + 1e-12);
-      const Eigen::Vector3d x = A.ldlt().solve(-g);
-      if (!x.allFinite()) break;
-      dth = static_cast<float>(x(0));
-      t = ca - Eigen::Rotation2Df(dth) * ca + Eigen::Vector2f(float(x(1)), float(x(2)));
-    } else {
-      double sxy = 0, sdot = 0;
-      for (size_t q = 0; q < a.size(); ++q) {
-        const Eigen::Vector2f u = a[q] - ca, v = b[q] - cb;
-        sxy += u.x() * v.y() - u.y() * v.x();
-        sdot += u.x() * v.x() + u.y() * v.y();
-      }
-      dth = static_cast<float>(std::atan2(sxy, sdot));
-      t = cb - Eigen::Rotation2Df(dth) * ca;
-    }
-    const Eigen::Rotation2Df R(dth);
-    const Eigen::Vector2f nt = R * Eigen::Vector2f(pose.tx, pose.ty) + t;
-    pose = {WrapAngle(pose.yaw + dth), nt.x(), nt.y()};
-    if (std::fabs(dth) < 1e-5f && (t - (ca - R * ca)).norm() < 1e-5f) break;
-  }
-
-  // Final figures on all scene points.
-  out.model = win;
-  out.x = pose.tx;
-  out.y = pose.ty;
-  out.yaw = pose.yaw;
-  out.pose = UprightIsometry(pose.tx, pose.ty, o.floor_z, pose.yaw);
-  const Eigen::Isometry3f Ti = out.pose.inverse();
-  double se = 0.0;
-  int tested = 0;
-  for (size_t q = 0; q < scene.points.size(); q += stride, ++tested) {
-    float d = 0.f;
-    m.Nearest(Ti * scene.points[q], &d);
-    if (d <= m.InlierDistance()) {
-      ++out.covered;
-      se += double(d) * d;
-    }
-  }
-  out.total = tested;
-  out.coverage = float(out.covered) / float(tested);
-  out.rms = out.covered > 0 ? static_cast<float>(std::sqrt(se / out.covered)) : -1.f;
+  for (const Hyp& h : model_tied[win])
+    if (out.reached_bound && (h.pose.tx != pose.tx || h.pose.ty != pose.ty || h.pose.yaw != pose.yaw))
+      out.alternatives.emplace_back(h.pose.tx, h.pose.ty, h.pose.yaw);
+  Finish(scene, *models[win], win, o, pose, &out);
   return out;
 }
+
+FitResult FinishAt(const ScenePoints& scene, const ModelCloud& model, int index, const RansacOptions& options,
+                   float x, float y, float yaw) {
+  FitResult out;
+  out.total = static_cast<int>(scene.points.size());
+  out.reached_bound = true;
+  Pose2 pose;
+  pose.tx = x;
+  pose.ty = y;
+  pose.yaw = yaw;
+  Finish(scene, model, index, options, pose, &out);
+  return out;
+}
+
+
 
 }  // namespace furnihost::ransac_upright

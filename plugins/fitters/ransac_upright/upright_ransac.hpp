@@ -65,12 +65,21 @@ struct FitResult {
                                   // scene points; computed only to rank tied models (else -1)
   int iterations = 0;           // samples over all models
   std::vector<ModelTrial> trials;  // one per model
+  // The winning model's other poses whose subset coverage was within model_tie_tolerance of
+  // its best (x, y, yaw; best first, unrefined): what a verification that refuses the pose
+  // (free space) may try next (FinishAt).
+  std::vector<Eigen::Vector3f> alternatives;
 };
 
 // Eq. 7 with p_good = covered / all; +inf when p_good == 0.
 double RequiredIterations(double p_success, double p_good);
 
 Eigen::Isometry3f UprightIsometry(float x, float y, float z, float yaw);
+
+// The refinement (refine_iterations) and final figures of `model` (index `index`) placed at
+// (x, y, yaw): FitUpright's last step, for a pose chosen elsewhere (an alternative).
+FitResult FinishAt(const ScenePoints& scene, const ModelCloud& model, int index, const RansacOptions& options,
+                   float x, float y, float yaw);
 
 // Fits every model (tried in the given order, sharing the best score for early termination)
 // and returns the best. Deterministic for a seed, whatever the number of TBB threads.
