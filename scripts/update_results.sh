@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Regenerates the results from real runs (no hand-typed numbers):
-#   synthetic          configs/paper.json vs paper_nn.json vs paper_ism.json on benchmarks/synthetic.json
-#                      (objects outside the training catalog)
-#   synthetic_catalog  the same three on benchmarks/synthetic_catalog.json (training-catalog objects:
+#   synthetic          configs/paper.json vs paper_nn.json vs paper_ism.json vs laser_room.json on
+#                      benchmarks/synthetic.json (objects outside the training catalog)
+#   synthetic_catalog  the same four on benchmarks/synthetic_catalog.json (training-catalog objects:
 #                      fitting accuracy, per-object errors)
 #   scannet            configs/scannet.json vs scannet_hough.json vs scannet_nn.json vs scannet_ism.json
 #                      on benchmarks/scannet_dev.json
@@ -28,8 +28,8 @@ esac
 
 # set | dataset manifest | graph configs (the first is the baseline A of its report)
 SETS=(
-  "synthetic|benchmarks/synthetic.json|paper paper_nn paper_ism"
-  "synthetic_catalog|benchmarks/synthetic_catalog.json|paper paper_nn paper_ism"
+  "synthetic|benchmarks/synthetic.json|paper paper_nn paper_ism laser_room"
+  "synthetic_catalog|benchmarks/synthetic_catalog.json|paper paper_nn paper_ism laser_room"
   "scannet|benchmarks/scannet_dev.json|scannet scannet_hough scannet_nn scannet_ism"
   "sunrgbd|benchmarks/sunrgbd_dev.json|rgbd_view scannet"
 )
@@ -41,6 +41,7 @@ ROWS=(
   "scannet|scannet_ism|ScanNet dev"
   "sunrgbd|rgbd_view|SUN RGB-D dev"
   "synthetic|paper|synthetic rooms"
+  "synthetic|laser_room|synthetic rooms"
 )
 
 for entry in "${SETS[@]}"; do
