@@ -70,6 +70,8 @@ struct RansacUprightOptions {
   bool keep_accepted = false;  // a detection its recogniser accepted stays accepted when the fit fails
   float keep_min_coverage = 0.25f;  // ... unless the best model covers less than this share
   bool free_space_alternatives = false;  // a pose refused by free space: try the near-tied ones
+  bool one_class_per_object = false;  // accepted proposals of other classes overlapping a stronger one are refused
+  float object_iou = 0.5f;            // ... when their proposals' boxes overlap by this 3D IoU
   std::string cloud_cache_setting = "auto";  // as given: "auto", "off" or a folder
   std::string cloud_cache;  // folder of sampled model clouds (from cloud_cache_setting); empty = none
 
@@ -161,6 +163,12 @@ const ParamBinding<RansacUprightOptions>& Binding() {
           .Number("keep_min_coverage", &O::keep_min_coverage, 0, 1, "",
                   "with keep_accepted: ... unless the class's best model covers less than this share of its points "
                   "(the fit contradicts the recogniser: a dresser taken for a table by its size)")
+          .Bool("one_class_per_object", &O::one_class_per_object,
+                "one object, one class: of accepted detections made from proposals (voters.catalog_shape) whose "
+                "proposal boxes overlap by more than object_iou, those of another class than the highest-scored one "
+                "are refused (a chest also fitted as a table, an armchair also as a sofa)")
+          .Number("object_iou", &O::object_iou, 0.01, 1, "",
+                  "with one_class_per_object: the 3D IoU of two proposals' boxes above which they are one object")
           .Number("grid_resolution_m", [](O& o) -> double& { return o.grid.resolution; }, 0.005, 1, "",
                   "OctoMap voxel edge [m] of the per-scan occupancy grids")
           .Number("grid_max_range_m", [](O& o) -> double& { return o.grid.max_range; }, 0, 1000, "",
@@ -255,6 +263,7 @@ class RansacUprightFitter : public Fitter {
           out[d].notes.push_back("no catalog model fits it (" + why + "): kept, its recogniser accepted it");
           if (coverage) out[d].evidence["fit_coverage"] = *coverage;
         }
+    if (o_.one_class_per_object) OneClassPerObject(&out, ctx);
     return out;
   }
 
@@ -424,6 +433,43 @@ class RansacUprightFitter : public Fitter {
       det.checks.push_back(Check::AtMost("free_space_ratio", *det.free_space_ratio, o_.max_free_space_ratio));
       det.verified = det.checks.back().passed;
     });
+  }
+
+  // Accepted detections from proposals, strongest (recogniser score) first: one whose proposal
+  // overlaps a stronger accepted one's of another class by more than object_iou is the same
+  // object read as another class, and is refused.
+  void OneClassPerObject(std::vector<Detection>* dets, const FitContext& ctx) const {
+    auto box_of = [&](const Detection& d) -> const Eigen::AlignedBox3f* {
+      if (d.proposal < 0 || d.proposal_scene < 0 || d.proposal_scene >= int(ctx.scenes.size())) return nullptr;
+      const Proposals* p = ctx.scenes[size_t(d.proposal_scene)].proposals;
+      return p && d.proposal < int(p->items.size()) ? &p->items[size_t(d.proposal)].box : nullptr;
+    };
+    std::vector<size_t> order;
+    for (size_t i = 0; i < dets->size(); ++i)
+      if ((*dets)[i].verified.value_or(false) && box_of((*dets)[i])) order.push_back(i);
+    std::stable_sort(order.begin(), order.end(),
+                     [&](size_t a, size_t b) { return (*dets)[a].score > (*dets)[b].score; });
+    std::vector<size_t> kept;
+    for (size_t i : order) {
+      Detection& d = (*dets)[i];
+      float worst = 0.f;
+      const Detection* by = nullptr;
+      for (size_t k : kept) {
+        const Detection& s = (*dets)[k];
+        if (s.cls == d.cls || s.proposal_scene != d.proposal_scene) continue;
+        const float iou = shape::BoxIou(*box_of(s), *box_of(d));
+        if (iou > worst) {
+          worst = iou;
+          by = &s;
+        }
+      }
+      if (by && worst > o_.object_iou) {
+        d.notes.push_back("the same object as an accepted " + by->cls + " (score " + Fixed2(by->score) + ")");
+        Reject(&d, Check::AtMost("iou_with_stronger_class", worst, o_.object_iou));
+        continue;
+      }
+      kept.push_back(i);
+    }
   }
 
   static void Reject(Detection* det, Check failed) {

@@ -530,6 +530,51 @@ TEST(RansacUpright, ProposalHypothesesFitTheProposalsPointsAndFreeSpaceChoosesAm
   EXPECT_THROW(MakeFitter()->Fit({h}, ctx), StageError);
 }
 
+// one_class_per_object: two accepted readings of one proposal (its box overlapping another's by
+// more than object_iou) keep only the higher-scored class; a proposal elsewhere is untouched.
+TEST(RansacUpright, OneClassPerObjectRefusesTheWeakerReadingOfAProposal) {
+  const Catalog cat = FurnitureCatalog();
+  const SimScan sim = ScanOf(cat.Get("chair_b"), kChairPose, 12);
+  Proposals props;
+  Proposal chair_points, background;
+  for (size_t i = 0; i < sim.scan.points.size(); ++i) {
+    Proposal& p = sim.object[i] == 0 ? chair_points : background;
+    p.indices.push_back(static_cast<int>(i));
+    p.box.extend(sim.scan.points[i]);
+  }
+  ASSERT_FALSE(background.indices.empty());
+  props.items = {chair_points, chair_points, background};
+  FitContext ctx;
+  ctx.scenes.push_back({&sim.scan, nullptr, nullptr, &props});
+  ctx.catalog = cat.Ptrs();
+  // Each accepted by its recogniser; keep_accepted with floor 0 keeps them whatever the fit says.
+  auto accepted = [&](const std::string& cls, float score, int proposal) {
+    Detection d;
+    d.cls = cls;
+    d.score = score;
+    d.proposal = proposal;
+    d.center = sim.scan.pose * props.items[size_t(proposal)].box.center();
+    d.verified = true;
+    d.checks = {Check::AtLeast("score", score, 0.1)};
+    return d;
+  };
+  const std::vector<Detection> in = {accepted("table", 0.3f, 1), accepted("chair", 0.6f, 0),
+                                     accepted("table", 0.2f, 2)};
+  const nlohmann::json keep = {{"keep_accepted", true}, {"keep_min_coverage", 0.0}};
+  nlohmann::json exclusive = keep;
+  exclusive["one_class_per_object"] = true;
+  const auto both = MakeFitter(keep)->Fit(in, ctx);
+  const auto one = MakeFitter(exclusive)->Fit(in, ctx);
+  ASSERT_EQ(both.size(), 3u);
+  ASSERT_EQ(one.size(), 3u);
+  for (const Detection& d : both) EXPECT_TRUE(d.verified.value_or(false)) << d.cls << ": " << d.Rejection();
+  EXPECT_FALSE(one[0].verified.value_or(true));  // the table reading of the chair's points
+  EXPECT_EQ(one[0].Rejection(), "iou_with_stronger_class 1 > 0.5");
+  EXPECT_NE(one[0].notes.back().find("the same object as an accepted chair"), std::string::npos) << one[0].notes.back();
+  EXPECT_TRUE(one[1].verified.value_or(false)) << one[1].Rejection();
+  EXPECT_TRUE(one[2].verified.value_or(false)) << one[2].Rejection();  // the room around: another object
+}
+
 // keep_accepted: what the recogniser accepted on its own stays accepted, with its checks and box,
 // when the fit fails, unless the fit covers less than keep_min_coverage (it contradicts it).
 TEST(RansacUpright, KeepAcceptedTrustsTheRecogniserUnlessTheFitContradictsIt) {
