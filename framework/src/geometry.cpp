@@ -4,6 +4,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 #include <unordered_map>
 #include <unordered_set>
@@ -253,7 +254,9 @@ float Cross2(const Eigen::Vector2f& o, const Eigen::Vector2f& a, const Eigen::Ve
 }
 }  // namespace
 
-std::vector<Eigen::Vector2f> ConvexHull2D(std::vector<Eigen::Vector2f> p) {
+namespace {
+// Andrew's monotone chain over p (sorted and deduplicated here).
+std::vector<Eigen::Vector2f> MonotoneChain(std::vector<Eigen::Vector2f> p) {
   std::sort(p.begin(), p.end(), [](const auto& a, const auto& b) { return a.x() != b.x() ? a.x() < b.x() : a.y() < b.y(); });
   p.erase(std::unique(p.begin(), p.end()), p.end());
   if (p.size() < 3) return p;
@@ -269,6 +272,48 @@ std::vector<Eigen::Vector2f> ConvexHull2D(std::vector<Eigen::Vector2f> p) {
   }
   h.resize(k - 1);
   return h;
+}
+}  // namespace
+
+std::vector<Eigen::Vector2f> ConvexHull2D(std::vector<Eigen::Vector2f> p) {
+  // Akl-Toussaint: a point well inside the polygon of the extreme points in 8 directions is not
+  // a hull vertex, so the sort (the cost) sees only the points near the outline. "Well inside":
+  // by a margin far above float rounding, so the chain makes the same decisions as on all points.
+  constexpr size_t kFilterFrom = 64;
+  if (p.size() >= kFilterFrom) {
+    constexpr int kDirs = 8;
+    const double dx[kDirs] = {1, -1, 0, 0, 1, -1, 1, -1}, dy[kDirs] = {0, 0, 1, -1, 1, -1, -1, 1};
+    size_t ext[kDirs] = {};
+    double best[kDirs];
+    std::fill(best, best + kDirs, -std::numeric_limits<double>::infinity());
+    bool finite = true;
+    for (size_t i = 0; i < p.size() && finite; ++i) {
+      finite = p[i].allFinite();
+      for (int d = 0; d < kDirs; ++d) {
+        const double v = dx[d] * p[i].x() + dy[d] * p[i].y();
+        if (v > best[d]) best[d] = v, ext[d] = i;
+      }
+    }
+    if (finite) {
+      std::vector<Eigen::Vector2f> corners;
+      for (size_t e : ext) corners.push_back(p[e]);
+      const std::vector<Eigen::Vector2f> poly = MonotoneChain(corners);  // counter-clockwise
+      const double span = std::max(best[0] + best[1], best[2] + best[3]);
+      const double margin = 1e-4 * span * span + 1e-12;
+      if (poly.size() >= 3) {
+        auto inside = [&](const Eigen::Vector2f& q) {
+          for (size_t e = 0; e < poly.size(); ++e) {
+            const Eigen::Vector2d a = poly[e].cast<double>(), b = poly[(e + 1) % poly.size()].cast<double>();
+            const Eigen::Vector2d v = q.cast<double>();
+            if ((b.x() - a.x()) * (v.y() - a.y()) - (b.y() - a.y()) * (v.x() - a.x()) <= margin) return false;
+          }
+          return true;
+        };
+        p.erase(std::remove_if(p.begin(), p.end(), inside), p.end());
+      }
+    }
+  }
+  return MonotoneChain(std::move(p));
 }
 
 }  // namespace furnihost

@@ -1,0 +1,77 @@
+// SDK geometry: ConvexHull2D drops the points well inside the outline before its sort
+// (Akl-Toussaint); its hulls must equal those of the plain monotone chain over every point,
+// bit for bit, including on grids and edges full of collinear points.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+#include "furnihost/geometry.hpp"
+
+namespace {
+
+using V2 = Eigen::Vector2f;
+
+// The plain algorithm, as ConvexHull2D was before the filter: the reference.
+std::vector<V2> PlainHull(std::vector<V2> p) {
+  auto cross = [](const V2& o, const V2& a, const V2& b) {
+    return (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
+  };
+  std::sort(p.begin(), p.end(), [](const V2& a, const V2& b) { return a.x() != b.x() ? a.x() < b.x() : a.y() < b.y(); });
+  p.erase(std::unique(p.begin(), p.end()), p.end());
+  if (p.size() < 3) return p;
+  std::vector<V2> h(2 * p.size());
+  size_t k = 0;
+  for (size_t i = 0; i < p.size(); ++i) {
+    while (k >= 2 && cross(h[k - 2], h[k - 1], p[i]) <= 0) --k;
+    h[k++] = p[i];
+  }
+  for (size_t i = p.size() - 1, t = k + 1; i > 0; --i) {
+    while (k >= t && cross(h[k - 2], h[k - 1], p[i - 1]) <= 0) --k;
+    h[k++] = p[i - 1];
+  }
+  h.resize(k - 1);
+  return h;
+}
+
+TEST(Geometry, ConvexHullEqualsThePlainMonotoneChain) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  int cases = 0;
+  for (int n : {3, 10, 63, 64, 65, 200, 5000}) {
+    for (int kind = 0; kind < 6; ++kind) {
+      for (int rep = 0; rep < 8; ++rep, ++cases) {
+        std::vector<V2> p;
+        const float yaw = u(rng) * 3.14159f, c = std::cos(yaw), s = std::sin(yaw);
+        const V2 shift(3.f * u(rng) + 4.f, 3.f * u(rng) - 2.f);  // away from the origin, as scans are
+        for (int i = 0; i < n; ++i) {
+          V2 q;
+          switch (kind) {
+            case 0: q = V2(u(rng), u(rng)); break;                                      // square
+            case 1: q = V2(u(rng), 0.02f * u(rng)); break;                              // thin strip
+            case 2: q = V2(std::round(8 * u(rng)) / 8, std::round(8 * u(rng)) / 8); break;  // grid: collinear
+            case 3: {                                                                    // rectangle outline
+              const float t = u(rng);
+              q = (i % 4 == 0) ? V2(t, -0.5f) : (i % 4 == 1) ? V2(t, 0.5f) : (i % 4 == 2) ? V2(-1.f, t / 2) : V2(1.f, t / 2);
+              break;
+            }
+            case 4: q = V2(0.3f * std::round(u(rng)), 0.3f * std::round(u(rng))); break;  // heavy duplicates
+            default: {                                                                   // disc
+              const float a = 3.14159f * u(rng), r = std::sqrt(0.5f * (u(rng) + 1.f));
+              q = V2(r * std::cos(a), r * std::sin(a));
+            }
+          }
+          p.emplace_back(c * q.x() - s * q.y() + shift.x(), s * q.x() + c * q.y() + shift.y());
+        }
+        const std::vector<V2> want = PlainHull(p), got = furnihost::ConvexHull2D(p);
+        ASSERT_EQ(got.size(), want.size()) << "n " << n << " kind " << kind << " rep " << rep;
+        for (size_t i = 0; i < got.size(); ++i)
+          ASSERT_TRUE(got[i] == want[i]) << "n " << n << " kind " << kind << " rep " << rep << " vertex " << i;
+      }
+    }
+  }
+  EXPECT_EQ(cases, 7 * 6 * 8);
+}
+
+}  // namespace
