@@ -110,6 +110,31 @@ TEST(Determinism, StubChainIdenticalAcrossThreadsAndRuns) {
   if (!HasFailure()) fs::remove_all(dir);
 }
 
+// A fresh folder `name` with g.json: the shipped config `config` (configs/<config>.json) whose
+// model cache is moved into the folder, out of the source tree. Returns the folder.
+std::string VariantFolder(const std::string& name, const std::string& config) {
+  const std::string src = furnihost::testing::SourceDir();
+  const std::string dir = furnihost::testing::TempDir(name);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  furnihost::AtomicWriteText(dir + "/g.json", nlohmann::json({{"extends", src + "/configs/" + config + ".json"},
+                                                              {"model_cache", dir + "/" + config + ".fhm"}})
+                                                  .dump());
+  return dir;
+}
+
+// detections.json (as compared) of g.json in `dir` on the demo room with t = 1 and 2 threads.
+void DetectWithOneAndTwoThreads(const std::string& dir, std::string results[2]) {
+  const std::string scan = furnihost::testing::SourceDir() + "/data/demo/room.pcd";
+  for (int t = 1; t <= 2; ++t) {
+    auto r = Furnihost("-q --graph " + dir + "/g.json " + scan + " --threads " + std::to_string(t) + " --out " + dir +
+                           "/out" + std::to_string(t),
+                       dir);
+    ASSERT_EQ(r.code, 0) << r.err;
+    results[t - 1] = Comparable(dir + "/out" + std::to_string(t) + "/detections.json");
+  }
+}
+
 // The paper's graph (configs/paper.json) on the bundled demo room, with every real plugin it
 // names: training with 1 and 2 threads gives the same model, and detection with 1 and 2
 // threads bit-identical detections.json.
@@ -121,26 +146,14 @@ TEST(Determinism, PaperGraphOnDemoRoomIdenticalAcrossThreads) {
     ASSERT_NE(reg->Find(st.at("type").get<std::string>()), nullptr)
         << "configs/paper.json needs plugin " << st.at("type") << " (build all plugins)";
   }
-  const std::string dir = furnihost::testing::TempDir("determinism_paper");
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  // A variant that only moves the model cache out of the source tree.
-  furnihost::AtomicWriteText(dir + "/g.json", nlohmann::json({{"extends", src + "/configs/paper.json"},
-                                                              {"model_cache", dir + "/paper.fhm"}})
-                                                  .dump());
-  const std::string scan = src + "/data/demo/room.pcd";
+  const std::string dir = VariantFolder("determinism_paper", "paper");
   ASSERT_EQ(Furnihost("train -q --graph " + dir + "/g.json --threads 2", dir).code, 0);
   ASSERT_EQ(Furnihost("train -q --graph " + dir + "/g.json --threads 1 --out " + dir + "/paper1.fhm", dir).code, 0);
   EXPECT_EQ(Comparable(furnihost::LoadModel(dir + "/paper.fhm")), Comparable(furnihost::LoadModel(dir + "/paper1.fhm")))
       << "the trained model depends on the thread count";
   std::string results[2];
-  for (int t = 1; t <= 2; ++t) {
-    auto r = Furnihost("--graph " + dir + "/g.json " + scan + " --threads " + std::to_string(t) + " --out " + dir +
-                           "/out" + std::to_string(t),
-                       dir);
-    ASSERT_EQ(r.code, 0) << r.err;
-    results[t - 1] = Comparable(dir + "/out" + std::to_string(t) + "/detections.json");
-  }
+  DetectWithOneAndTwoThreads(dir, results);
+  if (HasFatalFailure()) return;
   EXPECT_NE(results[0].find("\"class\""), std::string::npos) << "vacuous: nothing detected in the demo room";
   EXPECT_EQ(results[0], results[1]) << "1 vs 2 threads";
   if (!HasFailure()) fs::remove_all(dir);
@@ -156,21 +169,10 @@ TEST(Determinism, DemoGraphFindsTheDemoRoomsObjectsIdenticallyAcrossThreads) {
   auto reg = furnihost::testing::MakeRegistry();
   for (const char* type : {"sensors.scan_file", "proposals.clusters", "voters.catalog_shape", "fitters.ransac_upright"})
     ASSERT_NE(reg->Find(type), nullptr) << "configs/laser_room.json needs plugin " << type << " (build all plugins)";
-  const std::string dir = furnihost::testing::TempDir("determinism_demo");
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  furnihost::AtomicWriteText(dir + "/g.json", nlohmann::json({{"extends", src + "/configs/laser_room.json"},
-                                                              {"model_cache", dir + "/demo.fhm"}})
-                                                  .dump());
-  const std::string scan = src + "/data/demo/room.pcd";
+  const std::string dir = VariantFolder("determinism_demo", "laser_room");
   std::string results[2];
-  for (int t = 1; t <= 2; ++t) {
-    auto r = Furnihost("-q --graph " + dir + "/g.json " + scan + " --threads " + std::to_string(t) + " --out " + dir +
-                           "/out" + std::to_string(t),
-                       dir);
-    ASSERT_EQ(r.code, 0) << r.err;
-    results[t - 1] = Comparable(dir + "/out" + std::to_string(t) + "/detections.json");
-  }
+  DetectWithOneAndTwoThreads(dir, results);
+  if (HasFatalFailure()) return;
   EXPECT_EQ(results[0], results[1]) << "1 vs 2 threads";
   const nlohmann::json det = furnihost::ReadJson(dir + "/out1/detections.json").at("detections");
   const nlohmann::json gt = furnihost::ReadJson(src + "/data/demo/room.gt.json").at("objects");

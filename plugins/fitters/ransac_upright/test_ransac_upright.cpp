@@ -369,16 +369,26 @@ TEST(RansacUpright, RecoversTablePoseUpToItsSymmetry) {
   EXPECT_TRUE(out[0].verified.value_or(false)) << out[0].Rejection();
 }
 
-TEST(RansacUpright, WrongShapeIsRejectedByCoverage) {
+// A scanned chair whose class has one catalog model, a table mesh filed as a chair: no pose of it
+// covers the chair's points.
+struct WrongShapeScene {
   Catalog cat;
-  // A table mesh filed as a chair: the only model the chair hypothesis can try.
-  cat.models.push_back(Model("table_as_chair", "chair", Table(1.2f, 0.8f, 0.75f).mesh));
-  const CatalogModel chair = Model("real_chair", "chair", Chair(0.45f, 0.45f, 0.45f, 0.45f).mesh);
   Scenes sc;
   std::vector<int> parts;
-  const int s = sc.Add(ScanOf(chair, Upright(1.8f, 0.9f, 2.2f), 3), 0, &parts);
+  int scene = 0;
+};
+WrongShapeScene MakeWrongShapeScene() {
+  WrongShapeScene w;
+  w.cat.models.push_back(Model("table_as_chair", "chair", Table(1.2f, 0.8f, 0.75f).mesh));
+  const CatalogModel chair = Model("real_chair", "chair", Chair(0.45f, 0.45f, 0.45f, 0.45f).mesh);
+  w.scene = w.sc.Add(ScanOf(chair, Upright(1.8f, 0.9f, 2.2f), 3), 0, &w.parts);
+  return w;
+}
+
+TEST(RansacUpright, WrongShapeIsRejectedByCoverage) {
+  const WrongShapeScene w = MakeWrongShapeScene();
   auto fitter = MakeFitter();
-  const auto out = fitter->Fit({Hypothesis(sc, "chair", s, parts)}, sc.Ctx(cat));
+  const auto out = fitter->Fit({Hypothesis(w.sc, "chair", w.scene, w.parts)}, w.sc.Ctx(w.cat));
   ASSERT_EQ(out.size(), 1u);
   const Detection& d = out[0];
   ASSERT_TRUE(d.verified.has_value());
@@ -578,13 +588,10 @@ TEST(RansacUpright, OneClassPerObjectRefusesTheWeakerReadingOfAProposal) {
 // keep_accepted: what the recogniser accepted on its own stays accepted, with its checks and box,
 // when the fit fails, unless the fit covers less than keep_min_coverage (it contradicts it).
 TEST(RansacUpright, KeepAcceptedTrustsTheRecogniserUnlessTheFitContradictsIt) {
-  Catalog cat;
-  cat.models.push_back(Model("table_as_chair", "chair", Table(1.2f, 0.8f, 0.75f).mesh));
-  const CatalogModel chair = Model("real_chair", "chair", Chair(0.45f, 0.45f, 0.45f, 0.45f).mesh);
-  Scenes sc;
-  std::vector<int> parts;
-  const int s = sc.Add(ScanOf(chair, Upright(1.8f, 0.9f, 2.2f), 3), 0, &parts);
-  Detection h = Hypothesis(sc, "chair", s, parts);
+  const WrongShapeScene w = MakeWrongShapeScene();
+  const Catalog& cat = w.cat;
+  const Scenes& sc = w.sc;
+  Detection h = Hypothesis(sc, "chair", w.scene, w.parts);
   const auto plain = MakeFitter()->Fit({h}, sc.Ctx(cat));
   ASSERT_TRUE(plain[0].coverage.has_value());
   const float c = *plain[0].coverage;
