@@ -42,6 +42,32 @@ void WriteParts(const std::string& path, const Scan& scan, const Segmentation& s
   WritePlyInFrame(path, pts, scan.frame, &cols);
 }
 
+// Every point of the scan, those of an object proposal in a random colour per proposal (a point
+// in several, as the variants of one cluster are, takes the first), the rest grey: what a
+// proposer made of the scan.
+void WriteProposals(const std::string& path, const Scan& scan, const Proposals& proposals, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_int_distribution<int> c(40, 255);
+  std::vector<std::array<uint8_t, 3>> cols(scan.points.size(), std::array<uint8_t, 3>{128, 128, 128});
+  std::vector<char> taken(scan.points.size(), 0);
+  for (const Proposal& p : proposals.items) {
+    const std::array<uint8_t, 3> col{static_cast<uint8_t>(c(rng)), static_cast<uint8_t>(c(rng)), static_cast<uint8_t>(c(rng))};
+    for (int i : p.indices)
+      if (i >= 0 && size_t(i) < scan.points.size() && !taken[size_t(i)]) {
+        taken[size_t(i)] = 1;
+        cols[size_t(i)] = col;
+      }
+  }
+  Points pts;
+  std::vector<std::array<uint8_t, 3>> kept;
+  for (size_t i = 0; i < scan.points.size(); ++i)
+    if (scan.points[i].allFinite()) {
+      pts.push_back(scan.points[i]);
+      kept.push_back(cols[i]);
+    }
+  WritePlyInFrame(path, pts, scan.frame, &kept);
+}
+
 // The verified CAD models, coloured by class, in the file frame of `scan` (the first scan of
 // a fused group: detections are in its world frame).
 void WriteFitted(const std::string& path, const std::vector<Detection>& dets, const Catalog& catalog, const Scan& scan) {
@@ -180,7 +206,9 @@ int RunDetect(const std::vector<std::string>& args) {
   app.add_option("--pose", poses, "pose x,y,z,yaw_deg of each scan in the common frame (once per scan, with --fuse)")
       ->allow_extra_args(false);
   app.add_flag("--fuse", fuse, "vote with all scans in one common space (multi-view fusion, paper Sect. VII-C)");
-  app.add_flag("--save-parts", save_parts, "write parts.ply: the segmentation, a random colour per part");
+  app.add_flag("--save-parts", save_parts,
+               "write parts.ply: the segmentation, a random colour per part (a graph with a proposer and no "
+               "segmenter: proposals.ply, a colour per object proposal, the other points grey)");
   app.add_flag("--retrain", retrain, "retrain the model even if the cache is valid");
   app.add_flag("--strict", strict, "invalid catalog entries are fatal instead of skipped");
   if (auto rc = Parse(app, args)) return *rc;
@@ -246,7 +274,12 @@ int RunDetect(const std::vector<std::string>& args) {
         const std::string name = r.segmentations.size() > 1 ? "parts_" + std::to_string(i) + ".ply" : "parts.ply";
         WriteParts((fs::path(dir) / name).string(), r.scans[i], r.segmentations[i], ctx.seed);
       }
-      if (r.segmentations.empty()) spdlog::warn("--save-parts: the graph has no segmenter");
+      for (size_t i = 0; r.segmentations.empty() && i < r.proposals.size() && i < r.scans.size(); ++i) {
+        const std::string name = r.proposals.size() > 1 ? "proposals_" + std::to_string(i) + ".ply" : "proposals.ply";
+        WriteProposals((fs::path(dir) / name).string(), r.scans[i], r.proposals[i], ctx.seed);
+      }
+      if (r.segmentations.empty() && r.proposals.empty())
+        spdlog::warn("--save-parts: the graph has no segmenter or proposer");
     }
     nlohmann::json j;
     j["scan"] = group.size() == 1 ? nlohmann::json(group.front().path) : nlohmann::json(nlohmann::json::array());

@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <set>
 
 #include "furnihost/catalog.hpp"
 #include "furnihost/geometry.hpp"
@@ -192,5 +193,23 @@ TEST(Determinism, DemoGraphFindsTheDemoRoomsObjectsIdenticallyAcrossThreads) {
   for (size_t i = 0; i < det.size(); ++i)
     EXPECT_FALSE(!used[i] && det[i].value("verified", false)) << "false positive: " << det[i].at("class") << " at "
                                                                 << det[i].at("center");
+  // --save-parts with a proposer and no segmenter: proposals.ply, every finite point, the
+  // proposals' points coloured, the rest grey.
+  auto r = Furnihost("-q --graph " + dir + "/g.json " + src + "/data/demo/room.pcd --save-parts --out " + dir + "/parts", dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_FALSE(fs::exists(dir + "/parts/parts.ply"));
+  const std::string ply = Bytes(dir + "/parts/proposals.ply");
+  ASSERT_NE(ply.find("element vertex 97983\n"), std::string::npos) << ply.substr(0, 200);
+  const size_t body = ply.find("end_header\n") + 11;
+  ASSERT_EQ(ply.size() - body, 97983u * 15u);
+  std::set<std::array<uint8_t, 3>> colours;
+  size_t grey = 0;
+  for (size_t at = body + 12; at + 3 <= ply.size(); at += 15) {
+    const std::array<uint8_t, 3> c{uint8_t(ply[at]), uint8_t(ply[at + 1]), uint8_t(ply[at + 2])};
+    colours.insert(c);
+    grey += c == std::array<uint8_t, 3>{128, 128, 128};
+  }
+  EXPECT_GT(colours.size(), 5u);              // the objects' proposals
+  EXPECT_GT(grey, 97983u / 2);                 // floor and walls: no proposal
   if (!HasFailure()) fs::remove_all(dir);
 }
