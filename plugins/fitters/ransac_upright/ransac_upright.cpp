@@ -11,6 +11,13 @@
 // (max_shift_m) only poses within a distance of the voter's centre are tried, and the kept pose
 // is refined by upright ICP steps (refine_iterations, point-to-plane by default).
 //
+// After a recogniser of object proposals (voters.catalog_shape; configs/laser_room.json) the
+// points fitted are the proposal's, with normals of their own k-NN planes when the graph has no
+// segmentation. Options for that route: free_space_alternatives (a pose refused by free space
+// gives way to a near-tied one that is not), keep_accepted (what the recogniser accepted by its
+// own threshold stays when no model fits it, unless the fit contradicts it) and
+// one_class_per_object (two accepted readings of one proposal: the higher-scored class stays).
+//
 // Model clouds are sampled once per stage object (Pipeline keeps its stages for every scan of
 // a run) and kept between runs in a disk cache of their own (cloud_cache; ModelCloud::Save /
 // Load), not in the model file: Pipeline does not call Fitter::Prepare, and the clouds depend
