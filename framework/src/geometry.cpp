@@ -120,6 +120,12 @@ Points VoxelDownsample(const Points& points, float voxel, std::vector<int>* kept
 }
 
 VoxelNormals EstimateVoxelNormals(const Points& points, float voxel) {
+  return EstimateVoxelNormals(points, voxel, [](size_t b, size_t e, const std::function<void(size_t, size_t)>& body) {
+    if (b < e) body(b, e);
+  });
+}
+
+VoxelNormals EstimateVoxelNormals(const Points& points, float voxel, const RangeFor& pfor) {
   VoxelNormals out;
   FlatSlots slot(points.size() / 4 + 16);
   std::vector<Eigen::Vector3d> sum;
@@ -141,7 +147,9 @@ VoxelNormals EstimateVoxelNormals(const Points& points, float voxel) {
   for (size_t v = 0; v < n; ++v) out.centroids[v] = (sum[v] / count[v]).cast<float>();
   out.normals.assign(n, Eigen::Vector3f::UnitZ());
   out.flat.assign(n, 0);
-  for (size_t v = 0; v < n; ++v) {
+  // Each voxel's fit reads the centroids and writes its own entries only.
+  pfor(0, n, [&](size_t first, size_t last) {
+  for (size_t v = first; v < last; ++v) {
     Eigen::Vector3d mean = Eigen::Vector3d::Zero();
     Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
     int k = 0;
@@ -165,6 +173,7 @@ VoxelNormals EstimateVoxelNormals(const Points& points, float voxel) {
     out.normals[v] = nrm.cast<float>();
     out.flat[v] = ev[0] < 0.05 * ev[1];
   }
+  });
   return out;
 }
 

@@ -237,11 +237,11 @@ float LowestLevel(const std::vector<float>& z, float lo) {
 }
 
 // The height map of `w` (finite points); nullopt when too little floor is seen.
-std::optional<GroundModel> HeightMap(const Points& w, const GroundOptions& o) {
+std::optional<GroundModel> HeightMap(const Points& w, const GroundOptions& o, const RangeFor& pfor) {
   // Horizontal surfaces (coarse voxel normals within 25 deg of vertical) near the bottom of the
   // scan: the floor candidates. Walls and furniture sides do not count, so a cell's floor is
   // not pulled up by the wall standing in it.
-  const VoxelNormals vn = EstimateVoxelNormals(w, kNormalVoxel);
+  const VoxelNormals vn = EstimateVoxelNormals(w, kNormalVoxel, pfor);
   std::vector<float> all_z;
   all_z.reserve(w.size());
   for (const auto& p : w) all_z.push_back(p.z());
@@ -423,6 +423,12 @@ std::optional<GroundModel> HeightMap(const Points& w, const GroundOptions& o) {
 }  // namespace
 
 GroundModel EstimateGround(const Points& points, const GroundOptions& o) {
+  return EstimateGround(points, o, [](size_t b, size_t e, const std::function<void(size_t, size_t)>& body) {
+    if (b < e) body(b, e);
+  });
+}
+
+GroundModel EstimateGround(const Points& points, const GroundOptions& o, const RangeFor& pfor) {
   if (o.kind == "fixed") return GroundModel::Level(o.fixed_z, "fixed");
   Points w;
   w.reserve(points.size());
@@ -431,7 +437,7 @@ GroundModel EstimateGround(const Points& points, const GroundOptions& o) {
   if (w.empty()) return GroundModel::Level(0.f, "estimated");
   if (o.kind == "level") return GroundModel::Level(EstimateLevelZ(w), "estimated");
   if (o.kind == "plane") return GroundModel::Tilted(EstimatePlane(w), "estimated");
-  if (auto hm = HeightMap(w, o)) return *hm;
+  if (auto hm = HeightMap(w, o, pfor)) return *hm;
   // Too little floor for a map (a close-up view): a plane, which falls back to level itself.
   return GroundModel::Tilted(EstimatePlane(w), "estimated");
 }

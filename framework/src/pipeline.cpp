@@ -1,6 +1,8 @@
 #include "furnihost/pipeline.hpp"
 
 #include <spdlog/spdlog.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include <filesystem>
 #include <fstream>
@@ -387,7 +389,11 @@ Pipeline::Result Pipeline::Detect(const std::vector<SceneInput>& scenes, const T
       ToWorkingFrame(s, fo);
       GroundOptions go = graph_.ground;
       go.fixed_z += float(s.frame.canonical.translation().z());  // given in the z-up frame
-      if (!s.ground || graph_.ground.kind == "fixed") s.ground = EstimateGround(s.points, go);
+      if (!s.ground || graph_.ground.kind == "fixed")
+        s.ground = EstimateGround(s.points, go, [](size_t b, size_t e, const std::function<void(size_t, size_t)>& body) {
+          tbb::parallel_for(tbb::blocked_range<size_t>(b, e, 1024),
+                            [&](const tbb::blocked_range<size_t>& r) { body(r.begin(), r.end()); });
+        });
       const GroundModel& g = *s.ground;
       spdlog::info("{}: ground {} ({}): z = {:.4f} x + {:.4f} y + {:.3f} m{}", s.source, ToString(g.kind), g.source,
                    g.plane.a, g.plane.b, g.plane.c,

@@ -24,6 +24,8 @@ struct VoxelNormals {
   std::vector<int> voxel_of;
 };
 FURNIHOST_API VoxelNormals EstimateVoxelNormals(const Points& points, float voxel);
+// The same, the per-voxel plane fits spread by `pfor`; bit-identical results.
+FURNIHOST_API VoxelNormals EstimateVoxelNormals(const Points& points, float voxel, const RangeFor& pfor);
 
 // Isometry for an upright pose: translation (x, y, z), rotation yaw [rad] about +z.
 FURNIHOST_API Eigen::Isometry3f UprightPose(float x, float y, float z, float yaw);

@@ -13,6 +13,7 @@
 #pragma once
 #include <Eigen/Core>
 #include <cstdint>
+#include <functional>
 #include <nlohmann/json_fwd.hpp>
 #include <optional>
 #include <string>
@@ -21,6 +22,11 @@
 #include "furnihost/error.hpp"
 
 namespace furnihost {
+
+// Runs body(b, e) over disjoint sub-ranges covering [begin, end), in parallel or not (the host
+// passes one over tbb::parallel_for: the SDK itself has no thread pool). What is computed with
+// it must not depend on the partition.
+using RangeFor = std::function<void(size_t begin, size_t end, const std::function<void(size_t, size_t)>& body)>;
 
 // A floor plane z = a x + b y + c.
 struct FloorPlane {
@@ -77,6 +83,9 @@ FURNIHOST_API nlohmann::json ToJson(const GroundOptions& o);
 // the floor of a cell is the lowest 2 cm height slice holding a floor's density of points).
 // Deterministic. Empty or non-finite input: level at 0.
 FURNIHOST_API GroundModel EstimateGround(const std::vector<Eigen::Vector3f>& points, const GroundOptions& options);
+// The same, its per-voxel normals spread by `pfor`; the same ground.
+FURNIHOST_API GroundModel EstimateGround(const std::vector<Eigen::Vector3f>& points, const GroundOptions& options,
+                                         const RangeFor& pfor);
 
 // World z of the floor of a level estimate: the mean height of the densest 2 cm slice among
 // the lowest 30 % of the points. At most ~200k points are looked at. 0 without finite points.
