@@ -120,9 +120,7 @@ Points VoxelDownsample(const Points& points, float voxel, std::vector<int>* kept
 }
 
 VoxelNormals EstimateVoxelNormals(const Points& points, float voxel) {
-  return EstimateVoxelNormals(points, voxel, [](size_t b, size_t e, const std::function<void(size_t, size_t)>& body) {
-    if (b < e) body(b, e);
-  });
+  return EstimateVoxelNormals(points, voxel, SerialRange);
 }
 
 VoxelNormals EstimateVoxelNormals(const Points& points, float voxel, const RangeFor& pfor) {

@@ -423,9 +423,7 @@ std::optional<GroundModel> HeightMap(const Points& w, const GroundOptions& o, co
 }  // namespace
 
 GroundModel EstimateGround(const Points& points, const GroundOptions& o) {
-  return EstimateGround(points, o, [](size_t b, size_t e, const std::function<void(size_t, size_t)>& body) {
-    if (b < e) body(b, e);
-  });
+  return EstimateGround(points, o, SerialRange);
 }
 
 GroundModel EstimateGround(const Points& points, const GroundOptions& o, const RangeFor& pfor) {

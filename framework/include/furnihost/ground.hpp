@@ -27,6 +27,10 @@ namespace furnihost {
 // passes one over tbb::parallel_for: the SDK itself has no thread pool). What is computed with
 // it must not depend on the partition.
 using RangeFor = std::function<void(size_t begin, size_t end, const std::function<void(size_t, size_t)>& body)>;
+// The RangeFor of one pass in the calling thread.
+inline void SerialRange(size_t begin, size_t end, const std::function<void(size_t, size_t)>& body) {
+  if (begin < end) body(begin, end);
+}
 
 // A floor plane z = a x + b y + c.
 struct FloorPlane {
