@@ -40,6 +40,7 @@
 #include <map>
 #include <mutex>
 #include <set>
+#include <tuple>
 
 #include "furnihost/geometry.hpp"
 #include "furnihost/hash.hpp"
@@ -315,11 +316,12 @@ class RansacUprightFitter : public Fitter {
         for (const auto& p : w)
           if (r.Contains(p)) scenes[d].context.push_back(p);
     });
+    NormalsCache normals_cache;
     for (size_t d = 0; d < dets->size(); ++d) {
       auto it = by_class.find((*dets)[d].cls);
       Points context = std::move(scenes[d].context);
       scenes[d] = Gather((*dets)[d], ctx, it == by_class.end() ? nullptr : &it->second, ro[d].floor_z,
-                          &dropped_parts[d]);
+                          &dropped_parts[d], &normals_cache);
       scenes[d].context = std::move(context);
     }
 
@@ -530,8 +532,12 @@ class RansacUprightFitter : public Fitter {
     return r;
   }
 
+  // Normals estimated for a proposal's points, by (scene, proposal, lowest height kept): the
+  // candidates of several classes on one proposal share them.
+  using NormalsCache = std::map<std::tuple<int, int, float>, Points>;
+
   ScenePoints Gather(const Detection& det, const FitContext& ctx, const std::vector<const ModelCloud*>* models,
-                     float floor_z, int* dropped) const {
+                     float floor_z, int* dropped, NormalsCache* normals_cache) const {
     ScenePoints sp;
     const bool filter = models && !models->empty() && o_.part_inside_fraction > 0.f;
     const Reach reach = filter ? ReachOf(det, *models, floor_z) : Reach{};
@@ -586,14 +592,16 @@ class RansacUprightFitter : public Fitter {
       sp.points.insert(sp.points.end(), part.points.begin(), part.points.end());
       sp.normals.insert(sp.normals.end(), part.normals.begin(), part.normals.end());
     }
-    if (det.support.empty() && det.proposal >= 0) ProposalPoints(det, ctx, filter ? low : -INFINITY, &sp);
+    if (det.support.empty() && det.proposal >= 0)
+      ProposalPoints(det, ctx, filter ? low : -INFINITY, &sp, normals_cache);
     return sp;
   }
 
   // A recogniser of object proposals (voters.catalog_shape) names no parts: the points to fit
   // are the proposal's own (world frame), those below `low` (the floor) left out; normals from
   // the segmentation when the graph has one.
-  static void ProposalPoints(const Detection& det, const FitContext& ctx, float low, ScenePoints* sp) {
+  static void ProposalPoints(const Detection& det, const FitContext& ctx, float low, ScenePoints* sp,
+                             NormalsCache* cache) {
     const int s = det.proposal_scene;
     if (s < 0 || s >= int(ctx.scenes.size()))
       throw StageError("detection names the proposal of scene " + std::to_string(s) + " but there are " +
@@ -623,10 +631,13 @@ class RansacUprightFitter : public Fitter {
     // yaw of its face, as parts' normals do.
     constexpr int kNeighbours = 16;
     if (!normals && sp->points.size() - first > size_t(kNeighbours)) {
-      const Points own(sp->points.begin() + std::ptrdiff_t(first), sp->points.end());
-      const shape::KnnIndex index(own);
-      const shape::LocalShape local = shape::EstimateLocalShape(index, kNeighbours);
-      std::copy(local.normals.begin(), local.normals.end(), sp->normals.begin() + std::ptrdiff_t(first));
+      Points& own_normals = (*cache)[{s, det.proposal, low}];
+      if (own_normals.empty()) {
+        const Points own(sp->points.begin() + std::ptrdiff_t(first), sp->points.end());
+        const shape::KnnIndex index(own);
+        own_normals = shape::EstimateLocalShape(index, kNeighbours).normals;
+      }
+      std::copy(own_normals.begin(), own_normals.end(), sp->normals.begin() + std::ptrdiff_t(first));
     }
   }
 
