@@ -2,6 +2,7 @@
 
 #include <cairo-svg.h>
 #include <cairo.h>
+#include <tbb/task_group.h>
 
 #include <algorithm>
 #include <array>
@@ -208,8 +209,10 @@ void Text(cairo_t* cr, double x, double y, const std::string& s, double size = 1
   cairo_show_text(cr, s.c_str());
 }
 
-void Draw(cairo_t* cr, const std::vector<Shown>& scans, const VoteResult& votes,
-          const std::vector<Detection>& detections, const View& v, const Eigen::Isometry3f& display) {
+// `points` and `outline`: PointsRaster's image and outline of `scans`, drawn once for both files.
+void Draw(cairo_t* cr, const std::vector<Shown>& scans, cairo_surface_t* points, const std::vector<Eigen::Vector2d>& outline,
+          const VoteResult& votes, const std::vector<Detection>& detections, const View& v,
+          const Eigen::Isometry3f& display) {
   Colours colours;
   cairo_set_source_rgb(cr, 1, 1, 1);
   cairo_paint(cr);
@@ -225,11 +228,7 @@ void Draw(cairo_t* cr, const std::vector<Shown>& scans, const VoteResult& votes,
   // The scan first, the translucent vote densities over it (the points show through), each
   // drawn only within the scan's outline: parts vote for centres beyond walls too, and those
   // votes say nothing about the room.
-  std::vector<Eigen::Vector2d> outline;
-  SurfacePtr points = PointsRaster(scans, v, &outline);
-  // The SVG embeds the raster as a PNG: encoded here, fast, instead of by cairo's SVG surface.
-  if (cairo_surface_get_type(cairo_get_target(cr)) == CAIRO_SURFACE_TYPE_SVG) AttachPng(points.get(), "bird's-eye raster");
-  cairo_set_source_surface(cr, points.get(), v.margin, v.margin);
+  cairo_set_source_surface(cr, points, v.margin, v.margin);
   cairo_paint(cr);
   double area = 0.0;  // [px^2]; a scan seen edge-on (one wall) outlines nothing
   for (size_t i = 0; i < outline.size(); ++i) {
@@ -390,25 +389,48 @@ void WriteBirdsEye(const std::string& stem, const std::vector<const Scan*>& scan
   std::vector<Detection> detections;
   for (const auto& d : world_detections) detections.push_back(TransformDetection(d, display));
   const View v = MakeView(scans, votes, detections);
-  AtomicWrite(stem + ".svg", [&](const std::string& tmp) {
-    SurfacePtr s(cairo_svg_surface_create(tmp.c_str(), v.Width(), v.Height()), cairo_surface_destroy);
-    Check(cairo_surface_status(s.get()), stem + ".svg");
+  std::vector<Eigen::Vector2d> outline;
+  SurfacePtr points = PointsRaster(scans, v, &outline);
+  // Every cairo call stays on this thread, in this order, so the SVG's element ids (cairo numbers
+  // its surfaces process-wide) are the same every run; the PNG encodings, which only read pixels,
+  // run beside the drawing (the two files took ~85 ms one after the other on a 50k-point room).
+  tbb::task_group side;
+  const Pixels raster = PixelsOf(points.get(), stem + ".svg");
+  std::vector<unsigned char> raster_png;  // the SVG embeds the raster as this PNG (fast, not cairo's)
+  side.run([&] { raster_png = EncodePixels(raster, "bird's-eye raster"); });
+  SurfacePtr png(cairo_image_surface_create(CAIRO_FORMAT_ARGB32, v.Width(), v.Height()), cairo_surface_destroy);
+  try {
+    Check(cairo_surface_status(png.get()), stem + ".png");
     {
-      ContextPtr cr(cairo_create(s.get()), cairo_destroy);
-      Draw(cr.get(), scans, votes, detections, v, display);
-      Check(cairo_status(cr.get()), stem + ".svg");
+      ContextPtr cr(cairo_create(png.get()), cairo_destroy);
+      Draw(cr.get(), scans, points.get(), outline, votes, detections, v, display);
+      Check(cairo_status(cr.get()), stem + ".png");
     }
-    cairo_surface_finish(s.get());  // flushes the file
-    Check(cairo_surface_status(s.get()), stem + ".svg");
-  });
-  SurfacePtr s(cairo_image_surface_create(CAIRO_FORMAT_ARGB32, v.Width(), v.Height()), cairo_surface_destroy);
-  Check(cairo_surface_status(s.get()), stem + ".png");
-  {
-    ContextPtr cr(cairo_create(s.get()), cairo_destroy);
-    Draw(cr.get(), scans, votes, detections, v, display);
-    Check(cairo_status(cr.get()), stem + ".png");
+  } catch (...) {
+    side.wait();
+    throw;
   }
-  WritePng(s.get(), stem + ".png");
+  side.wait();
+  AttachPng(points.get(), std::move(raster_png), "bird's-eye raster");
+  const Pixels image = PixelsOf(png.get(), stem + ".png");
+  side.run([&] { WriteBytes(EncodePixels(image, stem + ".png"), stem + ".png"); });
+  try {
+    AtomicWrite(stem + ".svg", [&](const std::string& tmp) {
+      SurfacePtr s(cairo_svg_surface_create(tmp.c_str(), v.Width(), v.Height()), cairo_surface_destroy);
+      Check(cairo_surface_status(s.get()), stem + ".svg");
+      {
+        ContextPtr cr(cairo_create(s.get()), cairo_destroy);
+        Draw(cr.get(), scans, points.get(), outline, votes, detections, v, display);
+        Check(cairo_status(cr.get()), stem + ".svg");
+      }
+      cairo_surface_finish(s.get());  // flushes the file
+      Check(cairo_surface_status(s.get()), stem + ".svg");
+    });
+  } catch (...) {
+    side.wait();
+    throw;
+  }
+  side.wait();  // rethrows the PNG's error
 }
 
 }  // namespace furnihost::app

@@ -6,6 +6,7 @@
 #include <iostream>
 #include <map>
 #include <random>
+#include <tbb/task_group.h>
 
 #include "cli_common.hpp"
 #include "commands.hpp"
@@ -309,15 +310,21 @@ int RunDetect(const std::vector<std::string>& args) {
     j["timings_ms"] = nlohmann::json::object();
     for (const auto& [tag, ms] : r.timings_ms) j["timings_ms"][tag] = ms;
     j["timings_ms"]["total"] = total.Ms();
-    WriteJson((fs::path(dir) / "detections.json").string(), j);
+    // The output files are independent: written side by side on the host's threads (the plots
+    // and fitted.ply were ~0.09 s of one core on a 50k-point room, most of a process's tail).
+    tbb::task_group outputs;
+    outputs.run([&] { WriteJson((fs::path(dir) / "detections.json").string(), j); });
 #ifdef FURNIHOST_HAVE_BIRDSEYE
-    if (r.voted) {
-      std::vector<const Scan*> sp;
-      for (const auto& s : r.scans) sp.push_back(&s);
-      WriteBirdsEye((fs::path(dir) / "votes").string(), sp, r.votes, r.detections, r.world_to_user);
-    }
+    if (r.voted)
+      outputs.run([&] {
+        std::vector<const Scan*> sp;
+        for (const auto& s : r.scans) sp.push_back(&s);
+        WriteBirdsEye((fs::path(dir) / "votes").string(), sp, r.votes, r.detections, r.world_to_user);
+      });
 #endif
-    if (r.fitted && frame_scan) WriteFitted((fs::path(dir) / "fitted.ply").string(), r.detections, *catalog, *frame_scan);
+    if (r.fitted && frame_scan)
+      outputs.run([&] { WriteFitted((fs::path(dir) / "fitted.ply").string(), r.detections, *catalog, *frame_scan); });
+    outputs.wait();  // rethrows the first error, as the files were written one after another
 
     std::cout << stem << ": " << j["points"] << " points, " << j["parts"] << " parts";
     if (!r.voted) std::cout << "; no voter ran, so no detections";

@@ -35,15 +35,27 @@ void Fail(png_structp png, png_const_charp msg) {
 void Warn(png_structp, png_const_charp) {}
 }  // namespace
 
-std::vector<unsigned char> EncodePng(cairo_surface_t* image, const std::string& what) {
+Pixels PixelsOf(cairo_surface_t* image, const std::string& what) {
   cairo_surface_flush(image);
   const cairo_format_t format = cairo_image_surface_get_format(image);
-  const int w = cairo_image_surface_get_width(image), h = cairo_image_surface_get_height(image);
-  const int stride = cairo_image_surface_get_stride(image);
-  const unsigned char* data = cairo_image_surface_get_data(image);
-  if (!data || w <= 0 || h <= 0 || (format != CAIRO_FORMAT_ARGB32 && format != CAIRO_FORMAT_RGB24))
+  Pixels p;
+  p.width = cairo_image_surface_get_width(image), p.height = cairo_image_surface_get_height(image);
+  p.stride = cairo_image_surface_get_stride(image);
+  p.data = cairo_image_surface_get_data(image);
+  p.alpha = format == CAIRO_FORMAT_ARGB32;
+  if (!p.data || p.width <= 0 || p.height <= 0 || (format != CAIRO_FORMAT_ARGB32 && format != CAIRO_FORMAT_RGB24))
     throw InputError(what + ": cannot encode PNG (not an RGB image surface)");
-  const bool alpha = format == CAIRO_FORMAT_ARGB32;
+  return p;
+}
+
+std::vector<unsigned char> EncodePng(cairo_surface_t* image, const std::string& what) {
+  return EncodePixels(PixelsOf(image, what), what);
+}
+
+std::vector<unsigned char> EncodePixels(const Pixels& pixels, const std::string& what) {
+  const int w = pixels.width, h = pixels.height, stride = pixels.stride;
+  const unsigned char* data = pixels.data;
+  const bool alpha = pixels.alpha;
   std::vector<unsigned char> out;
   std::vector<unsigned char> row(size_t(w) * (alpha ? 4 : 3));
   ErrorSink sink;
@@ -86,8 +98,7 @@ std::vector<unsigned char> EncodePng(cairo_surface_t* image, const std::string& 
   return out;
 }
 
-void WritePng(cairo_surface_t* image, const std::string& path) {
-  const std::vector<unsigned char> bytes = EncodePng(image, path);
+void WriteBytes(const std::vector<unsigned char>& bytes, const std::string& path) {
   AtomicWrite(path, [&](const std::string& tmp) {
     std::ofstream f(tmp, std::ios::binary);
     f.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
@@ -96,8 +107,12 @@ void WritePng(cairo_surface_t* image, const std::string& path) {
   });
 }
 
-void AttachPng(cairo_surface_t* image, const std::string& what) {
-  auto* bytes = new std::vector<unsigned char>(EncodePng(image, what));
+void WritePng(cairo_surface_t* image, const std::string& path) { WriteBytes(EncodePng(image, path), path); }
+
+void AttachPng(cairo_surface_t* image, const std::string& what) { AttachPng(image, EncodePng(image, what), what); }
+
+void AttachPng(cairo_surface_t* image, std::vector<unsigned char> png, const std::string& what) {
+  auto* bytes = new std::vector<unsigned char>(std::move(png));
   const cairo_status_t st =
       cairo_surface_set_mime_data(image, CAIRO_MIME_TYPE_PNG, bytes->data(), bytes->size(),
                                   [](void* p) { delete static_cast<std::vector<unsigned char>*>(p); }, bytes);

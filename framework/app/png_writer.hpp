@@ -14,11 +14,29 @@ namespace furnihost::app {
 // `what` when libpng fails.
 std::vector<unsigned char> EncodePng(cairo_surface_t* image, const std::string& what);
 
+// The pixels of an image surface, read once on the thread that owns it: EncodePixels needs no
+// cairo call, so it may run on another thread while the surface is left alone or only read
+// (as the source of a paint).
+struct Pixels {
+  const unsigned char* data = nullptr;
+  int width = 0, height = 0, stride = 0;
+  bool alpha = false;
+};
+// Flushes `image` and describes its pixels; throws InputError naming `what` when it is not an
+// ARGB32 or RGB24 image surface.
+Pixels PixelsOf(cairo_surface_t* image, const std::string& what);
+std::vector<unsigned char> EncodePixels(const Pixels& pixels, const std::string& what);
+
+// `bytes` into `path` through AtomicWrite (temp file + rename).
+void WriteBytes(const std::vector<unsigned char>& bytes, const std::string& path);
+
 // EncodePng into `path` through AtomicWrite (temp file + rename).
 void WritePng(cairo_surface_t* image, const std::string& path);
 
 // Attaches the surface's PNG encoding as its CAIRO_MIME_TYPE_PNG data, which cairo's SVG
 // surface embeds as is instead of encoding the raster itself.
 void AttachPng(cairo_surface_t* image, const std::string& what);
+// The same with the encoding made already (by EncodePixels of this surface's pixels).
+void AttachPng(cairo_surface_t* image, std::vector<unsigned char> png, const std::string& what);
 
 }  // namespace furnihost::app

@@ -17,6 +17,7 @@
 #include <assimp/version.h>
 #include <spdlog/spdlog.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_group.h>
 
 #include <algorithm>
 #include <cctype>
@@ -129,7 +130,8 @@ bool PositiveFinite(const nlohmann::json& v) {
 // ScanNet room), so the parsed mesh (LoadMeshFile's result, file units and axes) is kept on disk
 // by the file's content in CacheFolder("meshes") (the fitter's model clouds sit beside it). Only
 // formats that hold all their geometry in one file are cached (a .gltf's buffers may live
-// elsewhere). The key hashes the bytes, the extension (assimp picks the reader by it), the
+// elsewhere; an .obj's .mtl and a COLLADA file's images are materials, which a Mesh does not keep,
+// and assimp reads a COLLADA file's geometry from that file only). The key hashes the bytes, the extension (assimp picks the reader by it), the
 // assimp version and this format's version; a cached mesh is the parsed one bit for bit. A
 // missing, truncated or otherwise odd cache file is ignored and rewritten; a cache that cannot be
 // written only costs the parsing.
@@ -198,7 +200,7 @@ Mesh LoadMeshCached(const std::string& path) {
   const std::string dir = CacheFolder("meshes");
   std::string ext = fs::path(path).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-  static const std::set<std::string> kSelfContained{".obj", ".ply", ".off", ".stl", ".glb"};
+  static const std::set<std::string> kSelfContained{".obj", ".ply", ".off", ".stl", ".glb", ".dae"};
   std::error_code ec;
   if (dir.empty() || !kSelfContained.count(ext) || !fs::is_regular_file(path, ec)) return LoadMeshFile(path);
   uint64_t key = kFnvOffset;
@@ -548,21 +550,36 @@ Catalog LoadCatalog(const std::string& path, bool strict) {
   const fs::path dir = fs::path(cat.path).parent_path();
   const auto& entries = j["models"];
 
-  std::vector<EntryResult> results(entries.size());
-  tbb::parallel_for(size_t(0), entries.size(),
-                    [&](size_t i) { results[i] = LoadEntry(entries[i], i, dir); });
-
+  // The catalog's hash (one chain over catalog.json and every mesh file, in order) is computed
+  // beside the entries' loading rather than after it: it reads only files.
   uint64_t h = kFnvOffsetTruncated;
-  if (!HashFile(h, path)) throw InputError(path + ": cannot read the file");
+  bool catalog_read = false;
+  tbb::task_group hashing;
+  hashing.run([&] {
+    catalog_read = HashFile(h, path);
+    if (!catalog_read) return;
+    for (const auto& e : entries)
+      // Every mesh that exists is hashed, valid or not, so fixing a file changes the key.
+      if (e.is_object() && e.contains("mesh") && e["mesh"].is_string()) {
+        fs::path mesh = fs::path(e["mesh"].get<std::string>());
+        if (mesh.is_relative()) mesh = dir / mesh;
+        HashFile(h, mesh.string());
+      }
+  });
+  std::vector<EntryResult> results(entries.size());
+  try {
+    tbb::parallel_for(size_t(0), entries.size(),
+                      [&](size_t i) { results[i] = LoadEntry(entries[i], i, dir); });
+  } catch (...) {
+    hashing.wait();  // the task reads `entries` and `h`: it must end before they go
+    throw;
+  }
+  hashing.wait();
+  if (!catalog_read) throw InputError(path + ": cannot read the file");
+
   std::map<std::string, size_t> first_index;
   for (size_t i = 0; i < results.size(); ++i) {
     auto& r = results[i];
-    // Every mesh that exists is hashed, valid or not, so fixing a file changes the key.
-    if (entries[i].is_object() && entries[i].contains("mesh") && entries[i]["mesh"].is_string()) {
-      fs::path mesh = fs::path(entries[i]["mesh"].get<std::string>());
-      if (mesh.is_relative()) mesh = dir / mesh;
-      HashFile(h, mesh.string());
-    }
     if (r.reason.empty()) {
       auto [it, fresh] = first_index.emplace(r.id, i);
       if (!fresh) r.reason = "duplicate id (first defined at entry #" + std::to_string(it->second) + ")";
