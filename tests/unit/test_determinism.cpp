@@ -134,6 +134,13 @@ void DetectWithOneAndTwoThreads(const std::string& dir, std::string results[2]) 
     ASSERT_EQ(r.code, 0) << r.err;
     results[t - 1] = Comparable(dir + "/out" + std::to_string(t) + "/detections.json");
   }
+  // The other outputs byte for byte too (written side by side; the SVG's element ids are numbered
+  // by cairo process-wide, so they are the same only if every cairo call keeps its order).
+  for (const char* file : {"votes.svg", "votes.png", "fitted.ply"}) {
+    const std::string one = dir + "/out1/" + file, two = dir + "/out2/" + file;
+    ASSERT_TRUE(fs::exists(one)) << one;
+    EXPECT_TRUE(Bytes(one) == Bytes(two)) << file << " differs between 1 and 2 threads";
+  }
 }
 
 // The paper's graph (configs/paper.json) on the bundled demo room, with every real plugin it
