@@ -37,6 +37,7 @@
 #include <cmath>
 #include <cstring>
 #include <numeric>
+#include <optional>
 #include <unordered_map>
 
 #include <spdlog/spdlog.h>
@@ -308,16 +309,19 @@ class ClusterProposer : public Proposer {
       p.source = r.rule;
       return p;
     };
+    // Each proposal and its variant are made on their own (in parallel), appended in order.
     const size_t base = raw.size();
-    for (size_t i = 0; i < base; ++i) out.items.push_back(make(raw[i]));
-    for (size_t i = 0; i < base; ++i) {
+    out.items.resize(base);
+    std::vector<std::optional<Proposal>> extended(base);
+    tbb::parallel_for(size_t(0), base, [&](size_t i) {
+      out.items[i] = make(raw[i]);
       const Proposal& p = out.items[i];
-      if (p.box.min().z() - p.ground_z < o_.extend_gap) continue;
+      if (p.box.min().z() - p.ground_z < o_.extend_gap) return;
       const Eigen::Vector3f lo(p.box.min().x(), p.box.min().y(), p.ground_z + 0.02f);
       const Eigen::Vector3f hi(p.box.max().x(), p.box.max().y(), p.box.min().z());
       std::vector<int> col;
       column_index.ForEachIn(lo, hi, [&](uint32_t k) { col.push_back(int(k)); });
-      if (col.size() < 5) continue;
+      if (col.size() < 5) return;
       float zlo = INFINITY;
       for (int k : col) zlo = std::min(zlo, P[k].z());
       if (zlo - p.ground_z < o_.ground_snap) zlo = p.ground_z;
@@ -325,8 +329,10 @@ class ClusterProposer : public Proposer {
       e.indices.insert(e.indices.end(), col.begin(), col.end());
       e.box.min().z() = zlo;
       e.how += "+ext";
-      out.items.push_back(std::move(e));
-    }
+      extended[i] = std::move(e);
+    });
+    for (auto& e : extended)
+      if (e) out.items.push_back(std::move(*e));
     if (spdlog::should_log(spdlog::level::trace))
       for (const auto& p : out.items)
         spdlog::trace("proposals.clusters: {} {} points, box ({:.3f} {:.3f} {:.3f})-({:.3f} {:.3f} {:.3f})", p.how, p.indices.size(),
