@@ -454,6 +454,19 @@ class ClusterProposer : public Proposer {
     for (const auto& p : P) extent.extend(p.head<2>());
     Eigen::Vector2f c0 = Eigen::Vector2f::Zero();
     if (!P.empty()) c0 = extent.center();
+    // A point's line coordinates depend on its own normal and position only: computed once.
+    std::vector<float> rho_of(n, 0.f);
+    std::vector<int> tb_of(n, 0);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 4096), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t i = r.begin(); i != r.end(); ++i) {
+        if (!vert[i]) continue;
+        const Eigen::Vector3f& nn = ls.normals[i];
+        float th = std::atan2(nn.y(), nn.x());
+        th = std::fmod(th + 2 * kPi, kPi);
+        rho_of[i] = (P[i].x() - c0.x()) * std::cos(th) + (P[i].y() - c0.y()) * std::sin(th);
+        tb_of[i] = std::min(TB - 1, int(th / kPi * TB));
+      }
+    });
     for (int it = 0; it < 40; ++it) {
       idx.clear();
       for (size_t i = 0; i < n; ++i)
@@ -464,11 +477,8 @@ class ClusterProposer : public Proposer {
       std::vector<float> rho(idx.size());
       float rmin = INFINITY, rmax = -INFINITY;
       for (size_t k = 0; k < idx.size(); ++k) {
-        const Eigen::Vector3f& nn = ls.normals[idx[k]];
-        float th = std::atan2(nn.y(), nn.x());
-        th = std::fmod(th + 2 * kPi, kPi);
-        rho[k] = (P[idx[k]].x() - c0.x()) * std::cos(th) + (P[idx[k]].y() - c0.y()) * std::sin(th);
-        tb[k] = std::min(TB - 1, int(th / kPi * TB));
+        rho[k] = rho_of[idx[k]];
+        tb[k] = tb_of[idx[k]];
         rmin = std::min(rmin, rho[k]);
         rmax = std::max(rmax, rho[k]);
       }
