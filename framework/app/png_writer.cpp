@@ -109,8 +109,6 @@ void WriteBytes(const std::vector<unsigned char>& bytes, const std::string& path
 
 void WritePng(cairo_surface_t* image, const std::string& path) { WriteBytes(EncodePng(image, path), path); }
 
-void AttachPng(cairo_surface_t* image, const std::string& what) { AttachPng(image, EncodePng(image, what), what); }
-
 void AttachPng(cairo_surface_t* image, std::vector<unsigned char> png, const std::string& what) {
   auto* bytes = new std::vector<unsigned char>(std::move(png));
   const cairo_status_t st =

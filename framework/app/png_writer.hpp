@@ -33,10 +33,9 @@ void WriteBytes(const std::vector<unsigned char>& bytes, const std::string& path
 // EncodePng into `path` through AtomicWrite (temp file + rename).
 void WritePng(cairo_surface_t* image, const std::string& path);
 
-// Attaches the surface's PNG encoding as its CAIRO_MIME_TYPE_PNG data, which cairo's SVG
-// surface embeds as is instead of encoding the raster itself.
-void AttachPng(cairo_surface_t* image, const std::string& what);
-// The same with the encoding made already (by EncodePixels of this surface's pixels).
+// Attaches `png`, the surface's PNG encoding (EncodePixels of its pixels), as its
+// CAIRO_MIME_TYPE_PNG data, which cairo's SVG surface embeds as is instead of encoding the raster
+// itself.
 void AttachPng(cairo_surface_t* image, std::vector<unsigned char> png, const std::string& what);
 
 }  // namespace furnihost::app

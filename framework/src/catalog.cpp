@@ -130,9 +130,10 @@ bool PositiveFinite(const nlohmann::json& v) {
 // ScanNet room), so the parsed mesh (LoadMeshFile's result, file units and axes) is kept on disk
 // by the file's content in CacheFolder("meshes") (the fitter's model clouds sit beside it). Only
 // formats that hold all their geometry in one file are cached (a .gltf's buffers may live
-// elsewhere; an .obj's .mtl and a COLLADA file's images are materials, which a Mesh does not keep,
-// and assimp reads a COLLADA file's geometry from that file only). The key hashes the bytes, the extension (assimp picks the reader by it), the
-// assimp version and this format's version; a cached mesh is the parsed one bit for bit. A
+// elsewhere; an .obj's .mtl and a COLLADA file's images are materials, which a Mesh does not
+// keep, and assimp reads a COLLADA file's geometry from that file only). The key hashes the
+// bytes, the extension (assimp picks the reader by it), the assimp version and this format's
+// version; a cached mesh is the parsed one bit for bit. A
 // missing, truncated or otherwise odd cache file is ignored and rewritten; a cache that cannot be
 // written only costs the parsing.
 constexpr char kMeshCacheMagic[8] = {'F', 'H', 'M', 'E', 'S', 'H', '1', '\0'};
@@ -554,6 +555,7 @@ Catalog LoadCatalog(const std::string& path, bool strict) {
   // beside the entries' loading rather than after it: it reads only files.
   uint64_t h = kFnvOffsetTruncated;
   bool catalog_read = false;
+  // Declared after what its task uses: if a load throws, its destructor cancels and waits first.
   tbb::task_group hashing;
   hashing.run([&] {
     catalog_read = HashFile(h, path);
@@ -567,13 +569,8 @@ Catalog LoadCatalog(const std::string& path, bool strict) {
       }
   });
   std::vector<EntryResult> results(entries.size());
-  try {
-    tbb::parallel_for(size_t(0), entries.size(),
-                      [&](size_t i) { results[i] = LoadEntry(entries[i], i, dir); });
-  } catch (...) {
-    hashing.wait();  // the task reads `entries` and `h`: it must end before they go
-    throw;
-  }
+  tbb::parallel_for(size_t(0), entries.size(),
+                    [&](size_t i) { results[i] = LoadEntry(entries[i], i, dir); });
   hashing.wait();
   if (!catalog_read) throw InputError(path + ": cannot read the file");
 
