@@ -9,6 +9,11 @@
 // x, y = where the model's bounding-box bottom centre stands; yaw about +z, counter-clockwise.
 // Sensor pitch_deg turns about the sensor's y (left) axis, positive looks down. Without
 // "sensors": one pan-tilt scan from sensor_height_m at the room centre with a 360 deg sweep.
+//
+// Ground truth: every placed object, with the number of the scan's returns that hit it
+// ("n_points"). One scan per sensor (--per-sensor, or a single sensor) can leave the objects it
+// barely sees out of its ground truth (--min-visible) and be written in its sensor's upright
+// frame (--sensor-frame: a single RGB-D view as SUN RGB-D gives it, or a robot's level camera).
 #include <CLI/CLI.hpp>
 
 #include <Eigen/Geometry>
@@ -252,7 +257,8 @@ int RunSimulate(const std::vector<std::string>& args) {
   CLI::App app{"Scan a synthetic room built from catalog models with the simulated laser and "
                "write the scan and its ground truth (<scan stem>.gt.json)", "simulate"};
   std::string catalog_path, scene_path, out_path, sensor_params_text;
-  bool strict = false, per_sensor = false;
+  bool strict = false, per_sensor = false, sensor_frame = false;
+  int min_visible = 0;
   CommonOptions common;  // --plugin-path, -v/-q, --threads, --seed (default 42)
   common.Add(app);
   app.add_option("--catalog", catalog_path, "catalog.json with the models the scene names")->required();
@@ -262,9 +268,19 @@ int RunSimulate(const std::vector<std::string>& args) {
                  "JSON object of sensors.simulated_laser parameters (over the scene's sensor_params)");
   app.add_flag("--strict", strict, "a broken catalog entry is an error instead of being skipped");
   app.add_flag("--per-sensor", per_sensor, "write one scan per sensor (<stem>_<i>.<ext>) instead of merging");
+  app.add_option("--min-visible", min_visible,
+                 "one scan per sensor: objects with fewer returns in a sensor's scan are left out of its ground "
+                 "truth (0 = every object; objects out of view would count as missed)")
+      ->check(CLI::Range(0, 100000000));
+  app.add_flag("--sensor-frame", sensor_frame,
+               "one scan per sensor: write each scan and its ground truth in its sensor's upright frame (sensor at "
+               "the origin, x along its heading, z up, the floor at minus its height), as SUN RGB-D's views");
   if (auto rc = Parse(app, args)) return *rc;
   common.Apply();
   const RunContext ctx = common.Context(42);
+  if ((min_visible > 0 || sensor_frame) && !per_sensor)
+    throw InputError(std::string(sensor_frame ? "--sensor-frame" : "--min-visible") +
+                     ": applies to one scan per sensor: add --per-sensor");
   const Stopwatch clock;
 
   const std::string ext = fs::path(out_path).extension().string();
@@ -360,6 +376,7 @@ int RunSimulate(const std::vector<std::string>& args) {
     sensors.push_back(c);
   }
   SensorRequest request;
+  std::vector<Eigen::Isometry3f> upright;  // each sensor's position and heading (no pitch)
   request.objects = placed;
   request.extra = RoomMesh(scene);
   for (size_t i = 0; i < sensors.size(); ++i) {
@@ -380,6 +397,7 @@ int RunSimulate(const std::vector<std::string>& args) {
     Eigen::Isometry3f pose = Eigen::Isometry3f::Identity();
     pose.translate(p);
     pose.rotate(Eigen::AngleAxisf(static_cast<float>(s.yaw_deg * kPi / 180.0), Eigen::Vector3f::UnitZ()));
+    upright.push_back(pose);
     pose.rotate(Eigen::AngleAxisf(static_cast<float>(s.pitch_deg * kPi / 180.0), Eigen::Vector3f::UnitY()));
     request.poses.push_back(pose);
   }
@@ -415,17 +433,40 @@ int RunSimulate(const std::vector<std::string>& args) {
     for (const auto& g : s.truth)
       if (!symmetry.count(g.model))
         if (const CatalogModel* m = catalog.Find(g.model)) symmetry[g.model] = YawSymmetry(m->mesh);
+  // Returns per object: "instance" holds the 1-based index of the placed object each point hit.
+  auto returns_of = [&](const Scan& s) {
+    std::vector<size_t> hits(placed.size(), 0);
+    const auto it = s.attributes.find("instance");
+    if (it != s.attributes.end())
+      for (const auto v : it->second)
+        if (v >= 1 && size_t(v) <= hits.size()) ++hits[size_t(v) - 1];
+    return hits;
+  };
   auto gt_json = [&](const Scan& s) {
     std::vector<GroundTruthObject> truth = s.truth;
     for (auto& t : truth)
       if (symmetry.count(t.model)) t.yaw_symmetry = symmetry.at(t.model);
     json g = GroundTruthToJson(truth);
     if (g.is_array()) g = json{{"units", "m"}, {"up", "z"}, {"objects", g}};
+    // The simulated sensor lists every placed object, in order.
+    const std::vector<size_t> hits = returns_of(s);
+    if (g["objects"].size() == hits.size()) {
+      json kept = json::array();
+      for (size_t k = 0; k < hits.size(); ++k) {
+        g["objects"][k]["n_points"] = hits[k];
+        if (hits[k] >= size_t(min_visible)) kept.push_back(g["objects"][k]);
+      }
+      g["objects"] = kept;
+      if (min_visible > 0) g["min_visible"] = min_visible;
+    }
+    if (sensor_frame) g["frame"] = "the sensor's upright frame: sensor at the origin, x along its heading, z up";
     g["scene"] = fs::path(scene_path).filename().string();
     g["size_convention"] =
-        "[dx, dy, dz] = axis-aligned extents of the placed model in the world frame; center = "
+        std::string("[dx, dy, dz] = axis-aligned extents of the placed model in the ") +
+        (sensor_frame ? "sensor's" : "world") + " frame; center = "
         "their centre; yaw = model rotation about +z [rad]; yaw_symmetry = turns about +z that map the "
-        "model onto itself (0 = any, n = n-fold, 1 = none; 95 % of its surface within 2 cm)";
+        "model onto itself (0 = any, n = n-fold, 1 = none; 95 % of its surface within 2 cm); n_points = the scan's "
+        "returns on it";
     g["generator"] = {{"command", description},
                       {"catalog_hash", catalog.hash},
                       {"sensor", kSensorType},
@@ -440,6 +481,24 @@ int RunSimulate(const std::vector<std::string>& args) {
     return gt;
   };
 
+  if (sensor_frame) {
+    // Each scan and its ground truth in its sensor's upright frame.
+    for (size_t i = 0; i < scans.size(); ++i) {
+      Scan& s = scans[i];
+      const Eigen::Isometry3f to = upright[i].inverse();
+      for (auto& p : s.points) p = to * p;
+      if (s.origin) s.origin = to * *s.origin;
+      const float turn = std::atan2(to.linear()(1, 0), to.linear()(0, 0));
+      for (size_t k = 0; k < s.truth.size() && k < placed.size(); ++k) {
+        GroundTruthObject& t = s.truth[k];
+        Eigen::AlignedBox3f b;
+        for (const auto& v : placed[k].model->mesh.vertices) b.extend(to * (placed[k].pose * v));
+        t.center = b.center();
+        t.size = b.sizes();
+        if (t.yaw) t.yaw = std::remainder(*t.yaw + turn, 2.f * float(kPi));
+      }
+    }
+  }
   size_t total = 0;
   std::string written;
   if (per_sensor && scans.size() > 1) {

@@ -8,6 +8,7 @@
 #include <fstream>
 
 #include "furnihost/io.hpp"
+#include "furnihost/scan_reader.hpp"
 #include "test_support.hpp"
 
 namespace fs = std::filesystem;
@@ -198,4 +199,54 @@ TEST(Cli, EveryShippedConfigValidates) {
   for (const auto& s : skipped) std::printf("[ configs ] skipped %s: plugin not built\n", s.c_str());
   std::printf("[ configs ] %d validated, %zu skipped\n", validated, skipped.size());
   EXPECT_GE(validated + skipped.size(), 10u);  // the folder was found and read
+}
+
+// One scan per sensor: the ground truth counts each object's returns, leaves out what the
+// sensor barely sees (--min-visible) and comes in the sensor's upright frame (--sensor-frame),
+// where the object's points lie inside its box and the floor lies at minus the sensor's height.
+TEST(Cli, SimulatePerSensorGroundTruthInTheSensorsFrame) {
+  const std::string dir = furnihost::testing::TempDir("cli_sim_frame");
+  const std::string corpus = furnihost::testing::SourceDir() + "/tests/hostile/corpus/catalogs";
+  // The sensor at x = 3.2 looks towards -x (180 deg field of view, down to 50 deg below the
+  // horizon): the cube at x = 1.5 is in view, the one at (3.6, 3.5) is behind it.
+  furnihost::AtomicWriteText(dir + "/scene.json", R"({"room": {"size_m": [4, 4], "height_m": 2.5},
+    "objects": [{"model": "cube", "x": 1.5, "y": 2}, {"model": "cube", "x": 3.6, "y": 3.5}],
+    "sensors": [{"position": [3.2, 2, 1.2], "yaw_deg": 180}],
+    "sensor_params": {"angular_resolution_deg": 1, "tilt_resolution_deg": 1, "tilt_min_deg": -50, "noise_a": 0,
+                      "noise_b": 0}})");
+  const std::string sim = "simulate -q --catalog " + corpus + "/tiny/catalog.json --scene " + dir + "/scene.json";
+  {
+    const auto r = Furnihost(sim + " --out " + dir + "/world.ply --per-sensor");
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto objects = furnihost::ReadJson(dir + "/world.gt.json").at("objects");
+    ASSERT_EQ(objects.size(), 2u);  // every object, the hidden one with no return
+    EXPECT_GT(objects[0].at("n_points").get<int>(), 20);
+    EXPECT_EQ(objects[1].at("n_points").get<int>(), 0);
+  }
+  const auto r = Furnihost(sim + " --out " + dir + "/view.ply --per-sensor --min-visible 20 --sensor-frame");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto gt = furnihost::ReadJson(dir + "/view.gt.json");
+  ASSERT_EQ(gt.at("objects").size(), 1u) << gt.dump();
+  const auto& o = gt.at("objects")[0];
+  // World (1.5, 2, 0.3) seen from (3.2, 2, 1.2) heading -x: 1.7 m ahead, 0.9 m below.
+  const auto c = o.at("center").get<std::vector<float>>();
+  EXPECT_NEAR(c[0], 1.7f, 1e-3f);
+  EXPECT_NEAR(c[1], 0.f, 1e-3f);
+  EXPECT_NEAR(c[2], -0.9f, 1e-3f);
+  EXPECT_NEAR(std::abs(o.at("yaw").get<float>()), 3.14159f, 1e-3f);  // the cube's heading seen from the sensor
+  const auto s = o.at("size").get<std::vector<float>>();
+  const furnihost::Scan scan = furnihost::ReadScan(dir + "/view.ply");
+  int inside = 0, floor = 0;
+  for (const auto& p : scan.points) {
+    bool in = true;
+    for (int k = 0; k < 3; ++k) in = in && std::abs(p[k] - c[size_t(k)]) <= 0.5f * s[size_t(k)] + 1e-3f;
+    inside += in;
+    floor += std::abs(p.z() + 1.2f) < 1e-3f;
+  }
+  EXPECT_EQ(inside, o.at("n_points").get<int>());
+  EXPECT_GT(floor, 100);
+  // Both options need one scan per sensor.
+  const auto bad = Furnihost(sim + " --out " + dir + "/x.ply --sensor-frame");
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_NE(bad.err.find("--per-sensor"), std::string::npos) << bad.err;
 }
