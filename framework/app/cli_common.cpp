@@ -80,6 +80,10 @@ void FrameCli::Add(CLI::App& app) {
   app.add_option("--up", up,
                  "which axis of the scan's coordinates points up: +z (default), -y (a camera's optical frame: x right, "
                  "y down, z forward), +y, ..., or auto (the normal of the dominant plane with the scene above it)");
+  app.add_flag("--level", level,
+               "after --up AXIS: level the frame on the floor when it is tilted 8-35 deg from that axis (a camera "
+               "pitched down, read in its optical frame with --up -y); the graph's \"frame\": {\"level\": true} does "
+               "the same");
   app.add_option("--transform", transform,
                  "scan -> z-up frame as 16 numbers (4x4, row-major) or x,y,z,roll,pitch,yaw (metres, radians; as a ROS "
                  "static transform); instead of --up");
@@ -95,8 +99,11 @@ FrameOptions FrameCli::Frame() const {
   FrameOptions f;
   f.up = up;
   if (up != "auto") UpAxisRotation(up, "--up");  // validates
+  f.level = level;
+  if (level && up == "auto") throw InputError("--level: levels an --up AXIS; --up auto finds the floor itself");
   if (!transform.empty()) {
     if (up != "+z") throw InputError("--transform: give either --up or --transform, not both");
+    if (level) throw InputError("--level: levels an --up AXIS, not a --transform (give the sensor's full pose)");
     f.transform = ParseTransform(transform, "--transform");
   }
   if (!shift.empty()) {

@@ -33,6 +33,7 @@ struct CommonOptions {
 // Scan frame and ground options of detect (--up, --transform, --shift, --ground).
 struct FrameCli {
   std::string up = "+z", transform, shift, ground;
+  bool level = false;
   void Add(CLI::App& app);
   // The parsed frame; InputError naming the option on a bad value.
   FrameOptions Frame() const;

@@ -186,12 +186,13 @@ GraphConfig ValidateGraph(const std::string& path, const nlohmann::json& config,
     if (!f.is_object()) throw InputError(w + "/frame: expected an object such as {\"canonical\": true}, got " + Shown(f));
     for (auto it = f.begin(); it != f.end(); ++it) {
       if (it.key() == "comment") continue;
-      if (it.key() != "canonical") throw InputError(w + "/frame/" + it.key() + ": unknown key (frame takes canonical)");
-      if (!it->is_boolean()) throw InputError(w + "/frame/canonical: expected true or false, got " + Shown(*it));
-      g.canonical_frame = it->get<bool>();
+      if (it.key() != "canonical" && it.key() != "level")
+        throw InputError(w + "/frame/" + it.key() + ": unknown key (frame takes canonical and level)");
+      if (!it->is_boolean()) throw InputError(w + "/frame/" + it.key() + ": expected true or false, got " + Shown(*it));
+      (it.key() == "canonical" ? g.canonical_frame : g.level_frame) = it->get<bool>();
     }
   }
-  resolved["frame"] = {{"canonical", g.canonical_frame}};
+  resolved["frame"] = {{"canonical", g.canonical_frame}, {"level", g.level_frame}};
   if (config.contains("catalog")) g.catalog = config["catalog"].get<std::string>();
   if (config.contains("model_cache")) g.model_cache = config["model_cache"].get<std::string>();
   if (config.contains("limits")) {

@@ -75,7 +75,10 @@ Eigen::Isometry3d ParseTransform(const std::string& text, const std::string& opt
   return iso;
 }
 
-std::optional<Eigen::Vector3d> EstimateUpAxis(const Points& points) {
+std::optional<Eigen::Vector3d> EstimateUpAxis(const Points& points, const std::optional<Eigen::Vector3d>& near,
+                                              double max_deg) {
+  const Eigen::Vector3f hint = near ? Eigen::Vector3f(near->normalized().cast<float>()) : Eigen::Vector3f::Zero();
+  const float min_cos = near ? float(std::cos(max_deg * M_PI / 180.0)) : -2.f;
   // Surface normals of a 5 cm voxel sample (PCA over each voxel's 3x3x3 neighbourhood).
   const float voxel = 0.05f;
   const Points v = VoxelDownsample(points, voxel);
@@ -110,7 +113,7 @@ std::optional<Eigen::Vector3d> EstimateUpAxis(const Points& points) {
     const Eigen::Vector3d ev = es.eigenvalues();
     if (!(ev[0] < 0.05 * ev[1])) continue;  // not flat enough to have a direction
     normal[i] = es.eigenvectors().col(0).cast<float>();
-    planar[i] = 1;
+    planar[i] = !near || std::abs(normal[i].dot(hint)) >= min_cos;
   }
   // Dominant plane directions: planar samples binned on the half sphere (about 5 degrees),
   // the densest bin taken, its members removed (within 15 degrees), three times.
@@ -154,6 +157,7 @@ std::optional<Eigen::Vector3d> EstimateUpAxis(const Points& points) {
     if (members < 20) continue;
     for (float sign : {1.f, -1.f}) {
       const Eigen::Vector3f u = sign * d;
+      if (near && u.dot(hint) < min_cos) continue;
       std::vector<float> s(v.size());
       for (size_t i = 0; i < v.size(); ++i) s[i] = u.dot(v[i]);
       std::vector<float> sorted = s;
@@ -281,6 +285,42 @@ Eigen::Isometry3d EstimateCanonicalFrame(const Points& upright) {
   return t;
 }
 
+namespace {
+// EstimateUpAxis's normal is the mean of 5 cm voxel normals in a ~5 degree bin: a few degrees
+// off. The plane fitted (PCA) to the points within 4 cm of the lowest percentile along it (the
+// floor, or a band of it), twice, is the floor's own.
+Eigen::Vector3d RefineFloorNormal(const Points& pts, Eigen::Vector3d u) {
+  u.normalize();
+  std::vector<double> h(pts.size());
+  for (int round = 0; round < 2; ++round) {
+    for (size_t i = 0; i < pts.size(); ++i) h[i] = u.dot(pts[i].cast<double>());
+    std::vector<double> sorted = h;
+    const size_t k = sorted.size() / 50;
+    std::nth_element(sorted.begin(), sorted.begin() + k, sorted.end());
+    const double lo = sorted[k];
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    size_t n = 0;
+    for (size_t i = 0; i < pts.size(); ++i)
+      if (std::abs(h[i] - lo) < 0.04) mean += pts[i].cast<double>(), ++n;
+    if (n < 50) break;
+    mean /= double(n);
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    for (size_t i = 0; i < pts.size(); ++i)
+      if (std::abs(h[i] - lo) < 0.04) {
+        const Eigen::Vector3d d = pts[i].cast<double>() - mean;
+        cov += d * d.transpose();
+      }
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
+    if (!(es.eigenvalues()(0) < 0.05 * es.eigenvalues()(1))) break;  // not a plane (a corner, a step)
+    Eigen::Vector3d nv = es.eigenvectors().col(0);
+    if (nv.dot(u) < 0) nv = -nv;
+    if (!nv.allFinite() || nv.dot(u) < std::cos(10.0 * M_PI / 180.0)) break;
+    u = nv.normalized();
+  }
+  return u;
+}
+}  // namespace
+
 void ToWorkingFrame(Scan& scan, const FrameOptions& o) {
   Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
   std::string how = o.up;
@@ -306,6 +346,28 @@ void ToWorkingFrame(Scan& scan, const FrameOptions& o) {
     spdlog::info("{}: --up auto: up is ({:.3f}, {:.3f}, {:.3f}) in the file's axes", scan.source, z.x(), z.y(), z.z());
   } else {
     t.linear() = UpAxisRotation(o.up, "--up");
+    if (o.level) {
+      // The floor's normal in the axis-turned frame; turned onto +z by the smallest rotation.
+      const Eigen::Matrix3f r = t.linear().cast<float>();
+      Points upright(scan.points.size());
+      for (size_t i = 0; i < upright.size(); ++i) upright[i] = r * scan.points[i];
+      auto floor = EstimateUpAxis(upright, Eigen::Vector3d::UnitZ(), kLevelMaxDeg);
+      if (floor) floor = RefineFloorNormal(upright, *floor);
+      const double tilt = floor ? std::acos(std::clamp(floor->normalized().z(), -1.0, 1.0)) * 180.0 / M_PI : 0.0;
+      if (floor && tilt > kLevelMinDeg) {
+        t.linear() = Eigen::Quaterniond::FromTwoVectors(floor->normalized(), Eigen::Vector3d::UnitZ()).toRotationMatrix() *
+                     t.linear();
+        std::ostringstream s;
+        s.precision(3);
+        s << o.up << ", levelled by " << tilt << " deg";
+        how = s.str();
+        spdlog::info("{}: the floor is tilted {:.1f} deg from --up {}: levelled", scan.source, tilt, o.up);
+      } else {
+        spdlog::debug("{}: level: {}", scan.source,
+                      floor ? fmt::format("the floor is within {:.1f} deg of --up {}: kept", tilt, o.up)
+                            : std::string("no floor plane found: the axis is kept"));
+      }
+    }
   }
   scan.frame.to_upright = t;
   scan.frame.up = how;

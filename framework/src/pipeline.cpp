@@ -386,6 +386,7 @@ Pipeline::Result Pipeline::Detect(const std::vector<SceneInput>& scenes, const T
     for (auto& s : got) {
       FrameOptions fo = sc.frame;
       fo.canonical = fo.canonical && graph_.canonical_frame;
+      fo.level = fo.level || graph_.level_frame;
       ToWorkingFrame(s, fo);
       GroundOptions go = graph_.ground;
       go.fixed_z += float(s.frame.canonical.translation().z());  // given in the z-up frame

@@ -79,6 +79,8 @@ TEST(Cli, BadInputsExitTwoWithOneLine) {
       {"--graph " + dir + "/nothere.json x.pcd", "nothere.json: no such JSON file"},
       {"validate --graph " + dir + "/unknown_param.json", "unknown parameter"},
       {"validate --graph " + dir + "/long_extends.json", "long_extends.json:/extends: unknown base config"},
+      {g + "--up auto --level " + dir + "/corrupt.pcd", "--level: levels an --up AXIS"},
+      {g + "--transform 0,0,0,0,0.3,0 --level " + dir + "/corrupt.pcd", "--level: levels an --up AXIS"},
       {"detect --graph", "--graph"},
       // Issue 18's frame options name themselves.
       {g + "--up q " + dir + "/corrupt.pcd", "--up: 'q' is not an axis"},

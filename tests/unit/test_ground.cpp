@@ -199,6 +199,54 @@ TEST(Frame, WorkingFrameOfAnOpticalScan) {
     EXPECT_TRUE(c.frame.ToFile(c.points[i]).isApprox(s.points[i].cast<double>(), 1e-5));
 }
 
+// A camera pitched down, in its optical frame: --up -y leaves its floor tilted by the pitch (the
+// ground model then sees a slope); with level the floor is level again within half a degree and
+// the points still map back to the file exactly. A tilt under 8 degrees (SUN RGB-D's upright
+// views: 1-5) is left alone, and so is one past 35 degrees (no floor within reach of the axis: a
+// wall is not taken for it).
+TEST(Frame, LevelAPitchedCamerasFloor) {
+  const Points room = Room([](float, float) { return 0.f; });
+  auto view = [&](double pitch_deg) {
+    // Camera body frame (x forward, z up) pitched down about its y axis, then its optical frame.
+    const Eigen::Matrix3f pitch = Eigen::AngleAxisf(float(pitch_deg * M_PI / 180.0), Eigen::Vector3f::UnitY()).toRotationMatrix();
+    Scan s;
+    for (const auto& p : room) {
+      const Eigen::Vector3f b = pitch.transpose() * (p - Eigen::Vector3f(-1.f, 2.f, 1.4f));
+      s.points.emplace_back(-b.y(), -b.z(), b.x());
+    }
+    return s;
+  };
+  // The angle between the working frame's up and the room's, both in the file's axes.
+  auto floor_tilt_deg = [](const Scan& s, double pitch_deg) {
+    const Eigen::Vector3d b =
+        Eigen::AngleAxisd(pitch_deg * M_PI / 180.0, Eigen::Vector3d::UnitY()).toRotationMatrix().transpose() *
+        Eigen::Vector3d::UnitZ();
+    const Eigen::Vector3d up(-b.y(), -b.z(), b.x());
+    return std::acos(std::clamp(s.frame.to_upright.linear().row(2).dot(up), -1.0, 1.0)) * 180.0 / M_PI;
+  };
+  FrameOptions axis;
+  axis.up = "-y";
+  axis.canonical = false;
+  FrameOptions level = axis;
+  level.level = true;
+  const Scan pitched = view(20.0);
+  Scan a = pitched, b = pitched;
+  ToWorkingFrame(a, axis);
+  ToWorkingFrame(b, level);
+  EXPECT_NEAR(floor_tilt_deg(a, 20.0), 20.0, 1e-6);
+  EXPECT_LT(floor_tilt_deg(b, 20.0), 0.5);
+  EXPECT_NE(b.frame.up.find("levelled"), std::string::npos) << b.frame.up;
+  for (size_t i = 0; i < pitched.points.size(); i += 997)
+    EXPECT_TRUE(b.frame.ToFile(b.points[i]).isApprox(pitched.points[i].cast<double>(), 1e-5));
+  for (double small : {6.0, 50.0}) {
+    const Scan p = view(small);
+    Scan c = p, d = p;
+    ToWorkingFrame(c, axis);
+    ToWorkingFrame(d, level);
+    EXPECT_TRUE(d.frame.to_upright.isApprox(c.frame.to_upright)) << small;
+  }
+}
+
 // The canonical frame of a room turned about z by any angle and shifted anywhere puts the room
 // the same way (up to a quarter turn) on the axes, centred on the origin: the wall's normal on
 // an axis. A room without walls turns by the major axis of its floor plan.

@@ -10,7 +10,8 @@
 //     "training": {"sensor": "simulate"},       // tag of the sensor stage that scans the catalog
 //     "ground": {"kind": "auto"},               // each scan's floor: auto | level | plane | height_map |
 //                                               //   fixed (+ "z_m"); "cell_m", "step_m", "min_area_m2"
-//     "frame": {"canonical": true},             // stages see scans in their canonical frame (frame.hpp)
+//     "frame": {"canonical": true, "level": false},  // canonical: stages see scans in their canonical frame;
+//                                                  // level: a tilted up axis levelled on the floor (frame.hpp)
 //     "stages": {                               // an object keyed by tag (not an array) so a
 //       "input":   {"type": "sensors.scan_file"},//   merge patch can change one stage's params
 //       "segment": {"type": "segmenters.region_growing", "inputs": ["input"], "params": {...}},
@@ -64,6 +65,8 @@ struct FURNIHOST_API GraphConfig {
   // Stages see each scan in its canonical frame ("frame": {"canonical": true}, the default;
   // see EstimateCanonicalFrame), else in its z-up frame as given.
   bool canonical_frame = true;
+  // Level a tilted up axis on the floor ("frame": {"level": true}; FrameOptions::level).
+  bool level_frame = false;
   std::vector<StageConfig> stages;  // in execution (topological) order
 
   const StageConfig* Find(const std::string& tag) const;

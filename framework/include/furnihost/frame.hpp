@@ -21,7 +21,15 @@ struct FrameOptions {
   // Stages see the scan in its canonical frame (EstimateCanonicalFrame); off: in the z-up frame
   // itself (then detections depend on where the file's origin and axes happen to lie).
   bool canonical = true;
+  // After an up axis (--up AXIS, not auto or a transform): turn the frame so that the floor is
+  // level when it is tilted by more than kLevelMinDeg (and at most kLevelMaxDeg) from that axis:
+  // a camera pitched down, read in its optical frame with --up -y. The floor is the dominant
+  // plane within kLevelMaxDeg of the axis with the scene above it (EstimateUpAxis). Smaller
+  // tilts are left to the ground model (a reconstruction's warped floor, a view a few degrees
+  // off).
+  bool level = false;
 };
+constexpr double kLevelMinDeg = 8.0, kLevelMaxDeg = 35.0;
 
 // The rotation (working = R * file) that makes file axis `axis` ("+z", "-y", ...) point up, the
 // other two kept right-handed: "-y" (optical frame) gives x forward (= file z), y left (= file
@@ -36,8 +44,12 @@ FURNIHOST_API Eigen::Isometry3d ParseTransform(const std::string& text, const st
 
 // The up axis of a cloud (file frame, after the shift) for --up auto: the normal, among the
 // dominant plane directions, of the largest plane that has (nearly) all points on one side,
-// signed to point at them. nullopt when no plane direction dominates.
-FURNIHOST_API std::optional<Eigen::Vector3d> EstimateUpAxis(const Points& points);
+// signed to point at them. nullopt when no plane direction dominates. With `near`: only plane
+// directions within `max_deg` of it count, signed its way (levelling a frame whose up is known
+// roughly).
+FURNIHOST_API std::optional<Eigen::Vector3d> EstimateUpAxis(const Points& points,
+                                                            const std::optional<Eigen::Vector3d>& near = std::nullopt,
+                                                            double max_deg = 180.0);
 
 // The canonical working frame of a z-up cloud: upright -> working = a turn about z that puts
 // the dominant directions of its vertical surfaces (walls, furniture sides) on the x and y axes,
