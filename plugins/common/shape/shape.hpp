@@ -46,6 +46,10 @@ LocalShape EstimateLocalShape(const KnnIndex& index, int k = 16);
 // the points of its voxel (edge `voxel` [m], anchored at the origin) and the 26 voxels around it:
 // a normal at a fixed metric scale of ~1.5 voxels, for scans whose noise swamps k-nearest-
 // neighbour normals (a raw depth camera at a few metres). O(N), parallel, deterministic.
+// Not the ground's EstimateVoxelNormals (a plane through the occupied voxels' centroids, each
+// voxel one vote): a noisy wall is a slab two or three voxels thick, whose sparse fringe voxels
+// then count as much as its dense middle; here every point counts once (the test room of
+// Clusters.WallsOfANoisySensorAreFoundByBlockNormals: 97 % of the walls found, 92 % by centroids).
 Points BlockNormals(const Points& points, float voxel);
 
 // Median of `nn` over every `stride`-th point, duplicates (0) left out: the scan's point
