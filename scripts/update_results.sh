@@ -7,6 +7,9 @@
 #   scannet            configs/scannet.json vs scannet_hough.json vs scannet_nn.json vs scannet_ism.json
 #                      on benchmarks/scannet_dev.json
 #   sunrgbd            configs/rgbd_view.json vs scannet.json on benchmarks/sunrgbd_dev.json
+#   synthetic_views    rgbd_view.json trained without the views' models (benchmarks/synthetic_views/
+#                      rgbd_view_holdout.json) vs rgbd_view.json on benchmarks/synthetic_views.json
+#                      (made first by scripts/make_synthetic_views.sh)
 # Each `furnihost eval` writes report.md, summary.json, PR plots and run records to
 # runs/results/<set>/ (git-ignored); the reports and PR plots are copied to docs/results/<set>/
 # (tracked). The README's compact table (AP25 and paper-rule AP per class, the configs in ROWS
@@ -32,6 +35,7 @@ SETS=(
   "synthetic_catalog|benchmarks/synthetic_catalog.json|paper paper_nn paper_ism laser_room"
   "scannet|benchmarks/scannet_dev.json|scannet scannet_hough scannet_nn scannet_ism"
   "sunrgbd|benchmarks/sunrgbd_dev.json|rgbd_view scannet"
+  "synthetic_views|benchmarks/synthetic_views.json|benchmarks/synthetic_views/rgbd_view_holdout rgbd_view"
 )
 # Rows of the README's compact table: set | config name (as in that set's summary.json) | benchmark label
 ROWS=(
@@ -40,15 +44,19 @@ ROWS=(
   "scannet|scannet_nn|ScanNet dev"
   "scannet|scannet_ism|ScanNet dev"
   "sunrgbd|rgbd_view|SUN RGB-D dev"
+  "synthetic_views|rgbd_view_holdout|synthetic single views, unseen models"
   "synthetic|paper|synthetic rooms"
   "synthetic|laser_room|synthetic rooms"
 )
 
+[ "$EVAL" = 1 ] && FURNIHOST="$FURNIHOST" scripts/make_synthetic_views.sh
 for entry in "${SETS[@]}"; do
   IFS='|' read -r set dataset graphs <<<"$entry"
   if [ "$EVAL" = 1 ]; then
     args=()
-    for g in $graphs; do args+=(--graph "configs/$g.json"); done
+    for g in $graphs; do
+      case "$g" in */*) args+=(--graph "$g.json") ;; *) args+=(--graph "configs/$g.json") ;; esac
+    done
     "$FURNIHOST" eval "${args[@]}" --dataset "$dataset" --out "$OUT/$set" -q
   fi
   [ -f "$OUT/$set/summary.json" ] || { echo "update_results: no $OUT/$set/summary.json (run without --no-eval)" >&2; exit 2; }
