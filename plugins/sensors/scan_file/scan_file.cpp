@@ -1,5 +1,8 @@
 // sensors.scan_file — reads a scan from a file (PCD, PLY, XYZ) for detection, with optional
-// voxel downsampling so real scans can be matched to the training views' density.
+// voxel downsampling so real scans can be matched to the training views' density. With a
+// sensor origin, returns at the origin itself are dropped: a depth camera's driver writes its
+// invalid pixels as (0, 0, 0), the camera's own position, where no surface can be (left in,
+// they move the scan's bounding box, its canonical frame and every score).
 #include <spdlog/spdlog.h>
 
 #include "furnihost/geometry.hpp"
@@ -53,27 +56,48 @@ class ScanFile : public Sensor {
     auto shifted = [&](const Eigen::Vector3f& o) { return Eigen::Vector3f((o.cast<double>() - scan.frame.shift).cast<float>()); };
     if (req.origin) scan.origin = shifted(*req.origin);
     else if (!scan.origin && origin_) scan.origin = shifted(*origin_);
+    if (scan.origin) {
+      std::vector<int> kept;
+      kept.reserve(scan.points.size());
+      for (size_t i = 0; i < scan.points.size(); ++i)
+        if (!((scan.points[i] - *scan.origin).squaredNorm() < kAtOrigin * kAtOrigin)) kept.push_back(int(i));
+      if (kept.size() < scan.points.size()) {
+        spdlog::info("{}: {} returns at the sensor origin dropped (a depth camera's invalid pixels)", req.path,
+                     scan.points.size() - kept.size());
+        Keep(scan, kept);
+      }
+    }
     if (voxel_ > 0) {
       std::vector<int> kept;
       const size_t before = scan.points.size();
-      scan.points = VoxelDownsample(scan.points, voxel_, &kept);
-      // Per-point attributes follow the first point of each voxel.
-      for (auto& [name, values] : scan.attributes) {
-        std::vector<int32_t> v(kept.size());
-        for (size_t i = 0; i < kept.size(); ++i) v[i] = values[kept[i]];
-        values.swap(v);
-      }
-      if (!scan.colors.empty()) {
-        std::vector<std::array<uint8_t, 3>> c(kept.size());
-        for (size_t i = 0; i < kept.size(); ++i) c[i] = scan.colors[kept[i]];
-        scan.colors.swap(c);
-      }
+      const Points down = VoxelDownsample(scan.points, voxel_, &kept);
+      Keep(scan, kept);  // per-point attributes follow the first point of each voxel
+      scan.points = down;
       spdlog::info("{}: voxel {} m: {} -> {} points", req.path, voxel_, before, scan.points.size());
     }
     return {std::move(scan)};
   }
 
  private:
+  static constexpr float kAtOrigin = 1e-4f;  // [m]: a return this close to the sensor is its own position
+
+  // Keeps the points (and their attributes and colours) at `kept`, in that order.
+  static void Keep(Scan& scan, const std::vector<int>& kept) {
+    Points p(kept.size());
+    for (size_t i = 0; i < kept.size(); ++i) p[i] = scan.points[size_t(kept[i])];
+    scan.points.swap(p);
+    for (auto& [name, values] : scan.attributes) {
+      std::vector<int32_t> v(kept.size());
+      for (size_t i = 0; i < kept.size(); ++i) v[i] = values[size_t(kept[i])];
+      values.swap(v);
+    }
+    if (!scan.colors.empty()) {
+      std::vector<std::array<uint8_t, 3>> c(kept.size());
+      for (size_t i = 0; i < kept.size(); ++i) c[i] = scan.colors[size_t(kept[i])];
+      scan.colors.swap(c);
+    }
+  }
+
   float voxel_;
   size_t max_points_;
   std::optional<Eigen::Vector3f> origin_;
