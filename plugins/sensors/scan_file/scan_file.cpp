@@ -64,15 +64,17 @@ class ScanFile : public Sensor {
       if (kept.size() < scan.points.size()) {
         spdlog::info("{}: {} returns at the sensor origin dropped (a depth camera's invalid pixels)", req.path,
                      scan.points.size() - kept.size());
-        Keep(scan, kept);
+        Points p(kept.size());
+        for (size_t i = 0; i < kept.size(); ++i) p[i] = scan.points[size_t(kept[i])];
+        scan.points.swap(p);
+        KeepAttributes(scan, kept);
       }
     }
     if (voxel_ > 0) {
       std::vector<int> kept;
       const size_t before = scan.points.size();
-      const Points down = VoxelDownsample(scan.points, voxel_, &kept);
-      Keep(scan, kept);  // per-point attributes follow the first point of each voxel
-      scan.points = down;
+      scan.points = VoxelDownsample(scan.points, voxel_, &kept);
+      KeepAttributes(scan, kept);  // per-point attributes follow the first point of each voxel
       spdlog::info("{}: voxel {} m: {} -> {} points", req.path, voxel_, before, scan.points.size());
     }
     return {std::move(scan)};
@@ -81,11 +83,8 @@ class ScanFile : public Sensor {
  private:
   static constexpr float kAtOrigin = 1e-4f;  // [m]: a return this close to the sensor is its own position
 
-  // Keeps the points (and their attributes and colours) at `kept`, in that order.
-  static void Keep(Scan& scan, const std::vector<int>& kept) {
-    Points p(kept.size());
-    for (size_t i = 0; i < kept.size(); ++i) p[i] = scan.points[size_t(kept[i])];
-    scan.points.swap(p);
+  // Keeps the per-point attributes and colours of the points at `kept`, in that order.
+  static void KeepAttributes(Scan& scan, const std::vector<int>& kept) {
     for (auto& [name, values] : scan.attributes) {
       std::vector<int32_t> v(kept.size());
       for (size_t i = 0; i < kept.size(); ++i) v[i] = values[size_t(kept[i])];
