@@ -84,9 +84,7 @@ struct KnnIndex::Impl {
   explicit Impl(const Points& p)
       : distinct(GroupDuplicates(p, start, members)),
         adaptor{distinct.empty() ? p : distinct},
-        tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(16)) {
-    tree.buildIndex();
-  }
+        tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(16)) {}  // built by its constructor (nanoflann 1.4)
 };
 
 KnnIndex::KnnIndex(const Points& points) : points_(points), impl_(std::make_unique<Impl>(points)) {}
@@ -230,7 +228,8 @@ LocalShape EstimateLocalShape(const KnnIndex& index, int k) {
         const Eigen::Vector3d d = pts[j].cast<double>() - mean;
         cov += d * d.transpose();
       }
-      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+      es.computeDirect(cov);  // closed form: a third of the iterative solver's time
       const Eigen::Vector3d n = es.eigenvectors().col(0);
       if (n.allFinite()) out.normals[i] = n.cast<float>();
     }

@@ -425,8 +425,7 @@ WordIndex::WordIndex(const RowMatrixXf& words, int leaf_size) : impl_(std::make_
   if (words.rows() == 0) throw StageError("voter model has no words");
   impl_->words = words;
   impl_->tree = std::make_unique<Impl::Tree>(static_cast<size_t>(words.cols()),
-                                             std::cref(impl_->words), leaf_size);
-  impl_->tree->index->buildIndex();
+                                             std::cref(impl_->words), leaf_size);  // builds the tree
 }
 
 WordIndex::~WordIndex() = default;

@@ -108,9 +108,8 @@ std::vector<int> OuterPoints(const Points& pts, float spacing) {
 struct PointIndex::Impl {
   PointsAdaptor adaptor;
   Tree tree;
-  explicit Impl(const Points* p) : adaptor{p}, tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10)) {
-    tree.buildIndex();
-  }
+  // nanoflann 1.4's constructor builds the tree (a second buildIndex() built it again).
+  explicit Impl(const Points* p) : adaptor{p}, tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10)) {}
 };
 
 PointIndex::PointIndex(const Points* points) : impl_(std::make_unique<Impl>(points)) {}
