@@ -737,18 +737,30 @@ class ClusterProposer : public Proposer {
     VoxelIndex index;
     index.Build(uniq, reach);
     std::vector<UnionFind> uf(R, UnionFind(uniq.size()));
-    for (size_t s = 0; s < index.size(); ++s) {
-      const uint32_t i = index.order[s];
-      index.ForEachWithin(index.cell_of[s], index.x[s], index.y[s], index.z[s], reach,
-                          [&](int t, float, float, float, float d2) {
-                            const uint32_t j = index.order[size_t(t)];
-                            if (j <= i) return;
-                            for (size_t a = 0; a < R; ++a) {
-                              if (!(d2 < r2[a])) continue;
-                              const float lim = adaptive ? std::max(base[a], ms[a] * std::max(lsp[i], lsp[j])) : base[a];
-                              if (d2 < lim * lim) uf[a].Join(i, j);
-                            }
-                          });
+    // Every pair once: the later slots of a point's own cell and the cells after it (cells are
+    // numbered in key order). Joins in any order give the same components (a root is always its
+    // component's smallest index), and half the distances of visiting all 27 cells from both ends.
+    const float reach2 = reach * reach;
+    for (int c = 0; c < index.NumCells(); ++c) {
+      for (int s = index.cell_start[c]; s < index.cell_start[c + 1]; ++s) {
+        const uint32_t i = index.order[size_t(s)];
+        const float px = index.x[size_t(s)], py = index.y[size_t(s)], pz = index.z[size_t(s)];
+        for (int k = index.nb_start[c]; k < index.nb_start[c + 1]; ++k) {
+          const int nc = index.nb[size_t(k)];
+          if (nc < c) continue;
+          for (int t = nc == c ? s + 1 : index.cell_start[nc]; t < index.cell_start[nc + 1]; ++t) {
+            const float dx = index.x[size_t(t)] - px, dy = index.y[size_t(t)] - py, dz = index.z[size_t(t)] - pz;
+            const float d2 = dx * dx + dy * dy + dz * dz;
+            if (!(d2 < reach2)) continue;
+            const uint32_t j = index.order[size_t(t)];
+            for (size_t a = 0; a < R; ++a) {
+              if (!(d2 < r2[a])) continue;
+              const float lim = adaptive ? std::max(base[a], ms[a] * std::max(lsp[i], lsp[j])) : base[a];
+              if (d2 < lim * lim) uf[a].Join(i, j);
+            }
+          }
+        }
+      }
     }
     for (size_t a = 0; a < R; ++a) {
       std::unordered_map<uint32_t, size_t> slot;
