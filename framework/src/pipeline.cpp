@@ -364,7 +364,8 @@ TrainedModel Pipeline::Train(const Catalog& catalog, const RunContext& ctx) {
 }
 
 Pipeline::Result Pipeline::Detect(const std::vector<SceneInput>& scenes, const TrainedModel* model,
-                                  const Catalog* catalog, const RunContext& ctx) {
+                                  const Catalog* catalog, const RunContext& ctx,
+                                  const std::function<void()>& before_stages) {
   if (!input_) throw InputError(graph_.path + ": the graph has no input sensor stage (e.g. sensors.scan_file)");
   Result r;
   auto timed = [&](const std::string& tag, double ms) {
@@ -424,6 +425,7 @@ Pipeline::Result Pipeline::Detect(const std::vector<SceneInput>& scenes, const T
     }
   }
 
+  if (before_stages) before_stages();
   // The executor: every stage in execution (topological) order, each given the outputs of the
   // stages its `inputs` name, which are kept by tag until the end of the run.
   struct Output {

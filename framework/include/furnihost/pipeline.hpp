@@ -1,6 +1,7 @@
 // Training and detection through a validated graph: the orchestration shared by the CLI,
 // `furnihost eval` and the integration tests.
 #pragma once
+#include <functional>
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -95,9 +96,11 @@ class FURNIHOST_API Pipeline {
     std::vector<std::pair<std::string, double>> timings_ms;  // stage tag -> ms, in order
   };
   // Runs the chain on the scenes (fused into one vote space when there are several).
-  // `model` may be null when the graph has no voter.
+  // `model` may be null when the graph has no voter. `before_stages`, when given, is called
+  // once the scans are read, framed and grounded, before the first stage reads `model` or
+  // `catalog`: a caller may fill those meanwhile on another thread and wait for it there.
   Result Detect(const std::vector<SceneInput>& scenes, const TrainedModel* model,
-                const Catalog* catalog, const RunContext& ctx);
+                const Catalog* catalog, const RunContext& ctx, const std::function<void()>& before_stages = {});
 
   // Calls `f` and rethrows any exception with the stage tag and type in front.
   template <class F>
