@@ -252,3 +252,36 @@ TEST(Cli, SimulatePerSensorGroundTruthInTheSensorsFrame) {
   EXPECT_EQ(bad.code, 2);
   EXPECT_NE(bad.err.find("--per-sensor"), std::string::npos) << bad.err;
 }
+
+// detect loads the catalog and the model on a worker while the scan is read, framed and
+// grounded: an unreadable catalog still ends the run with exit 2 and one line naming it, with
+// one thread or two, whether the scan is good or bad too, and nothing is written.
+TEST(Cli, CatalogErrorsWhileTheScanLoadsExitTwoWithOneLine) {
+  const std::string dir = furnihost::testing::TempDir("cli_catalog_overlap");
+  const std::string corpus = furnihost::testing::SourceDir() + "/tests/hostile/corpus/catalogs";
+  furnihost::AtomicWriteText(dir + "/g.json", R"({"catalog": ")" + corpus + R"(/not_json/catalog.json",
+    "training": {"sensor": "sim"},
+    "stages": {"sim": {"type": "sensors.simulated_laser"}, "input": {"type": "sensors.scan_file"},
+               "prop": {"type": "proposals.clusters", "inputs": ["input"]},
+               "vote": {"type": "voters.catalog_shape", "inputs": ["prop"]}}})");
+  furnihost::Scan s;  // a floor and a box: a scan every stage before the voter accepts
+  for (int i = 0; i < 60; ++i)
+    for (int j = 0; j < 60; ++j) {
+      s.points.emplace_back(0.05f * float(i), 0.05f * float(j), 0.f);
+      if (i > 20 && i < 30 && j > 20 && j < 30) s.points.emplace_back(0.05f * float(i), 0.05f * float(j), 0.5f);
+    }
+  furnihost::WriteScan(dir + "/good.ply", s);
+  furnihost::AtomicWriteText(dir + "/bad.ply", "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nend_header\n1\n2\n");
+  for (const std::string threads : {"1", "2"})
+    for (const std::string scan : {"good", "bad"}) {
+      const std::string out = dir + "/out_" + scan + threads;
+      const auto r = Furnihost("--graph " + dir + "/g.json --threads " + threads + " --out " + out + " " + dir + "/" + scan + ".ply");
+      EXPECT_EQ(r.code, 2) << scan << " " << threads << "\n" << r.err;
+      const auto lines = ErrorLines(r.err);
+      ASSERT_EQ(lines.size(), 1u) << r.err;
+      if (scan == "good") {
+        EXPECT_NE(lines[0].find("not_json/catalog.json"), std::string::npos) << lines[0];
+      }
+      EXPECT_FALSE(fs::exists(out + "/detections.json")) << out;
+    }
+}
