@@ -4,7 +4,8 @@
     python3 benchmarks/speed/report.py runs/speed
 
 Reads DIR/detect/<scan>/run*/detections.json (timings_ms per stage; the run with the smallest
-total is kept) and DIR/segmentation.json (bench_region_growing --summary_json). Prints two
+total is kept), DIR/scannet_route.json (configs/scannet.json timed as whole processes) and
+DIR/segmentation.json (bench_region_growing --summary_json). Prints two
 markdown tables, writes them to DIR/speed.md and a plot of time against point count to
 DIR/speed.svg (written by hand: no plotting library needed).
 """
@@ -83,6 +84,25 @@ def seg_table(seg):
     return lines
 
 
+def route_table(route):
+    """configs/scannet.json as whole processes: per room the median, fastest and slowest."""
+    by_room = {}
+    for r in route["runs"]:
+        by_room.setdefault(r["room"], []).append(r)
+    head = ["room", "points", "process [s]: median (min-max)", "runs", "stages [s]: ground + proposals + recognition",
+            "< 0.3 s"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for room, runs in sorted(by_room.items()):
+        walls = sorted(r["wall_s"] for r in runs)
+        med = walls[len(walls) // 2] if len(walls) % 2 else 0.5 * (walls[len(walls) // 2 - 1] + walls[len(walls) // 2])
+        t = min((r["detections"]["timings_ms"] for r in runs), key=lambda t: t["total"])
+        stages = " + ".join(f"{t.get(s, 0.0) / 1000:.3f}" for s in ("ground", "propose", "recognise"))
+        cells = [room, points_label(runs[0]["detections"]["points"]), f"{med:.3f} ({walls[0]:.3f}-{walls[-1]:.3f})",
+                 str(len(walls)), stages, "yes" if med < 0.3 else "no"]
+        lines.append("| " + " | ".join(cells) + " |")
+    return lines
+
+
 def svg_plot(series, path, title):
     """series: [(label, colour, [(points, seconds), ...])]; log-log axes."""
     W, H, L, R, T, B = 640, 420, 70, 190, 40, 50
@@ -145,6 +165,11 @@ def main():
     seg = json.load(open(seg_path)) if os.path.exists(seg_path) else {"rows": []}
     md = ["## Whole detection, configs/paper.json (fastest of the runs; 2 threads)", ""]
     md += detect_table(det) if det else ["(no detection runs)"]
+    route_path = os.path.join(out, "scannet_route.json")
+    route = json.load(open(route_path)) if os.path.exists(route_path) else {"runs": []}
+    if route["runs"]:
+        md += ["", "## configs/scannet.json on ScanNet dev rooms, whole process (model cached; 2 threads)", ""]
+        md += route_table(route)
     md += ["", "## Segmentation (+ features) against PCL on the same clouds, one process (2 threads)", ""]
     md += seg_table(seg) if seg["rows"] else ["(no segmentation rows)"]
     md += ["", "× ours = PCL time / our time (higher: ours faster). PCL RegionGrowing is single-threaded;",

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Speed benchmark in one command: builds furnihost and bench_region_growing
 # (-DFURNIHOST_BUILD_BENCH=ON), simulates dense laser rooms of ~0.1M, 0.5M and 1.5M points, times
-# `furnihost --graph configs/paper.json` per stage on them and on one ScanNet dev scan, times our
+# `furnihost --graph configs/paper.json` per stage on them and on one ScanNet dev scan, times
+# `furnihost --graph configs/scannet.json` as whole processes on three ScanNet rooms, times our
 # segmentation + features against PCL's MLS + RegionGrowing and NormalEstimationOMP +
 # RegionGrowing on the same clouds in one process, then prints markdown tables and writes a plot.
 #
@@ -15,7 +16,9 @@
 # benchmark); the detection then retrains the model and overwrites the cached one (the next
 # run without it retrains again).
 # Writes DIR (default runs/speed/): rooms/*.pcd, detect/<scan>/run<i>/detections.json,
-# segmentation.json, speed.md (the tables) and speed.svg (time against point count).
+# scannet_route.json (configs/scannet.json timed as whole processes on ScanNet dev rooms,
+# PROCESS_RUNS=N runs each, default 5), segmentation.json, speed.md (the tables) and speed.svg
+# (time against point count).
 # $FURNIHOST_SHARED_DATA_DIR (default ../shared/data) holds scannet_votenet50k/; it is read in
 # place, never copied.
 set -euo pipefail
@@ -31,7 +34,7 @@ while [[ $# -gt 0 ]]; do
     --build) BUILD="$2"; shift ;;
     --out) OUT="$2"; shift ;;
     --no-build) DO_BUILD=0 ;;
-    -h|--help) sed -n '2,17p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,/^set /{/^#/p}' "$0"; exit 0 ;;
     *) echo "run.sh: unknown argument $1 (see --help)" >&2; exit 2 ;;
   esac
   shift
@@ -83,6 +86,30 @@ for s in "${SCANS[@]}"; do
     "$FH" --graph configs/paper.json "$f" "${SET_ARGS[@]}" --threads "$THREADS" -q --out "$OUT/detect/$name/run$i" >/dev/null
   done
 done
+
+# The scannet.json route as a user runs it (issue 21's 50k target: a whole process, model
+# cached), on the largest and a small ScanNet dev room: one warm-up run (it trains the model if
+# none is cached), then PROCESS_RUNS timed runs each (default 5; the report takes the median).
+PROCESS_RUNS=${PROCESS_RUNS:-5}
+ROUTE_JSON="$OUT/scannet_route.json"
+echo '{"runs": [' >"$ROUTE_JSON"
+first=1
+for room in scene0000_00 scene0001_01 scene0003_00; do
+  f="$SHARED/scannet_votenet50k/$room.ply"
+  [[ -f $f ]] || continue
+  echo "process: scannet.json on $room ($PROCESS_RUNS runs)"
+  "$FH" --graph configs/scannet.json "$f" --threads "$THREADS" -q --out "$OUT/scannet_route/$room" >/dev/null
+  for i in $(seq "$PROCESS_RUNS"); do
+    t0=$(date +%s%N)
+    "$FH" --graph configs/scannet.json "$f" --threads "$THREADS" -q --out "$OUT/scannet_route/$room" >/dev/null
+    t1=$(date +%s%N)
+    [[ $first == 1 ]] || echo ',' >>"$ROUTE_JSON"
+    first=0
+    printf '{"room": "%s", "wall_s": %s, "detections": %s}' "$room" "$(awk "BEGIN{print ($t1 - $t0) / 1e9}")" \
+      "$(cat "$OUT/scannet_route/$room/detections.json")" >>"$ROUTE_JSON"
+  done
+done
+echo ']}' >>"$ROUTE_JSON"
 
 # Ours against PCL on the same clouds, in one process (configs/paper.json's radii).
 BENCH_ARGS=()
