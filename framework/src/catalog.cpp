@@ -1,5 +1,6 @@
-// CAD catalogs: catalog.json parsing, mesh import with assimp, normalisation to the project
-// frame (metres, z up, bounding-box bottom centre at the origin).
+// CAD catalogs: catalog.json parsing, mesh import with assimp (in libfurnihost_meshio, loaded on
+// the first mesh parsed: meshio/mesh_import.cpp), normalisation to the project frame (metres,
+// z up, bounding-box bottom centre at the origin).
 //
 // Units and axes: the catalog's `up` and scale fields are defined relative to assimp's DEFAULT
 // import (the "frame" text of ../shared/data/cad_catalog/catalog.json). For most formats that
@@ -10,11 +11,7 @@
 // process cannot silently change what a catalog entry means.
 #include "furnihost/catalog.hpp"
 
-#include <assimp/Importer.hpp>
-#include <assimp/config.h>
-#include <assimp/postprocess.h>
-#include <assimp/scene.h>
-#include <assimp/version.h>
+#include <dlfcn.h>
 #include <spdlog/spdlog.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_group.h>
@@ -39,18 +36,6 @@
 #include "furnihost/io.hpp"
 
 namespace fs = std::filesystem;
-
-// Debian's assimp is built with ASSIMP_BUILD_DEBUG: an internal consistency check that fails
-// on a malformed file (e.g. a broken OFF face list) calls this function, which aborts the
-// whole process. This definition interposes the library's (the host library comes first in
-// the dynamic linker's search order) and turns the abort into an exception that
-// LoadMeshFile reports as an unreadable mesh. Without a debug assimp it is never called.
-namespace Assimp {
-FURNIHOST_API void aiAssertViolation(const char* expression, const char* file, int line) {
-  throw std::runtime_error(std::string("assimp internal check failed: ") + expression + " (" + file + ":" +
-                           std::to_string(line) + ")");
-}
-}  // namespace Assimp
 
 namespace furnihost {
 
@@ -206,9 +191,7 @@ Mesh LoadMeshCached(const std::string& path) {
   if (dir.empty() || !kSelfContained.count(ext) || !fs::is_regular_file(path, ec)) return LoadMeshFile(path);
   uint64_t key = kFnvOffset;
   if (!HashFile(key, path)) return LoadMeshFile(path);
-  key = Fnv1a(ext + "|assimp " + std::to_string(aiGetVersionMajor()) + "." + std::to_string(aiGetVersionMinor()) + "." +
-                  std::to_string(aiGetVersionPatch()) + "|" + std::string(kMeshCacheMagic, 7),
-              key);
+  key = Fnv1a(ext + "|assimp " + FURNIHOST_ASSIMP_VERSION + "|" + std::string(kMeshCacheMagic, 7), key);
   const std::string file = dir + "/" + Hex64(key) + ".fhmesh";
   if (auto cached = ReadMeshCache(file, key)) return std::move(*cached);
   Mesh m = LoadMeshFile(path);
@@ -485,55 +468,44 @@ void CheckOff(const std::string& path) {
 }
 }  // namespace
 
+namespace {
+// libfurnihost_meshio's import function, the library loaded once (beside the host library, else
+// by the dynamic linker's search: RUNPATH, LD_LIBRARY_PATH); an InputError when it cannot be.
+using ImportFn = bool (*)(const char*, Mesh*, std::string*);
+ImportFn MeshImporter() {
+  static const std::pair<ImportFn, std::string> loaded = []() -> std::pair<ImportFn, std::string> {
+    const char* kName = "libfurnihost_meshio.so";
+    std::vector<std::string> tried;
+    Dl_info self{};
+    if (dladdr(reinterpret_cast<void*>(&LoadMeshFile), &self) && self.dli_fname)
+      tried.push_back((fs::path(self.dli_fname).parent_path() / kName).string());
+    tried.push_back(kName);
+    std::string errors;
+    for (const auto& name : tried) {
+      // Never closed: the mesh importer stays for the process (as the plugins' libraries do).
+      if (void* lib = dlopen(name.c_str(), RTLD_NOW | RTLD_LOCAL)) {
+        if (auto* fn = reinterpret_cast<ImportFn>(dlsym(lib, "furnihost_meshio_import"))) return {fn, ""};
+        errors += (errors.empty() ? "" : "; ") + name + ": no furnihost_meshio_import";
+        continue;
+      }
+      const char* e = dlerror();
+      errors += (errors.empty() ? "" : "; ") + std::string(e ? e : name);
+    }
+    return {nullptr, errors};
+  }();
+  if (!loaded.first) throw InputError("cannot load the mesh importer (" + loaded.second + ")");
+  return loaded.first;
+}
+}  // namespace
+
 Mesh LoadMeshFile(const std::string& path) {
   std::error_code ec;
   if (!fs::is_regular_file(path, ec)) throw InputError(path + ": no such mesh file");
   CheckPlyHeader(path);
   CheckOff(path);
-  Assimp::Importer importer;
-  // Pinned to assimp's defaults on purpose (see the file comment): catalogs are written
-  // against the default import.
-  importer.SetPropertyBool(AI_CONFIG_IMPORT_COLLADA_IGNORE_UP_DIRECTION, false);
-  importer.SetPropertyBool(AI_CONFIG_FBX_CONVERT_TO_M, false);
-  importer.SetPropertyFloat(AI_CONFIG_GLOBAL_SCALE_FACTOR_KEY, 1.0f);
-  // Points and lines carry no surface for a ray to hit.
-  importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
-  const unsigned flags = aiProcess_Triangulate | aiProcess_JoinIdenticalVertices |
-                         aiProcess_PreTransformVertices | aiProcess_SortByPType;
-  const aiScene* scene = nullptr;
-  try {
-    scene = importer.ReadFile(path, flags);
-  } catch (const std::exception& e) {  // see aiAssertViolation above; assimp's own errors too
-    throw InputError(path + ": " + e.what());
-  }
-  if (!scene || (scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE) || !scene->mRootNode)
-    throw InputError(path + ": " + (importer.GetErrorString()[0] ? importer.GetErrorString()
-                                                                 : "assimp could not read it"));
   Mesh out;
-  for (unsigned mi = 0; mi < scene->mNumMeshes; ++mi) {
-    const aiMesh* am = scene->mMeshes[mi];
-    if (!(am->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) continue;
-    const int base = static_cast<int>(out.vertices.size());
-    out.vertices.reserve(out.vertices.size() + am->mNumVertices);
-    for (unsigned v = 0; v < am->mNumVertices; ++v) {
-      const aiVector3D& p = am->mVertices[v];
-      if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
-        throw InputError(path + ": non-finite vertex coordinate in mesh " + std::to_string(mi));
-      out.vertices.emplace_back(p.x, p.y, p.z);
-    }
-    for (unsigned f = 0; f < am->mNumFaces; ++f) {
-      const aiFace& face = am->mFaces[f];
-      if (face.mNumIndices != 3) continue;
-      // assimp's PLY importer passes out-of-range indices through unchecked.
-      for (unsigned k = 0; k < 3; ++k)
-        if (face.mIndices[k] >= am->mNumVertices)
-          throw InputError(path + ": face " + std::to_string(f) + " of mesh " + std::to_string(mi) + " uses vertex " +
-                           std::to_string(face.mIndices[k]) + " of " + std::to_string(am->mNumVertices));
-      out.triangles.emplace_back(base + static_cast<int>(face.mIndices[0]),
-                                 base + static_cast<int>(face.mIndices[1]),
-                                 base + static_cast<int>(face.mIndices[2]));
-    }
-  }
+  std::string why;
+  if (!MeshImporter()(path.c_str(), &out, &why)) throw InputError(path + ": " + why);
   if (out.triangles.empty()) throw InputError(path + ": no triangles in the file");
   return out;
 }
