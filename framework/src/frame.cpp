@@ -8,7 +8,6 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <nanoflann.hpp>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -199,35 +198,7 @@ Eigen::Isometry3d EstimateCanonicalFrame(const Points& upright) {
   const size_t stride = std::max<size_t>(1, finite.size() / 30000);
   Points sample;
   for (size_t k = 0; k < finite.size(); k += stride) sample.push_back(upright[finite[k]]);
-  {
-    // The first of equal points kept: an open-addressing table over their bits (-0 folded onto
-    // +0), linear time (sorting the sample took ~10 ms of one core on a 50k-point room).
-    auto bits = [](float v) {
-      v += 0.f;
-      uint32_t b;
-      std::memcpy(&b, &v, 4);
-      return b;
-    };
-    auto hash = [&](const Eigen::Vector3f& p) {
-      uint64_t h = bits(p.x()) * 0x9E3779B97F4A7C15ull;
-      h ^= (h >> 29) + bits(p.y()) * 0xC2B2AE3D27D4EB4Full;
-      h ^= (h >> 31) + bits(p.z()) * 0x165667B19E3779F9ull;
-      return h ^ (h >> 32);
-    };
-    size_t cap = 16;
-    while (cap < 2 * sample.size()) cap <<= 1;
-    std::vector<uint32_t> slot(cap, UINT32_MAX);  // index in u of the point held
-    Points u;
-    u.reserve(sample.size());
-    for (const auto& p : sample) {
-      size_t h = hash(p) & (cap - 1);
-      while (slot[h] != UINT32_MAX && u[slot[h]] != p) h = (h + 1) & (cap - 1);
-      if (slot[h] != UINT32_MAX) continue;
-      slot[h] = uint32_t(u.size());
-      u.push_back(p);
-    }
-    sample.swap(u);
-  }
+  sample = GroupEqualPoints(sample);  // the first of equal points kept
   // Azimuths of the vertical surfaces' normals (plane fits over 12 neighbours), as 4 x angle.
   double C = 0, S = 0, W = 0;
   if (sample.size() >= 20) {

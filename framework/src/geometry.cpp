@@ -4,6 +4,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <random>
 #include <unordered_map>
@@ -117,6 +118,37 @@ Points VoxelDownsample(const Points& points, float voxel, std::vector<int>* kept
   for (size_t s = 0; s < sum.size(); ++s) out[s] = (sum[s] / count[s]).cast<float>();
   if (kept) *kept = std::move(first);
   return out;
+}
+
+Points GroupEqualPoints(const Points& points, std::vector<uint32_t>* of) {
+  auto bits = [](float v) {
+    v += 0.f;  // -0 -> +0
+    uint32_t b;
+    std::memcpy(&b, &v, 4);
+    return b;
+  };
+  auto same = [&](const Eigen::Vector3f& a, const Eigen::Vector3f& b) {
+    return bits(a.x()) == bits(b.x()) && bits(a.y()) == bits(b.y()) && bits(a.z()) == bits(b.z());
+  };
+  size_t cap = 16;
+  while (cap < 2 * points.size()) cap <<= 1;
+  std::vector<uint32_t> slot(cap, UINT32_MAX);  // distinct index held by each table slot
+  Points distinct;
+  if (of) of->resize(points.size());
+  for (size_t i = 0; i < points.size(); ++i) {
+    const Eigen::Vector3f& p = points[i];
+    uint64_t h = bits(p.x()) * 0x9E3779B97F4A7C15ull;
+    h ^= (h >> 29) + bits(p.y()) * 0xC2B2AE3D27D4EB4Full;
+    h ^= (h >> 31) + bits(p.z()) * 0x165667B19E3779F9ull;
+    size_t k = size_t(h ^ (h >> 32)) & (cap - 1);
+    while (slot[k] != UINT32_MAX && !same(distinct[slot[k]], p)) k = (k + 1) & (cap - 1);
+    if (slot[k] == UINT32_MAX) {
+      slot[k] = uint32_t(distinct.size());
+      distinct.push_back(p);
+    }
+    if (of) (*of)[i] = slot[k];
+  }
+  return distinct;
 }
 
 VoxelNormals EstimateVoxelNormals(const Points& points, float voxel) {

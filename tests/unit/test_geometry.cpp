@@ -122,3 +122,19 @@ TEST(Geometry, VoxelNormalsAndGroundDoNotDependOnThePartition) {
 }
 
 }  // namespace
+
+// Exact copies only (-0 equal to +0), first appearance kept in order, each point mapped to its
+// position; a flood of one position stays one position.
+TEST(Geometry, GroupEqualPointsKeepsFirstAppearances) {
+  const furnihost::Points p = {{1, 2, 3}, {0, 0, 0}, {1, 2, 3}, {-0.f, 0, -0.f}, {1, 2, 3.0000005f}, {0, 0, 0}};
+  std::vector<uint32_t> of;
+  const furnihost::Points d = furnihost::GroupEqualPoints(p, &of);
+  ASSERT_EQ(d.size(), 3u);
+  EXPECT_EQ(d[0], p[0]);
+  EXPECT_EQ(d[1], p[1]);
+  EXPECT_EQ(d[2], p[4]);
+  EXPECT_EQ(of, (std::vector<uint32_t>{0, 1, 0, 1, 2, 1}));
+  const furnihost::Points flood(100000, Eigen::Vector3f::Zero());
+  EXPECT_EQ(furnihost::GroupEqualPoints(flood).size(), 1u);
+  EXPECT_TRUE(furnihost::GroupEqualPoints(furnihost::Points()).empty());
+}

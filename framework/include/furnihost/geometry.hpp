@@ -13,6 +13,12 @@ namespace furnihost {
 // voxel <= 0: the points unchanged.
 FURNIHOST_API Points VoxelDownsample(const Points& points, float voxel, std::vector<int>* kept = nullptr);
 
+// The distinct positions of `points` in order of first appearance (exact copies only: bit
+// patterns compared, -0 equal to +0) and, in `of` when given, each point's index among them.
+// An open-addressing hash table over the bits: linear time whatever the copies (a driver's
+// (0, 0, 0) for every invalid return).
+FURNIHOST_API Points GroupEqualPoints(const Points& points, std::vector<uint32_t>* of = nullptr);
+
 // Coarse surface normals in linear time: the points' voxel-grid centroids (edge `voxel`), each
 // with the normal (PCA, sign arbitrary) of the centroids in its 3x3x3 voxel neighbourhood, and
 // whether that neighbourhood is flat (smallest eigenvalue < 5 % of the middle one, >= 5

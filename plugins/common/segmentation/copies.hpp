@@ -7,11 +7,11 @@
 #pragma once
 #include <Eigen/Core>
 #include <cstdint>
-#include <cstring>
 #include <vector>
 
 #include <limits>
 
+#include "furnihost/geometry.hpp"
 #include "furnihost/stage.hpp"
 #include "furnihost/types.hpp"
 
@@ -23,37 +23,11 @@ struct ScanCopies {
   Scan distinct;             // the scan with one point per position (origin, ground, frame kept)
 };
 
-// Groups equal points (bit patterns, -0 folded onto +0) with an open-addressing hash table:
-// linear time.
+// Groups equal points (GroupEqualPoints: bit patterns, -0 folded onto +0; linear time).
 inline ScanCopies FindCopies(const Scan& scan) {
   ScanCopies c;
   const Points& p = scan.points;
-  auto bits = [](float v) {
-    v += 0.f;
-    uint32_t b;
-    std::memcpy(&b, &v, 4);
-    return b;
-  };
-  auto same = [&](const Eigen::Vector3f& a, const Eigen::Vector3f& b) {
-    return bits(a.x()) == bits(b.x()) && bits(a.y()) == bits(b.y()) && bits(a.z()) == bits(b.z());
-  };
-  size_t cap = 16;
-  while (cap < 2 * p.size()) cap <<= 1;
-  std::vector<uint32_t> slot(cap, UINT32_MAX);
-  Points distinct;
-  c.of.resize(p.size());
-  for (size_t i = 0; i < p.size(); ++i) {
-    uint64_t h = bits(p[i].x()) * 0x9E3779B97F4A7C15ull;
-    h ^= (h >> 29) + bits(p[i].y()) * 0xC2B2AE3D27D4EB4Full;
-    h ^= (h >> 31) + bits(p[i].z()) * 0x165667B19E3779F9ull;
-    size_t k = size_t(h ^ (h >> 32)) & (cap - 1);
-    while (slot[k] != UINT32_MAX && !same(distinct[slot[k]], p[i])) k = (k + 1) & (cap - 1);
-    if (slot[k] == UINT32_MAX) {
-      slot[k] = uint32_t(distinct.size());
-      distinct.push_back(p[i]);
-    }
-    c.of[i] = slot[k];
-  }
+  Points distinct = GroupEqualPoints(p, &c.of);
   c.any = distinct.size() < p.size();
   if (!c.any) {
     c.of.clear();

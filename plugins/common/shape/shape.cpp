@@ -25,41 +25,12 @@ struct Adaptor {
 };
 using Tree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, Adaptor>, Adaptor, 3, uint32_t>;
 
-// Bit pattern of a coordinate with -0 folded onto +0, so equal values share a key.
-uint32_t Bits(float v) {
-  v += 0.f;
-  uint32_t b;
-  std::memcpy(&b, &v, 4);
-  return b;
-}
-uint64_t HashOf(const Eigen::Vector3f& p) {
-  uint64_t h = Bits(p.x()) * 0x9E3779B97F4A7C15ull;
-  h ^= (h >> 29) + Bits(p.y()) * 0xC2B2AE3D27D4EB4Full;
-  h ^= (h >> 31) + Bits(p.z()) * 0x165667B19E3779F9ull;
-  return h ^ (h >> 32);
-}
-bool Same(const Eigen::Vector3f& a, const Eigen::Vector3f& b) {
-  return Bits(a.x()) == Bits(b.x()) && Bits(a.y()) == Bits(b.y()) && Bits(a.z()) == Bits(b.z());
-}
-
-// Groups equal points (an open-addressing hash table over their bits: linear time). Fills
-// `start` / `members` and returns the distinct positions in order of first appearance; returns
-// nothing (and leaves the others empty) when every point is distinct.
+// Groups equal points (GroupEqualPoints: linear time). Fills `start` / `members` and returns the
+// distinct positions in order of first appearance; returns nothing (and leaves the others
+// empty) when every point is distinct.
 Points GroupDuplicates(const Points& p, std::vector<uint32_t>& start, std::vector<uint32_t>& members) {
-  size_t cap = 16;
-  while (cap < 2 * p.size()) cap <<= 1;
-  std::vector<uint32_t> slot(cap, UINT32_MAX);  // distinct index held by each table slot
-  std::vector<uint32_t> which(p.size());        // distinct index of each point
-  Points distinct;
-  for (size_t i = 0; i < p.size(); ++i) {
-    size_t h = HashOf(p[i]) & (cap - 1);
-    while (slot[h] != UINT32_MAX && !Same(distinct[slot[h]], p[i])) h = (h + 1) & (cap - 1);
-    if (slot[h] == UINT32_MAX) {
-      slot[h] = uint32_t(distinct.size());
-      distinct.push_back(p[i]);
-    }
-    which[i] = slot[h];
-  }
+  std::vector<uint32_t> which;  // distinct index of each point
+  Points distinct = GroupEqualPoints(p, &which);
   if (distinct.size() == p.size()) return {};
   start.assign(distinct.size() + 1, 0);
   for (uint32_t u : which) ++start[u + 1];
