@@ -73,6 +73,7 @@ struct Model {
   bool wide = true;     // the model's x extent (width) is its length
   shape::Profile profile{};
   float open = 0.f;     // share of its inner footprint whose floor a sensor around it sees
+  std::vector<shape::Profile> views;  // its top-view profile as each single eye around it sees it
 };
 
 struct Options {
@@ -86,6 +87,7 @@ struct Options {
   float cell = 0.05f;
   float tall_class = 1.2f;
   bool floor_term = true;
+  bool view_profiles = false;  // single views (scans with a sensor origin): also the models' one-eye profiles
 
   const ClassParams& Of(const std::string& c) const {
     auto it = per_class.find(c);
@@ -179,6 +181,11 @@ const ParamBinding<Options>& Binding() {
                   "spread of the top-view height profile's distance to the model's")
           .DetectionOnly()
           .Number("sig_surround", base(&ClassParams::surround), 1e-3, 100, "", "score factor exp(-surround / this)")
+          .DetectionOnly()
+          .Bool("view_profiles", &O::view_profiles,
+                "on scans with a sensor origin (single views), also compare the proposal's top-view profile with "
+                "the model's as each single eye around it sees it, and take the closest (one view sees one side: "
+                "an armrest hides the seat behind it); reconstructions are always compared with the fused profile")
           .DetectionOnly()
           .Bool("floor_term", &O::floor_term,
                 "compare the floor seen under the proposal with the model's open floor (under a table or chair "
@@ -316,6 +323,7 @@ float OpenFloor(const std::vector<const TrainingView*>& views, const Eigen::Vect
 struct MeshShape {
   shape::Profile profile;
   float open = 0.f;
+  std::vector<shape::Profile> views;  // the profile each eye around it sees alone
 };
 MeshShape FromMesh(const CatalogModel& m, float cell) {
   double area = 0;
@@ -332,6 +340,17 @@ MeshShape FromMesh(const CatalogModel& m, float cell) {
   for (size_t i = 0; i < samples.size(); ++i)
     if (vis[i]) xy.push_back(samples[i].head<2>()), h.push_back(samples[i].z());
   const shape::Profile prof = shape::TopViewProfile(xy, h, size.z(), cell);
+  // The profile each eye alone sees.
+  std::vector<shape::Profile> views;
+  views.reserve(eyes.size());
+  for (const auto& e : eyes) {
+    const std::vector<uint8_t> one = shape::VisibleFrom(samples, Points{e});
+    std::vector<Eigen::Vector2f> vxy;
+    std::vector<float> vh;
+    for (size_t i = 0; i < samples.size(); ++i)
+      if (one[i]) vxy.push_back(samples[i].head<2>()), vh.push_back(samples[i].z());
+    views.push_back(shape::TopViewProfile(vxy, vh, size.z(), cell));
+  }
   // Open floor: blockers are every 4th sample, hashed in 3 cm cells.
   constexpr float clear = 0.03f;
   auto key = [&](const Eigen::Vector3f& p, int dx, int dy, int dz) {
@@ -370,7 +389,7 @@ MeshShape FromMesh(const CatalogModel& m, float cell) {
       }
     }
   });
-  return {prof, cells ? float(open) / float(cells) : 0.f};
+  return {prof, cells ? float(open) / float(cells) : 0.f, std::move(views)};
 }
 
 class CatalogShapeVoter : public Voter {
@@ -402,9 +421,19 @@ class CatalogShapeVoter : public Voter {
       MeshShape ms;
       if (first->model && !first->model->mesh.triangles.empty()) {
         ms = FromMesh(*first->model, o_.cell);
-      } else {  // views without their mesh: what the views saw
+      } else {  // views without their mesh: what the views saw, fused and one by one
         ms.profile = shape::TopViewProfile(xy, h, s.z(), o_.cell);
         ms.open = OpenFloor(vs, s);
+        for (const TrainingView* v : vs) {
+          std::vector<Eigen::Vector2f> vxy;
+          std::vector<float> vh;
+          for (const auto& p : v->scan.points) {
+            const Eigen::Vector3f w = v->scan.pose * p;
+            vxy.push_back(w.head<2>());
+            vh.push_back(v->scan.HeightAboveGround(w));
+          }
+          if (!vxy.empty()) ms.views.push_back(shape::TopViewProfile(vxy, vh, s.z(), o_.cell));
+        }
       }
       const shape::Profile& prof = ms.profile;
       models.push_back({{"id", id},
@@ -412,6 +441,11 @@ class CatalogShapeVoter : public Voter {
                         {"size", {s.x(), s.y(), s.z()}},
                         {"profile", std::vector<float>(prof.begin(), prof.end())},
                         {"open", ms.open}});
+      if (!ms.views.empty()) {
+        nlohmann::json vp = nlohmann::json::array();
+        for (const auto& v : ms.views) vp.push_back(std::vector<float>(v.begin(), v.end()));
+        models.back()["view_profiles"] = std::move(vp);
+      }
     }
     return {{"format", "catalog_shape/1"}, {"profile_cell_m", o_.cell}, {"models", models}};
   }
@@ -438,6 +472,18 @@ class CatalogShapeVoter : public Voter {
       md.wide = size[0] >= size[1];
       std::copy(prof.begin(), prof.end(), md.profile.begin());
       md.open = j.value("open", 0.f);
+      if (j.contains("view_profiles")) {
+        const auto& vs = j.at("view_profiles");
+        if (!vs.is_array()) throw InputError("catalog_shape model " + md.id + ": bad view_profiles");
+        for (const auto& v : vs) {
+          const auto f = v.get<std::vector<float>>();
+          if (f.size() != size_t(shape::kProfileBins))
+            throw InputError("catalog_shape model " + md.id + ": bad view profile");
+          shape::Profile q{};
+          std::copy(f.begin(), f.end(), q.begin());
+          md.views.push_back(q);
+        }
+      }
       if (!(md.open >= 0.f && md.open <= 1.f)) throw InputError("catalog_shape model " + md.id + ": bad open share");
       spdlog::debug("catalog_shape: model {} ({}) {:.2f} x {:.2f} x {:.2f} m, open floor {:.2f}, profile {:.3f}", md.id,
                     md.cls, md.length, md.width, md.height, md.open, fmt::join(md.profile, " "));
@@ -476,6 +522,7 @@ class CatalogShapeVoter : public Voter {
       const auto& items = sc.proposals->items;
       const size_t n = items.size();
       const FloorCells floor = o_.floor_term ? FloorCells(scan) : FloorCells();
+      const bool views = o_.view_profiles && scan.origin.has_value();
       const size_t C = classes_.size();
       std::vector<std::vector<float>> score(C, std::vector<float>(n, 0.f));
       std::vector<std::vector<int>> best_model(C, std::vector<int>(n, -1));
@@ -507,11 +554,18 @@ class CatalogShapeVoter : public Voter {
             if (md.cls != classes_[c]) continue;
             const float emd = shape::ProfileDistance(prof, md.profile);
             std::array<float, 6> t = {Pen(std::log(L / md.length), cp.long_small, cp.long_big),
-                                            Pen(std::log(W / md.width), cp.short_small, cp.short_big),
-                                            Pen(std::log(T / md.height), cp.top_small, cp.top_big),
-                                            0.5f * (B / cp.bottom) * (B / cp.bottom),
-                                            emd * emd / (2 * cp.profile * cp.profile),
-                                            o_.floor_term ? Pen(seen - md.open, cp.floor_under, cp.floor_over) : 0.f};
+                                      Pen(std::log(W / md.width), cp.short_small, cp.short_big),
+                                      Pen(std::log(T / md.height), cp.top_small, cp.top_big),
+                                      0.5f * (B / cp.bottom) * (B / cp.bottom),
+                                      emd * emd / (2 * cp.profile * cp.profile),
+                                      o_.floor_term ? Pen(seen - md.open, cp.floor_under, cp.floor_over) : 0.f};
+            // A single view: the profile of the model as the one eye around it that explains the
+            // proposal's best, if closer than all eyes fused.
+            if (views)
+              for (const shape::Profile& v : md.views) {
+                const float d = shape::ProfileDistance(prof, v);
+                t[4] = std::min(t[4], d * d / (2 * cp.profile * cp.profile));
+              }
             float E = t[0] + t[1] + t[2] + t[3] + t[4] + t[5];
             if (cp.wall_mount > 0.f) {
               // Hanging: the model spans the proposal's height extent; no bottom gap, floor or top-view
@@ -593,5 +647,5 @@ class CatalogShapeVoter : public Voter {
 }  // namespace
 }  // namespace furnihost
 
-FURNIHOST_PLUGIN(furnihost::CatalogShapeVoter, "voters.catalog_shape", "1.2.0",
+FURNIHOST_PLUGIN(furnihost::CatalogShapeVoter, "voters.catalog_shape", "1.3.0",
                  "recognises object proposals by the catalog models' metric sizes and top-view height profiles")
