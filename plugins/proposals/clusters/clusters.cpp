@@ -20,7 +20,12 @@
 //   nearest neighbours' planes; wall_normals "blocks" takes each point's 3x3x3 block of voxels
 //   instead, for a raw depth camera whose range noise reaches the point spacing on far walls
 //   (synthetic views at a raw Kinect's noise: 12 -> 45 walls found in 10 views, sofa AP25 0.25 ->
-//   0.75; rgbd_view.json uses it).
+//   0.75; rgbd_view.json uses it). wall_normals "both" makes a second set of removals from the
+//   blocks' walls, whose proposals carry the rule names "all_blocks", "segs_blocks" (and
+//   "fronts_blocks"), so a recogniser can score each class on the walls that suit it (ScanNet dev,
+//   held out: chairs and cabinets on the blocks' walls, tables and sofas on the points' own gain
+//   chair AP25 0.517 -> 0.558 and cabinet 0.084 -> 0.111 at ~+0.1 s a 50k-point room; not in
+//   scannet.json, docs/configs.md).
 // - Splits: two armchairs side by side or a chair against a table end form one cluster longer
 //   than any catalog chair; it is cut at the sparsest slice near the middle, but only where the
 //   top-view height profile has a gap, valley or ridge (not across a flat seat or table top),
@@ -76,7 +81,7 @@ struct ClustersOptions {
   float top_above = 0.05f;        // share of the cluster's points more than 8 cm over it
   bool split_ridges = true;       // also cut in two at the strongest ridge or valley of the profile
   float fronts_length = 0.f;      // "fronts" rule: wall segments are at least this long (0 = no such rule) [m]
-  std::string wall_normals = "points";  // normals the walls are found by: "points" (k-NN), "blocks", "auto"
+  std::string wall_normals = "points";  // normals the walls are found by: "points" (k-NN), "blocks", "auto", "both"
   float wall_voxel = 0.05f;       // "blocks": voxel edge [m]; each point takes its 3x3x3 voxel block's plane
 
 };
@@ -124,12 +129,13 @@ const ParamBinding<ClustersOptions>& Binding() {
           .Number("fronts_length_m", &O::fronts_length, 0, 20, "m",
                   "a third wall removal, 'fronts': as 'segs', but a wall segment must also be this long, so the fronts "
                   "of tall cabinets and wardrobes up to this width survive (0 = no such rule)")
-          .Enum("wall_normals", &O::wall_normals, {"points", "blocks", "auto"},
+          .Enum("wall_normals", &O::wall_normals, {"points", "blocks", "auto", "both"},
                 "normals the vertical planes (walls) are found by: 'points' = each point's k nearest neighbours; "
                 "'blocks' = the plane of its 3x3x3 block of wall_voxel_m voxels (a raw depth camera's noise at a "
                 "few metres swamps k-NN normals, and the walls go unfound); 'auto' = blocks when the scan has a "
-                "sensor origin")
-          .Number("wall_voxel_m", &O::wall_voxel, 0.005, 1, "m", "wall_normals 'blocks': voxel edge")
+                "sensor origin; 'both' = the points' walls, and a second set of removals from the blocks' walls whose "
+                "proposals' rules are named all_blocks, segs_blocks (fronts_blocks): a recogniser picks per class")
+          .Number("wall_voxel_m", &O::wall_voxel, 0.005, 1, "m", "wall_normals 'blocks' and 'both': voxel edge")
           .Rule([](const O& o) { return o.radii.empty() ? "radii: give at least one clustering radius" : ""; })
           .Rule([](const O& o) {
             return o.top_max > o.top_min + 0.05f ? "" : "work_top_max_m: must exceed work_top_min_m by more than 5 cm";
@@ -233,16 +239,18 @@ class ClusterProposer : public Proposer {
 
     const float hmax = CeilingCap(ls, hz, area);
     // The walls' normals: the points' own (k nearest neighbours), or at a fixed metric scale
-    // where a raw sensor's noise swamps those (single views: "auto").
+    // where a raw sensor's noise swamps those (single views: "auto"). With "both", a second set
+    // of removals from the blocks' walls gives its own proposals, their rules suffixed "_blocks".
+    const bool both = o_.wall_normals == "both";
     const bool blocks = o_.wall_normals == "blocks" || (o_.wall_normals == "auto" && scan.origin.has_value());
-    const Points block_normals = blocks ? shape::BlockNormals(P, o_.wall_voxel) : Points();
-    const std::vector<VPlane> planes = VerticalPlanes(P, blocks ? block_normals : ls.normals, hz, sp);
-    // Removals: every large vertical plane ("all"), only wall-sized segments ("segs"), and
-    // (fronts_length_m > 0) only wall-sized segments longer than a cabinet front ("fronts").
-    const std::vector<uint8_t> wall_all = WallsAll(P, planes, sp);
-    const std::vector<uint8_t> wall_segs = WallSegments(P, hz, planes, kSegsLength);
+    const Points block_normals = blocks || both ? shape::BlockNormals(P, o_.wall_voxel) : Points();
     const bool fronts = o_.fronts_length > kSegsLength;
-    const std::vector<uint8_t> wall_fronts = fronts ? WallSegments(P, hz, planes, o_.fronts_length) : std::vector<uint8_t>();
+    // One wall set: the removals ("all", "segs" and, with fronts_length_m > 0, "fronts") of one
+    // set of vertical planes, and the points each keeps.
+    struct WallSet {
+      std::vector<uint8_t> all;
+      std::vector<uint32_t> keep[3];
+    };
     auto keep_of = [&](const std::vector<uint8_t>& wall) {
       std::vector<uint32_t> keep;
       for (size_t i = 0; i < n; ++i) {
@@ -252,32 +260,47 @@ class ClusterProposer : public Proposer {
       }
       return keep;
     };
-    const std::vector<uint32_t> keep_all = keep_of(wall_all), keep_segs = keep_of(wall_segs);
-    const std::vector<uint32_t> keep_fronts = fronts ? keep_of(wall_fronts) : std::vector<uint32_t>();
+    auto wall_set = [&](const Points& normals) {
+      WallSet w;
+      const std::vector<VPlane> planes = VerticalPlanes(P, normals, hz, sp);
+      w.all = WallsAll(P, planes, sp);
+      w.keep[0] = keep_of(w.all);
+      w.keep[1] = keep_of(WallSegments(P, hz, planes, kSegsLength));
+      if (fronts) w.keep[2] = keep_of(WallSegments(P, hz, planes, o_.fronts_length));
+      return w;
+    };
+    std::vector<WallSet> sets(both ? 2 : 1);
+    tbb::parallel_for(0, int(sets.size()), [&](int k) {
+      sets[size_t(k)] = wall_set(k == 1 || (blocks && !both) ? block_normals : ls.normals);
+    });
     out.removed.assign(n, 0);
-    for (size_t i = 0; i < n; ++i) out.removed[i] = wall_all[i] ? 1 : hz[i] <= o_.floor_cut ? 2 : 0;
+    for (size_t i = 0; i < n; ++i) out.removed[i] = sets[0].all[i] ? 1 : hz[i] <= o_.floor_cut ? 2 : 0;
 
     const bool adaptive = o_.adaptive == "on" || (o_.adaptive == "auto" && scan.origin.has_value());
     struct Raw {
       std::vector<int> idx;
       std::string rule, how;
       int parent = -1;
+      int set = 0;
     };
     std::vector<Raw> raw;
     // The rules' clusterings are independent: one task each.
     const char* const rules[3] = {"all", "segs", "fronts"};
-    const std::vector<uint32_t>* keeps[3] = {&keep_all, &keep_segs, &keep_fronts};
     const int nrules = fronts ? 3 : 2;
-    std::vector<std::vector<std::vector<int>>> per_radius[3];
-    tbb::parallel_for(0, nrules, [&](int k) { per_radius[k] = Cluster(P, *keeps[k], ls.nn4, sp, o_.radii, adaptive); });
-    for (int k = 0; k < nrules; ++k) {
-      const std::string rule = rules[k];
+    const int ntasks = nrules * int(sets.size());
+    std::vector<std::vector<std::vector<std::vector<int>>>> per_radius(static_cast<size_t>(ntasks));
+    tbb::parallel_for(0, ntasks, [&](int k) {
+      per_radius[size_t(k)] = Cluster(P, sets[size_t(k / nrules)].keep[k % nrules], ls.nn4, sp, o_.radii, adaptive);
+    });
+    for (int k = 0; k < ntasks; ++k) {
+      const std::string rule = std::string(rules[k % nrules]) + (k >= nrules ? "_blocks" : "");
       for (size_t mi = 0; mi < o_.radii.size(); ++mi)
-        for (auto& c : per_radius[k][mi]) {
+        for (auto& c : per_radius[size_t(k)][mi]) {
           Raw r;
           r.idx = std::move(c);
           r.rule = rule;
           r.how = rule + "/r" + Fixed1(o_.radii[mi]);
+          r.set = k / nrules;
           raw.push_back(std::move(r));
         }
     }
@@ -293,6 +316,7 @@ class ClusterProposer : public Proposer {
         r.rule = raw[i].rule;
         r.how = raw[i].how + "+split" + std::to_string(part.second);
         r.parent = int(i);
+        r.set = raw[i].set;
         raw.push_back(std::move(r));
       }
     // Work-top variants: a cluster holding a large horizontal level at table height with more
@@ -308,11 +332,14 @@ class ClusterProposer : public Proposer {
           r.rule = raw[i].rule;
           r.how = raw[i].how + "+top";
           r.parent = raw[i].parent;
+          r.set = raw[i].set;
           raw.push_back(std::move(r));
         }
     }
     // Boxes, then the extend-down variants of every proposal (clusters, splits and work tops).
-    BoxIndex column_index(P, keep_segs), leak_index(P, keep_all);
+    // Each wall set's own indexes: the columns under a proposal and its surround.
+    std::vector<BoxIndex> column_index, leak_index;
+    for (const WallSet& w : sets) column_index.emplace_back(P, w.keep[1]), leak_index.emplace_back(P, w.keep[0]);
     auto make = [&](const Raw& r) {
       Proposal p;
       p.indices = r.idx;
@@ -330,6 +357,8 @@ class ClusterProposer : public Proposer {
     const size_t base = raw.size();
     out.items.resize(base);
     std::vector<std::optional<Proposal>> extended(base);
+    std::vector<int> set_of(base);
+    for (size_t i = 0; i < base; ++i) set_of[i] = raw[i].set;
     tbb::parallel_for(size_t(0), base, [&](size_t i) {
       out.items[i] = make(raw[i]);
       const Proposal& p = out.items[i];
@@ -337,7 +366,7 @@ class ClusterProposer : public Proposer {
       const Eigen::Vector3f lo(p.box.min().x(), p.box.min().y(), p.ground_z + 0.02f);
       const Eigen::Vector3f hi(p.box.max().x(), p.box.max().y(), p.box.min().z());
       std::vector<int> col;
-      column_index.ForEachIn(lo, hi, [&](uint32_t k) { col.push_back(int(k)); });
+      column_index[size_t(raw[i].set)].ForEachIn(lo, hi, [&](uint32_t k) { col.push_back(int(k)); });
       if (col.size() < 5) return;
       float zlo = INFINITY;
       for (int k : col) zlo = std::min(zlo, P[k].z());
@@ -348,8 +377,8 @@ class ClusterProposer : public Proposer {
       e.how += "+ext";
       extended[i] = std::move(e);
     });
-    for (auto& e : extended)
-      if (e) out.items.push_back(std::move(*e));
+    for (size_t i = 0; i < base; ++i)
+      if (extended[i]) out.items.push_back(std::move(*extended[i])), set_of.push_back(raw[i].set);
     if (spdlog::should_log(spdlog::level::trace))
       for (const auto& p : out.items)
         spdlog::trace("proposals.clusters: {} {} points, box ({:.3f} {:.3f} {:.3f})-({:.3f} {:.3f} {:.3f})", p.how, p.indices.size(),
@@ -358,10 +387,11 @@ class ClusterProposer : public Proposer {
     // proposal cut out of a larger structure (a wall's leftovers, half a bed) has a high one.
     tbb::parallel_for(size_t(0), out.items.size(), [&](size_t k) {
       Proposal& p = out.items[k];
+      const BoxIndex& leak = leak_index[size_t(set_of[k])];
       const Eigen::Vector3f s(o_.leak_shell, o_.leak_shell, 0.f);
       double inside = 0, outer = 0;
-      leak_index.ForEachIn(p.box.min(), p.box.max(), [&](uint32_t i) { inside += area[i]; });
-      leak_index.ForEachIn(p.box.min() - s, p.box.max() + s + Eigen::Vector3f(0, 0, o_.leak_shell),
+      leak.ForEachIn(p.box.min(), p.box.max(), [&](uint32_t i) { inside += area[i]; });
+      leak.ForEachIn(p.box.min() - s, p.box.max() + s + Eigen::Vector3f(0, 0, o_.leak_shell),
                            [&](uint32_t i) { outer += area[i]; });
       p.surround = float((outer - inside) / std::max(inside, 1e-6));
     });

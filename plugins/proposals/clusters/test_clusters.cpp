@@ -6,6 +6,11 @@
 // a variant that reaches the ground.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <map>
+#include <set>
+#include <tuple>
+
 #include "furnihost/ground.hpp"
 #include "furnihost/stage.hpp"
 #include "test_stages.hpp"
@@ -165,6 +170,47 @@ TEST(Clusters, WallsOfANoisySensorAreFoundByBlockNormals) {
   const auto autop = Make<Proposer>("proposals.clusters", {{"wall_normals", "auto"}, {"wall_voxel_m", 0.08}});
   EXPECT_EQ(WallRemoved(room, autop->Propose(with_origin, nullptr, ctx)), block);
   EXPECT_EQ(WallRemoved(room, autop->Propose(room.scan, nullptr, ctx)), points);
+}
+
+// wall_normals "both": the proposals of "points" and those of "blocks", the latter's rules named
+// all_blocks, segs_blocks and fronts_blocks, each with the same points, box and surround as in its
+// own run (the noisy room, where the two sets of walls differ). The removed-points mask is the
+// points' walls'.
+TEST(Clusters, BothWallSetsGiveEachSetsProposalsUnderTheirOwnRules) {
+  const Room room = MakeRoom({{"voxel_m", 0.015}, {"noise_a", 0.002}, {"noise_b", 0.004}});
+  RunContext ctx;
+  auto run = [&](const std::string& normals) {
+    const json params = {{"wall_normals", normals}, {"wall_voxel_m", 0.08}, {"fronts_length_m", 1.3}};
+    return Make<Proposer>("proposals.clusters", params)->Propose(room.scan, nullptr, ctx);
+  };
+  const Proposals points = run("points"), blocks = run("blocks"), both = run("both");
+  // (rule, how, points) -> (box, surround) of a run, its rules renamed by `suffix`.
+  using Key = std::tuple<std::string, std::string, std::vector<int>>;
+  auto index = [](const Proposals& p, const std::string& suffix, std::map<Key, std::pair<Eigen::AlignedBox3f, float>>& out) {
+    for (const auto& q : p.items) {
+      std::vector<int> idx = q.indices;
+      std::sort(idx.begin(), idx.end());
+      std::string how = q.how;
+      how.insert(q.source.size(), suffix);
+      out.emplace(Key{q.source + suffix, how, idx}, std::make_pair(q.box, q.surround));
+    }
+  };
+  std::map<Key, std::pair<Eigen::AlignedBox3f, float>> expected, got;
+  index(points, "", expected);
+  index(blocks, "_blocks", expected);
+  index(both, "", got);
+  std::set<std::string> rules;
+  for (const auto& q : both.items) rules.insert(q.source);
+  EXPECT_EQ(rules, (std::set<std::string>{"all", "segs", "fronts", "all_blocks", "segs_blocks", "fronts_blocks"}));
+  ASSERT_EQ(got.size(), expected.size());
+  for (const auto& [key, value] : expected) {
+    const auto it = got.find(key);
+    ASSERT_NE(it, got.end()) << std::get<1>(key);
+    EXPECT_TRUE(it->second.first.isApprox(value.first)) << std::get<1>(key);
+    EXPECT_FLOAT_EQ(it->second.second, value.second) << std::get<1>(key);
+  }
+  EXPECT_EQ(both.removed, points.removed);
+  EXPECT_NE(blocks.removed, points.removed);  // the two sets of walls differ in this room
 }
 
 // A desk under a monitor: its cluster reaches the monitor's top, and a work-top variant gives the
