@@ -25,7 +25,9 @@
 //
 // Training: the catalog models' sizes (TrainingView::object_size), and the profile and open
 // floor of each model's mesh as a sensor around it sees them (views without a mesh: of their
-// simulated views fused).
+// simulated views fused). Also the profile each single eye of that ring (or each simulated view)
+// sees alone: with view_profiles, a scan with a sensor origin (one view, one side of each
+// object) takes the closest of those and the fused one as h_m.
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -477,7 +479,8 @@ class CatalogShapeVoter : public Voter {
         if (!vs.is_array()) throw InputError("catalog_shape model " + md.id + ": bad view_profiles");
         for (const auto& v : vs) {
           const auto f = v.get<std::vector<float>>();
-          if (f.size() != size_t(shape::kProfileBins))
+          if (f.size() != size_t(shape::kProfileBins) ||
+              !std::all_of(f.begin(), f.end(), [](float x) { return std::isfinite(x) && x >= 0.f; }))
             throw InputError("catalog_shape model " + md.id + ": bad view profile");
           shape::Profile q{};
           std::copy(f.begin(), f.end(), q.begin());
