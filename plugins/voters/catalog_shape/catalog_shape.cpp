@@ -478,7 +478,8 @@ class CatalogShapeVoter : public Voter {
         const auto& vs = j.at("view_profiles");
         if (!vs.is_array()) throw InputError("catalog_shape model " + md.id + ": bad view_profiles");
         for (const auto& v : vs) {
-          const auto f = v.get<std::vector<float>>();
+          const bool numbers = v.is_array() && std::all_of(v.begin(), v.end(), [](const auto& x) { return x.is_number(); });
+          const auto f = numbers ? v.get<std::vector<float>>() : std::vector<float>();
           if (f.size() != size_t(shape::kProfileBins) ||
               !std::all_of(f.begin(), f.end(), [](float x) { return std::isfinite(x) && x >= 0.f; }))
             throw InputError("catalog_shape model " + md.id + ": bad view profile");

@@ -240,6 +240,13 @@ TEST(CatalogShape, ViewProfilesScoreAnArmchairSeenFromItsSide) {
     most = std::max(most, diff);
   }
   EXPECT_GT(most, 0.2f);
+  // A model whose view profiles are not profiles is refused with an input error.
+  for (const json& bad : {json("x"), json::array({"x"}), json::array({json::array({1, 2})}),
+                          json::array({json(std::vector<float>(fused.size(), -1.f))})}) {
+    json m = model;
+    m["models"][0]["view_profiles"] = bad;
+    EXPECT_THROW(Make<Voter>("voters.catalog_shape")->Load(m), InputError) << bad.dump();
+  }
 
   // One sensor 2.5 m to the chair's side, 1.5 m above the floor, looking at it.
   SensorRequest req;
