@@ -8,6 +8,12 @@
 //
 // Determinism: each ray's random numbers come from a counter-based generator keyed by
 // (seed, view, ray index), so results do not depend on the thread count or scheduling.
+//
+// Embree is loaded (dlopen) and its device created on the first simulation, not with the
+// plugin: every graph names its training sensor, so the host loads this plugin on each
+// detection, and a detection with a cached model never simulates (Embree and its OpenMP
+// runtime took ~4 ms to load and ~1.5 ms to start, on the critical path of a 0.3 s run).
+#include <dlfcn.h>
 #include <embree3/rtcore.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -15,7 +21,9 @@
 
 #include <cmath>
 #include <memory>
+#include <mutex>
 #include <sstream>
+#include <type_traits>
 
 #include "furnihost/geometry.hpp"
 #include "furnihost/plugin.hpp"
@@ -153,18 +161,64 @@ struct RayRng {
   double Gauss() { return NormalQuantile(Uniform()); }
 };
 
+// ---- Embree, resolved at run time ----------------------------------------------------------
+// The entry points this sensor calls, from the library CMake found (its soname). The library
+// stays loaded for the process: devices and scenes may outlive any one sensor.
+struct EmbreeApi {
+  decltype(&::rtcNewDevice) NewDevice;
+  decltype(&::rtcReleaseDevice) ReleaseDevice;
+  decltype(&::rtcGetDeviceError) GetDeviceError;
+  decltype(&::rtcNewScene) NewScene;
+  decltype(&::rtcReleaseScene) ReleaseScene;
+  decltype(&::rtcCommitScene) CommitScene;
+  decltype(&::rtcNewGeometry) NewGeometry;
+  decltype(&::rtcSetNewGeometryBuffer) SetNewGeometryBuffer;
+  decltype(&::rtcCommitGeometry) CommitGeometry;
+  decltype(&::rtcAttachGeometryByID) AttachGeometryByID;
+  decltype(&::rtcReleaseGeometry) ReleaseGeometry;
+  decltype(&::rtcIntersect16) Intersect16;
+};
+
+const EmbreeApi& Embree() {
+  static const EmbreeApi api = [] {
+    // By soname (the linker's search path), else where CMake found it (a private install).
+    void* lib = dlopen(FURNIHOST_EMBREE_SONAME, RTLD_NOW | RTLD_LOCAL);
+    if (!lib) lib = dlopen(FURNIHOST_EMBREE_PATH, RTLD_NOW | RTLD_LOCAL);
+    if (!lib) throw StageError(std::string("cannot load Embree (" FURNIHOST_EMBREE_PATH "): ") + dlerror(), false);
+    EmbreeApi a{};
+    auto get = [lib](auto& fn, const char* name) {
+      fn = reinterpret_cast<std::remove_reference_t<decltype(fn)>>(dlsym(lib, name));
+      if (!fn) throw StageError(std::string("Embree (" FURNIHOST_EMBREE_SONAME ") lacks ") + name, false);
+    };
+    get(a.NewDevice, "rtcNewDevice");
+    get(a.ReleaseDevice, "rtcReleaseDevice");
+    get(a.GetDeviceError, "rtcGetDeviceError");
+    get(a.NewScene, "rtcNewScene");
+    get(a.ReleaseScene, "rtcReleaseScene");
+    get(a.CommitScene, "rtcCommitScene");
+    get(a.NewGeometry, "rtcNewGeometry");
+    get(a.SetNewGeometryBuffer, "rtcSetNewGeometryBuffer");
+    get(a.CommitGeometry, "rtcCommitGeometry");
+    get(a.AttachGeometryByID, "rtcAttachGeometryByID");
+    get(a.ReleaseGeometry, "rtcReleaseGeometry");
+    get(a.Intersect16, "rtcIntersect16");
+    return a;
+  }();
+  return api;
+}
+
 // ---- Embree RAII -------------------------------------------------------------------------
 struct DeviceDeleter {
-  void operator()(RTCDeviceTy* d) const { rtcReleaseDevice(d); }
+  void operator()(RTCDeviceTy* d) const { Embree().ReleaseDevice(d); }
 };
 struct SceneDeleter {
-  void operator()(RTCSceneTy* s) const { rtcReleaseScene(s); }
+  void operator()(RTCSceneTy* s) const { Embree().ReleaseScene(s); }
 };
 using DevicePtr = std::unique_ptr<RTCDeviceTy, DeviceDeleter>;
 using ScenePtr = std::unique_ptr<RTCSceneTy, SceneDeleter>;
 
 void ThrowIfEmbreeError(RTCDevice device, const char* what) {
-  const RTCError err = rtcGetDeviceError(device);
+  const RTCError err = Embree().GetDeviceError(device);
   if (err != RTC_ERROR_NONE)
     throw StageError(std::string("embree error ") + std::to_string(static_cast<int>(err)) +
                          " while " + what,
@@ -176,22 +230,23 @@ void AddMesh(RTCDevice device, RTCScene scene, const Mesh& mesh, const Eigen::Is
              unsigned id, const std::string& name) {
   if (mesh.triangles.empty()) return;
   const int nv = static_cast<int>(mesh.vertices.size());
-  RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
-  auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0,
+  const EmbreeApi& e = Embree();
+  RTCGeometry g = e.NewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+  auto* v = static_cast<float*>(e.SetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0,
                                                         RTC_FORMAT_FLOAT3, 3 * sizeof(float),
                                                         mesh.vertices.size()));
-  auto* t = static_cast<unsigned*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0,
+  auto* t = static_cast<unsigned*>(e.SetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0,
                                                            RTC_FORMAT_UINT3, 3 * sizeof(unsigned),
                                                            mesh.triangles.size()));
   if (!v || !t) {
-    rtcReleaseGeometry(g);
+    e.ReleaseGeometry(g);
     ThrowIfEmbreeError(device, "allocating geometry buffers");
     throw StageError("embree could not allocate buffers for " + name, false);
   }
   for (size_t i = 0; i < mesh.vertices.size(); ++i) {
     const Eigen::Vector3f w = pose * mesh.vertices[i];
     if (!w.allFinite()) {
-      rtcReleaseGeometry(g);
+      e.ReleaseGeometry(g);
       throw StageError(name + ": non-finite vertex " + std::to_string(i));
     }
     v[3 * i] = w.x();
@@ -202,16 +257,16 @@ void AddMesh(RTCDevice device, RTCScene scene, const Mesh& mesh, const Eigen::Is
     const auto& tri = mesh.triangles[i];
     for (int k = 0; k < 3; ++k) {
       if (tri[k] < 0 || tri[k] >= nv) {
-        rtcReleaseGeometry(g);
+        e.ReleaseGeometry(g);
         throw StageError(name + ": triangle " + std::to_string(i) + " indexes vertex " +
                          std::to_string(tri[k]) + " of " + std::to_string(nv));
       }
       t[3 * i + k] = static_cast<unsigned>(tri[k]);
     }
   }
-  rtcCommitGeometry(g);
-  rtcAttachGeometryByID(scene, g, id);
-  rtcReleaseGeometry(g);  // the scene holds it
+  e.CommitGeometry(g);
+  e.AttachGeometryByID(scene, g, id);
+  e.ReleaseGeometry(g);  // the scene holds it
   ThrowIfEmbreeError(device, ("adding " + name).c_str());
 }
 
@@ -291,10 +346,7 @@ class SimulatedLaser : public Sensor {
  public:
   static ParamSchema Schema() { return Binding().Schema(); }
 
-  explicit SimulatedLaser(const nlohmann::json& p) : opt_(Binding().Parse(p)) {
-    device_.reset(rtcNewDevice("verbose=0"));
-    if (!device_) throw StageError("embree: cannot create a device", false);
-  }
+  explicit SimulatedLaser(const nlohmann::json& p) : opt_(Binding().Parse(p)) {}
 
   std::vector<Scan> Acquire(const SensorRequest& request, const RunContext& ctx) override {
     if (!request.path.empty())
@@ -313,8 +365,8 @@ class SimulatedLaser : public Sensor {
 
  private:
   std::vector<Scan> AcquireImpl(const SensorRequest& req, const RunContext& ctx) const {
-    RTCDevice dev = device_.get();
-    ScenePtr scene(rtcNewScene(dev));
+    RTCDevice dev = Device();
+    ScenePtr scene(Embree().NewScene(dev));
     ThrowIfEmbreeError(dev, "creating a scene");
 
     const unsigned n_obj = static_cast<unsigned>(req.objects.size());
@@ -337,7 +389,7 @@ class SimulatedLaser : public Sensor {
       truth.push_back(g);
     }
     AddMesh(dev, scene.get(), req.extra, Eigen::Isometry3f::Identity(), n_obj, "extra geometry");
-    rtcCommitScene(scene.get());
+    Embree().CommitScene(scene.get());
     ThrowIfEmbreeError(dev, "building the scene");
 
     std::vector<Eigen::Isometry3f> poses = req.poses;
@@ -435,6 +487,7 @@ class SimulatedLaser : public Sensor {
     const bool noisy = a > 0.f || b > 0.f;
     const double dropout = opt_.dropout;
 
+    const auto intersect16 = Embree().Intersect16;
     tbb::parallel_for(tbb::blocked_range<size_t>(0, n_packets, 32), [&](const tbb::blocked_range<size_t>& r) {
       RTCIntersectContext ictx;
       rtcInitIntersectContext(&ictx);
@@ -465,7 +518,7 @@ class SimulatedLaser : public Sensor {
           rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
           rh.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
         }
-        rtcIntersect16(valid, scene, &ictx, &rh);
+        intersect16(valid, scene, &ictx, &rh);
         for (size_t k = 0; k < kPacket; ++k) {
           const size_t i = i0 + k;
           if (i >= n || rh.hit.geomID[k] == RTC_INVALID_GEOMETRY_ID) continue;
@@ -496,7 +549,16 @@ class SimulatedLaser : public Sensor {
   }
 
   SimulatedLaserOptions opt_;
-  DevicePtr device_;
+  // The Embree device, made on the first simulation (Acquire may run on several threads).
+  RTCDevice Device() const {
+    std::call_once(device_once_, [this] {
+      device_.reset(Embree().NewDevice("verbose=0"));
+      if (!device_) throw StageError("embree: cannot create a device", false);
+    });
+    return device_.get();
+  }
+  mutable std::once_flag device_once_;
+  mutable DevicePtr device_;
 };
 
 }  // namespace furnihost::sensors
