@@ -164,19 +164,15 @@ struct RayRng {
 // ---- Embree, resolved at run time ----------------------------------------------------------
 // The entry points this sensor calls, from the library CMake found (its soname). The library
 // stays loaded for the process: devices and scenes may outlive any one sensor.
+// Each entry point named once: EmbreeApi's member X is rtcX's address.
+#define FURNIHOST_EMBREE_ENTRY_POINTS(X)                                                           \
+  X(NewDevice) X(ReleaseDevice) X(GetDeviceError) X(NewScene) X(ReleaseScene) X(CommitScene)     \
+  X(NewGeometry) X(SetNewGeometryBuffer) X(CommitGeometry) X(AttachGeometryByID) X(ReleaseGeometry) \
+  X(Intersect16)
 struct EmbreeApi {
-  decltype(&::rtcNewDevice) NewDevice;
-  decltype(&::rtcReleaseDevice) ReleaseDevice;
-  decltype(&::rtcGetDeviceError) GetDeviceError;
-  decltype(&::rtcNewScene) NewScene;
-  decltype(&::rtcReleaseScene) ReleaseScene;
-  decltype(&::rtcCommitScene) CommitScene;
-  decltype(&::rtcNewGeometry) NewGeometry;
-  decltype(&::rtcSetNewGeometryBuffer) SetNewGeometryBuffer;
-  decltype(&::rtcCommitGeometry) CommitGeometry;
-  decltype(&::rtcAttachGeometryByID) AttachGeometryByID;
-  decltype(&::rtcReleaseGeometry) ReleaseGeometry;
-  decltype(&::rtcIntersect16) Intersect16;
+#define FURNIHOST_EMBREE_MEMBER(name) decltype(&::rtc##name) name = nullptr;
+  FURNIHOST_EMBREE_ENTRY_POINTS(FURNIHOST_EMBREE_MEMBER)
+#undef FURNIHOST_EMBREE_MEMBER
 };
 
 const EmbreeApi& Embree() {
@@ -185,23 +181,14 @@ const EmbreeApi& Embree() {
     void* lib = dlopen(FURNIHOST_EMBREE_SONAME, RTLD_NOW | RTLD_LOCAL);
     if (!lib) lib = dlopen(FURNIHOST_EMBREE_PATH, RTLD_NOW | RTLD_LOCAL);
     if (!lib) throw StageError(std::string("cannot load Embree (" FURNIHOST_EMBREE_PATH "): ") + dlerror(), false);
-    EmbreeApi a{};
+    EmbreeApi a;
     auto get = [lib](auto& fn, const char* name) {
       fn = reinterpret_cast<std::remove_reference_t<decltype(fn)>>(dlsym(lib, name));
       if (!fn) throw StageError(std::string("Embree (" FURNIHOST_EMBREE_SONAME ") lacks ") + name, false);
     };
-    get(a.NewDevice, "rtcNewDevice");
-    get(a.ReleaseDevice, "rtcReleaseDevice");
-    get(a.GetDeviceError, "rtcGetDeviceError");
-    get(a.NewScene, "rtcNewScene");
-    get(a.ReleaseScene, "rtcReleaseScene");
-    get(a.CommitScene, "rtcCommitScene");
-    get(a.NewGeometry, "rtcNewGeometry");
-    get(a.SetNewGeometryBuffer, "rtcSetNewGeometryBuffer");
-    get(a.CommitGeometry, "rtcCommitGeometry");
-    get(a.AttachGeometryByID, "rtcAttachGeometryByID");
-    get(a.ReleaseGeometry, "rtcReleaseGeometry");
-    get(a.Intersect16, "rtcIntersect16");
+#define FURNIHOST_EMBREE_RESOLVE(name) get(a.name, "rtc" #name);
+    FURNIHOST_EMBREE_ENTRY_POINTS(FURNIHOST_EMBREE_RESOLVE)
+#undef FURNIHOST_EMBREE_RESOLVE
     return a;
   }();
   return api;

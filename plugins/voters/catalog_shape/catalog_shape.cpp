@@ -336,23 +336,19 @@ MeshShape FromMesh(const CatalogModel& m, float cell) {
   const Points samples = area > 0 ? SampleSurface(m.mesh, float(40000.0 / area), 0) : Points{};
   const Eigen::Vector3f size = m.size;
   const Points eyes = shape::EyesAround(size);
-  const std::vector<uint8_t> vis = shape::VisibleFrom(samples, eyes);
-  std::vector<Eigen::Vector2f> xy;
-  std::vector<float> h;
-  for (size_t i = 0; i < samples.size(); ++i)
-    if (vis[i]) xy.push_back(samples[i].head<2>()), h.push_back(samples[i].z());
-  const shape::Profile prof = shape::TopViewProfile(xy, h, size.z(), cell);
-  // The profile each eye alone sees.
+  // The profile of the samples some eye of `from` sees: all eyes fused, then each alone.
+  auto profile_seen = [&](const Points& from) {
+    const std::vector<uint8_t> vis = shape::VisibleFrom(samples, from);
+    std::vector<Eigen::Vector2f> xy;
+    std::vector<float> h;
+    for (size_t i = 0; i < samples.size(); ++i)
+      if (vis[i]) xy.push_back(samples[i].head<2>()), h.push_back(samples[i].z());
+    return shape::TopViewProfile(xy, h, size.z(), cell);
+  };
+  const shape::Profile prof = profile_seen(eyes);
   std::vector<shape::Profile> views;
   views.reserve(eyes.size());
-  for (const auto& e : eyes) {
-    const std::vector<uint8_t> one = shape::VisibleFrom(samples, Points{e});
-    std::vector<Eigen::Vector2f> vxy;
-    std::vector<float> vh;
-    for (size_t i = 0; i < samples.size(); ++i)
-      if (one[i]) vxy.push_back(samples[i].head<2>()), vh.push_back(samples[i].z());
-    views.push_back(shape::TopViewProfile(vxy, vh, size.z(), cell));
-  }
+  for (const auto& e : eyes) views.push_back(profile_seen(Points{e}));
   // Open floor: blockers are every 4th sample, hashed in 3 cm cells.
   constexpr float clear = 0.03f;
   auto key = [&](const Eigen::Vector3f& p, int dx, int dy, int dz) {
@@ -411,31 +407,26 @@ class CatalogShapeVoter : public Voter {
     nlohmann::json models = nlohmann::json::array();
     for (const auto& id : order) {
       const auto& [first, vs] = by_model.at(id);
-      std::vector<Eigen::Vector2f> xy;
-      std::vector<float> h;
-      for (const TrainingView* v : vs)
-        for (const auto& p : v->scan.points) {
-          const Eigen::Vector3f w = v->scan.pose * p;
-          xy.push_back(w.head<2>());
-          h.push_back(v->scan.HeightAboveGround(w));
-        }
       const Eigen::Vector3f s = first->object_size;
       MeshShape ms;
       if (first->model && !first->model->mesh.triangles.empty()) {
         ms = FromMesh(*first->model, o_.cell);
       } else {  // views without their mesh: what the views saw, fused and one by one
-        ms.profile = shape::TopViewProfile(xy, h, s.z(), o_.cell);
-        ms.open = OpenFloor(vs, s);
+        std::vector<Eigen::Vector2f> xy;
+        std::vector<float> h;
         for (const TrainingView* v : vs) {
-          std::vector<Eigen::Vector2f> vxy;
-          std::vector<float> vh;
+          const size_t from = xy.size();
           for (const auto& p : v->scan.points) {
             const Eigen::Vector3f w = v->scan.pose * p;
-            vxy.push_back(w.head<2>());
-            vh.push_back(v->scan.HeightAboveGround(w));
+            xy.push_back(w.head<2>());
+            h.push_back(v->scan.HeightAboveGround(w));
           }
-          if (!vxy.empty()) ms.views.push_back(shape::TopViewProfile(vxy, vh, s.z(), o_.cell));
+          if (xy.size() > from)
+            ms.views.push_back(shape::TopViewProfile({xy.begin() + long(from), xy.end()},
+                                                     {h.begin() + long(from), h.end()}, s.z(), o_.cell));
         }
+        ms.profile = shape::TopViewProfile(xy, h, s.z(), o_.cell);
+        ms.open = OpenFloor(vs, s);
       }
       const shape::Profile& prof = ms.profile;
       models.push_back({{"id", id},
