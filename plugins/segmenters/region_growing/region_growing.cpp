@@ -56,5 +56,5 @@ class RegionGrowingSegmenter : public Segmenter {
 
 }  // namespace furnihost
 
-FURNIHOST_PLUGIN(furnihost::RegionGrowingSegmenter, "segmenters.region_growing", "1.1.0",
+FURNIHOST_PLUGIN(furnihost::RegionGrowingSegmenter, "segmenters.region_growing", "1.2.0",
                  "paper Sect. III: MLS normals, region growing against the seed normal, small parts regrouped")

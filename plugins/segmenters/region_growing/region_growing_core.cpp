@@ -63,10 +63,22 @@ struct Neighbours {
   std::vector<float> scratch;  // FitPoint's work arrays
   int count = 0;
   void reserve(int m) {
-    if (int(x.size()) < m) x.resize(m), y.resize(m), z.resize(m), d2.resize(m), mult.resize(m);
+    // 3 more for FitPoint's padding to a multiple of 4.
+    if (int(x.size()) < m + 3) x.resize(m + 3), y.resize(m + 3), z.resize(m + 3), d2.resize(m + 3), mult.resize(m + 3);
   }
   int size() const { return count; }
 };
+
+// Four floats as one vector value (GCC/Clang vector extension): lane-wise arithmetic, compiled
+// to SSE2 on x86-64 and NEON on arm64, with no -march flag.
+typedef float F4 __attribute__((vector_size(16)));
+inline F4 Load4(const float* p) {
+  F4 v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+inline F4 Splat4(float a) { return F4{a, a, a, a}; }
+inline float Sum4(F4 v) { return (v[0] + v[1]) + (v[2] + v[3]); }
 
 // Solves the symmetric positive definite 6x6 system A c = y (upper triangle of A given) by
 // Cholesky. False when a pivot is not clearly positive (a degenerate neighbourhood).
@@ -130,25 +142,28 @@ void FitPoint(Neighbours& nb, int min_fit, LocalFit& fit, float& curvature) {
   }
   fit.valid = true;
   // Raw moments of the offsets, scaled to |d| < 1 so float sums lose nothing that matters
-  // before the centring in double. Eigen array reductions are vectorised (plain loops would
-  // not be without -ffast-math).
-  using Arr = Eigen::Map<const Eigen::ArrayXf>;
-  const Arr X(nb.x.data(), k), Y(nb.y.data(), k), Z(nb.z.data(), k);
-  Eigen::Vector3d mean;
-  Eigen::Matrix3d cov;
-  if constexpr (kCentroids) {
-    const Arr M(nb.mult.data(), k);
-    const double inv_m = 1.0 / double(M.sum());
-    mean = Eigen::Vector3d((M * X).sum() * inv_m, (M * Y).sum() * inv_m, (M * Z).sum() * inv_m);
-    cov << (M * X * X).sum(), (M * X * Y).sum(), (M * X * Z).sum(), 0, (M * Y * Y).sum(), (M * Y * Z).sum(), 0, 0,
-        (M * Z * Z).sum();
-    cov *= inv_m;
-  } else {
-    const double inv_k = 1.0 / k;
-    mean = Eigen::Vector3d(X.sum() * inv_k, Y.sum() * inv_k, Z.sum() * inv_k);
-    cov << (X * X).sum(), (X * Y).sum(), (X * Z).sum(), 0, (Y * Y).sum(), (Y * Z).sum(), 0, 0, (Z * Z).sum();
-    cov *= inv_k;
+  // before the centring in double; in one pass of 4 lanes (as the fit's sums below), padded
+  // to a multiple of 4 with zero offsets of weight 0.
+  const int k4 = (k + 3) & ~3;
+  for (int i = k; i < k4; ++i) nb.x[i] = nb.y[i] = nb.z[i] = nb.d2[i] = nb.mult[i] = 0.f;
+  F4 sx{}, sy{}, sz{}, sxx{}, sxy{}, sxz{}, syy{}, syz{}, szz{}, sm{};
+  for (int i = 0; i < k4; i += 4) {
+    const F4 x = Load4(&nb.x[i]), y = Load4(&nb.y[i]), z = Load4(&nb.z[i]);
+    if constexpr (kCentroids) {
+      const F4 m = Load4(&nb.mult[i]);
+      const F4 mx = m * x, my = m * y, mz = m * z;
+      sm += m, sx += mx, sy += my, sz += mz;
+      sxx += mx * x, sxy += mx * y, sxz += mx * z, syy += my * y, syz += my * z, szz += mz * z;
+    } else {
+      sx += x, sy += y, sz += z;
+      sxx += x * x, sxy += x * y, sxz += x * z, syy += y * y, syz += y * z, szz += z * z;
+    }
   }
+  const double inv_m = 1.0 / (kCentroids ? double(Sum4(sm)) : double(k));
+  const Eigen::Vector3d mean = Eigen::Vector3d(Sum4(sx), Sum4(sy), Sum4(sz)) * inv_m;
+  Eigen::Matrix3d cov;
+  cov << Sum4(sxx), Sum4(sxy), Sum4(sxz), 0, Sum4(syy), Sum4(syz), 0, 0, Sum4(szz);
+  cov *= inv_m;
   cov -= mean * mean.transpose();
   cov(1, 0) = cov(0, 1), cov(2, 0) = cov(0, 2), cov(2, 1) = cov(1, 2);
   // Closed-form 3x3 solver in float: the scaled covariance is O(1); double costs 10 % of the
@@ -167,35 +182,43 @@ void FitPoint(Neighbours& nb, int min_fit, LocalFit& fit, float& curvature) {
   // Origin: the query (offset 0) projected on the plane through the mean.
   const Eigen::Vector3f o = mean.cast<float>().dot(N) * N;
   // Normal equations A c = y of the 6 coefficients: A(r, c) = sum w b_r b_c, y(r) = sum w h b_r
-  // with b = (1, u, v, uv, u^2, v^2), in scalar accumulators (an array of them makes the
-  // compiler's vector loads wait on scalar stores).
-  float a00 = 0, a01 = 0, a02 = 0, a03 = 0, a04 = 0, a05 = 0, a11 = 0, a12 = 0, a13 = 0, a14 = 0, a15 = 0;
-  float a22 = 0, a23 = 0, a24 = 0, a25 = 0, a33 = 0, a34 = 0, a35 = 0, a44 = 0, a45 = 0, a55 = 0;
-  float y0 = 0, y1 = 0, y2 = 0, y3 = 0, y4 = 0, y5 = 0;
-  const float ox = o.x(), oy = o.y(), oz = o.z();
+  // with b = (1, u, v, uv, u^2, v^2). A holds 15 distinct moments w u^i v^j (i + j <= 4), y
+  // 6 more. Summed in 4 lanes (GCC/Clang vector types: SSE2 on any x86-64, NEON on arm64),
+  // lane l taking neighbours l, l + 4, ...; the lanes are added in a fixed order at the end,
+  // so the sums do not depend on the thread or the vector width. Padding neighbours weigh 0.
   // Gaussian weights in one vectorised pass (Eigen's packet exp).
-  nb.scratch.resize(k);
+  nb.scratch.resize(size_t(k4));
   Eigen::Map<Eigen::ArrayXf> weight(nb.scratch.data(), k);
+  using Arr = Eigen::Map<const Eigen::ArrayXf>;
   weight = (-Arr(nb.d2.data(), k)).exp();
   if constexpr (kCentroids) weight *= Arr(nb.mult.data(), k);
-  for (int i = 0; i < k; ++i) {
-    const float ex = nb.x[i] - ox, ey = nb.y[i] - oy, ez = nb.z[i] - oz;
-    const float u = ex * U.x() + ey * U.y() + ez * U.z();
-    const float v = ex * V.x() + ey * V.y() + ez * V.z();
-    const float h = ex * N.x() + ey * N.y() + ez * N.z();
-    const float w = weight[i];
-    const float uv = u * v, uu = u * u, vv = v * v;
-    const float wu = w * u, wv = w * v, wuv = w * uv, wuu = w * uu, wvv = w * vv;
-    a00 += w, a01 += wu, a02 += wv, a03 += wuv, a04 += wuu, a05 += wvv;
-    a11 += wu * u, a12 += wu * v, a13 += wuv * u, a14 += wuu * u, a15 += wvv * u;
-    a22 += wv * v, a23 += wuv * v, a24 += wuu * v, a25 += wvv * v;
-    a33 += wuv * uv, a34 += wuu * uv, a35 += wvv * uv;
-    a44 += wuu * uu, a45 += wvv * uu, a55 += wvv * vv;
-    y0 += w * h, y1 += wu * h, y2 += wv * h, y3 += wuv * h, y4 += wuu * h, y5 += wvv * h;
+  for (int i = k; i < k4; ++i) nb.scratch[i] = 0.f;
+  const F4 ox = Splat4(o.x()), oy = Splat4(o.y()), oz = Splat4(o.z());
+  const F4 Ux = Splat4(U.x()), Uy = Splat4(U.y()), Uz = Splat4(U.z());
+  const F4 Vx = Splat4(V.x()), Vy = Splat4(V.y()), Vz = Splat4(V.z());
+  const F4 Nx = Splat4(N.x()), Ny = Splat4(N.y()), Nz = Splat4(N.z());
+  F4 m00{}, m10{}, m01{}, m20{}, m11{}, m02{}, m30{}, m21{}, m12{}, m03{}, m40{}, m31{}, m22{}, m13{}, m04{};
+  F4 h00{}, h10{}, h01{}, h11{}, h20{}, h02{};
+  for (int i = 0; i < k4; i += 4) {
+    const F4 ex = Load4(&nb.x[i]) - ox, ey = Load4(&nb.y[i]) - oy, ez = Load4(&nb.z[i]) - oz;
+    const F4 u = ex * Ux + ey * Uy + ez * Uz;
+    const F4 v = ex * Vx + ey * Vy + ez * Vz;
+    const F4 h = ex * Nx + ey * Ny + ez * Nz;
+    const F4 w = Load4(&nb.scratch[i]);
+    const F4 wu = w * u, wv = w * v, wuu = wu * u, wuv = wu * v, wvv = wv * v;
+    const F4 wuuu = wuu * u, wuuv = wuu * v, wuvv = wuv * v, wvvv = wvv * v;
+    m00 += w, m10 += wu, m01 += wv, m20 += wuu, m11 += wuv, m02 += wvv;
+    m30 += wuuu, m21 += wuuv, m12 += wuvv, m03 += wvvv;
+    m40 += wuuu * u, m31 += wuuu * v, m22 += wuuv * v, m13 += wuvv * v, m04 += wvvv * v;
+    h00 += w * h, h10 += wu * h, h01 += wv * h, h11 += wuv * h, h20 += wuu * h, h02 += wvv * h;
   }
-  double A[6][6] = {{a00, a01, a02, a03, a04, a05}, {0, a11, a12, a13, a14, a15}, {0, 0, a22, a23, a24, a25},
-                    {0, 0, 0, a33, a34, a35}, {0, 0, 0, 0, a44, a45}, {0, 0, 0, 0, 0, a55}};
-  double y[6] = {y0, y1, y2, y3, y4, y5}, c[6];
+  const double M00 = Sum4(m00), M10 = Sum4(m10), M01 = Sum4(m01), M20 = Sum4(m20), M11 = Sum4(m11),
+               M02 = Sum4(m02), M30 = Sum4(m30), M21 = Sum4(m21), M12 = Sum4(m12), M03 = Sum4(m03),
+               M40 = Sum4(m40), M31 = Sum4(m31), M22 = Sum4(m22), M13 = Sum4(m13), M04 = Sum4(m04);
+  // Rows and columns: 1, u, v, uv, u^2, v^2.
+  double A[6][6] = {{M00, M10, M01, M11, M20, M02}, {0, M20, M11, M21, M30, M12}, {0, 0, M02, M12, M21, M03},
+                    {0, 0, 0, M22, M31, M13}, {0, 0, 0, 0, M40, M22}, {0, 0, 0, 0, 0, M04}};
+  double y[6] = {Sum4(h00), Sum4(h10), Sum4(h01), Sum4(h11), Sum4(h20), Sum4(h02)}, c[6];
   if (!SolveSpd6(A, y, c) || !std::isfinite(c[1]) || !std::isfinite(c[2])) return;
   for (int i = 0; i < 6; ++i) fit.c[i] = float(c[i]);
   if (!std::isfinite(fit.c[3]) || !std::isfinite(fit.c[4]) || !std::isfinite(fit.c[5])) fit.c[3] = fit.c[4] = fit.c[5] = 0.f;
