@@ -435,6 +435,17 @@ GroundModel EstimateGround(const Points& points, const GroundOptions& o, const R
   if (w.empty()) return GroundModel::Level(0.f, "estimated");
   if (o.kind == "level") return GroundModel::Level(EstimateLevelZ(w), "estimated");
   if (o.kind == "plane") return GroundModel::Tilted(EstimatePlane(w), "estimated");
+  // Dense scans map an even stride sample of at most kMapPoints points: a 15 cm cell of a
+  // 1M-point laser room still holds hundreds of floor points, and the map's coarse normals,
+  // percentile heights and extent do not need the rest. Scans up to kMapPoints (ScanNet's and
+  // SUN RGB-D's 50k, the synthetic benchmarks' 50-125k) use every point.
+  constexpr size_t kMapPoints = 300000;
+  if (w.size() > kMapPoints) {
+    const size_t stride = (w.size() + kMapPoints - 1) / kMapPoints;
+    size_t k = 0;
+    for (size_t i = 0; i < w.size(); i += stride) w[k++] = w[i];
+    w.resize(k);
+  }
   if (auto hm = HeightMap(w, o, pfor)) return *hm;
   // Too little floor for a map (a close-up view): a plane, which falls back to level itself.
   return GroundModel::Tilted(EstimatePlane(w), "estimated");

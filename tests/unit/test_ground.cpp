@@ -22,26 +22,27 @@ namespace {
 
 // A room 5 x 4 m whose floor follows `floor(x, y)` (1 cm noise), with a table top (0.75 m
 // above the floor, 1 x 1 m), a large box top (0.4 m, 1.5 x 1.5 m) hiding the floor under it, and
-// a wall: the floor points are drawn everywhere except under the box.
-Points Room(const std::function<float(float, float)>& floor, uint32_t seed = 3) {
+// a wall: the floor points are drawn everywhere except under the box. `dense` multiplies every
+// count (a dense laser scan of the same room).
+Points Room(const std::function<float(float, float)>& floor, uint32_t seed = 3, int dense = 1) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<float> u(0.f, 1.f);
   std::normal_distribution<float> noise(0.f, 0.01f);
   Points p;
-  for (int i = 0; i < 40000; ++i) {
+  for (int i = 0; i < 40000 * dense; ++i) {
     const float x = 5.f * u(rng), y = 4.f * u(rng);
     if (x > 3.f && x < 4.5f && y > 2.f && y < 3.5f) continue;  // under the box
     p.emplace_back(x, y, floor(x, y) + noise(rng));
   }
-  for (int i = 0; i < 6000; ++i) {
+  for (int i = 0; i < 6000 * dense; ++i) {
     const float x = 1.f + u(rng), y = 1.f + u(rng);
     p.emplace_back(x, y, floor(x, y) + 0.75f);
   }
-  for (int i = 0; i < 9000; ++i) {
+  for (int i = 0; i < 9000 * dense; ++i) {
     const float x = 3.f + 1.5f * u(rng), y = 2.f + 1.5f * u(rng);
     p.emplace_back(x, y, floor(x, y) + 0.4f);
   }
-  for (int i = 0; i < 8000; ++i) p.emplace_back(0.f, 4.f * u(rng), floor(0.f, 2.f) + 2.5f * u(rng));
+  for (int i = 0; i < 8000 * dense; ++i) p.emplace_back(0.f, 4.f * u(rng), floor(0.f, 2.f) + 2.5f * u(rng));
   return p;
 }
 
@@ -111,6 +112,21 @@ TEST(Ground, WarpedFloorHeightMap) {
   EXPECT_GT(plane_worst, 0.05f);
   EXPECT_GT(g.observed_area_m2, 10.f);
   EXPECT_LT(g.observed_area_m2, 20.f - 2.25f + 1.f);  // the box's footprint is not seen floor
+}
+
+// A dense scan of the warped room (0.6M points, more than the height map's 300k sample): the map
+// from the stride sample follows the floor as closely as the sparse scan's map does.
+TEST(Ground, DenseScanMapsFromASample) {
+  auto warp = [](float x, float y) { return 0.4f * (x / 5.f) * (x / 5.f) + 0.05f * std::sin(y); };
+  const Points room = Room(warp, 5, 10);
+  ASSERT_GT(room.size(), 500000u);
+  const GroundModel g = EstimateGround(room, Kind("height_map"));
+  ASSERT_EQ(g.kind, GroundKind::HeightMap);
+  for (float x = 0.2f; x < 4.9f; x += 0.3f)
+    for (float y = 0.2f; y < 3.9f; y += 0.3f) EXPECT_NEAR(g.HeightAt(x, y), warp(x, y), 0.03f) << x << ", " << y;
+  EXPECT_NEAR(g.HeightAt(1.5f, 1.5f), warp(1.5f, 1.5f), 0.02f);  // under the table
+  EXPECT_GT(g.observed_area_m2, 10.f);
+  EXPECT_LT(g.observed_area_m2, 20.f - 2.25f + 1.f);
 }
 
 // Degenerate input: nothing, one point, all points equal, NaN: a level ground, no crash.
