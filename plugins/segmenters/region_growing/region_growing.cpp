@@ -30,7 +30,10 @@ const ParamBinding<rg::RegionGrowingOptions>& Binding() {
                "normal_radius_m hold more than 4x this), fit the normal to the point-weighted centroids of "
                "voxels of normal_radius_m / 4 (~50 in a planar ball), not to every point; 0 = always every point")
           .Bool("signed_normals", &O::signed_normals,
-                "compare signed normals (needs a sensor origin); false treats n and -n as parallel");
+                "compare signed normals (needs a sensor origin); false treats n and -n as parallel")
+          .Bool("growth_by_sub_cells", &O::growth_by_sub_cells,
+                "dense scans (>= 2 points per cube of distance_m / 2) grow cube by cube, the same parts as point "
+                "by point (false) in time about linear in the points");
   return b;
 }
 

@@ -648,4 +648,33 @@ TEST(RegionGrowing, DenseNormalsGiveTheBoxTheSamePartsAsSparse) {
   EXPECT_EQ(big(b, dense.points.size()), 6);
 }
 
+// A dense scan (3 mm spacing: ~60 points per 2.5 cm sub-cell) grows sub-cell by sub-cell: the
+// same parts, point for point, and the same centroids as growing point by point.
+TEST(RegionGrowing, GrowthBySubCellsGivesThePartsOfGrowthByPoints) {
+  std::mt19937_64 rng(5);
+  Scan scan;
+  const Eigen::Vector3f lo(0.2f, 0.1f, 0.3f);
+  const Eigen::Vector3f X(0.6f, 0, 0), Y(0, 0.4f, 0), Z(0, 0, 0.5f);
+  const float d = 100000.f;
+  AddQuad(scan.points, nullptr, 0, lo, X, Y, d, rng);
+  AddQuad(scan.points, nullptr, 0, lo + Z, X, Y, d, rng);
+  AddQuad(scan.points, nullptr, 0, lo, X, Z, d, rng);
+  AddQuad(scan.points, nullptr, 0, lo + Y, X, Z, d, rng);
+  const Points ball = Sphere(Eigen::Vector3f(0.5f, 0.3f, 1.2f), 0.15f, d, rng);
+  scan.points.insert(scan.points.end(), ball.begin(), ball.end());
+  std::normal_distribution<float> noise(0.f, 0.002f);
+  for (auto& p : scan.points) p += Eigen::Vector3f(noise(rng), noise(rng), noise(rng));
+  const nlohmann::json base = {{"normal_radius_m", 0.03}, {"angle_deg", 20}};
+  nlohmann::json points = base;
+  points["growth_by_sub_cells"] = false;
+  const auto a = RunSeg(scan, base), b = RunSeg(scan, points);
+  ASSERT_GT(a.parts.size(), 6u);
+  ASSERT_EQ(a.parts.size(), b.parts.size());
+  for (size_t k = 0; k < a.parts.size(); ++k) {
+    EXPECT_EQ(a.parts[k].indices, b.parts[k].indices) << "part " << k;
+    EXPECT_EQ(a.parts[k].centroid, b.parts[k].centroid) << "part " << k;
+  }
+  EXPECT_EQ(a.discarded_points, b.discarded_points);
+}
+
 }  // namespace
