@@ -648,59 +648,64 @@ Segmentation Segment(const Scan& scan, const RegionGrowingOptions& o, SegmentTim
   // sub_first[c + 1])), each a contiguous range of its cell's slots in `free_slots` (from
   // sub_start), with its tight box; sub_of[s] is slot s's. Sized by the non-empty sub-cells,
   // not 8 per cell: a sparse scan has about one point per sub-cell.
-  std::vector<uint8_t> half_of(n);
+  // Sparse scans grow point by point, each cell its own sub-cell: sub-cells pay only where they
+  // hold several points (the 1M-point demo room ~4, 3.7M ~11). Fewer than 2 points per cell
+  // (ScanNet's and the demo room's 5 cm cells) or per non-empty sub-cell count as sparse.
+  bool by_sub = o.growth_by_sub_cells && n >= 2 * size_t(cells);
   std::vector<uint32_t> sub_first(size_t(cells) + 1, 0);
-  tbb::parallel_for(tbb::blocked_range<int>(0, cells, 1024), [&](const tbb::blocked_range<int>& range) {
-    for (int c = range.begin(); c != range.end(); ++c) {
-      const Eigen::Vector3i cc = grid.CellCoords(c);
-      auto half = [&](float p, float l, int a) { return std::clamp(int((p - l) * inv_half) - 2 * cc[a], 0, 1); };
-      unsigned used = 0;
-      for (int s = grid.cell_start[c]; s < grid.cell_start[c + 1]; ++s) {
-        const int h = half(grid.x[s], lo.x(), 0) + 2 * half(grid.y[s], lo.y(), 1) + 4 * half(grid.z[s], lo.z(), 2);
-        half_of[s] = uint8_t(h);
-        used |= 1u << h;
+  std::vector<uint8_t> half_of(by_sub ? n : 0);
+  if (by_sub) {
+    tbb::parallel_for(tbb::blocked_range<int>(0, cells, 1024), [&](const tbb::blocked_range<int>& range) {
+      for (int c = range.begin(); c != range.end(); ++c) {
+        const Eigen::Vector3i cc = grid.CellCoords(c);
+        auto half = [&](float p, float l, int a) { return std::clamp(int((p - l) * inv_half) - 2 * cc[a], 0, 1); };
+        unsigned used = 0;
+        for (int s = grid.cell_start[c]; s < grid.cell_start[c + 1]; ++s) {
+          const int h = half(grid.x[s], lo.x(), 0) + 2 * half(grid.y[s], lo.y(), 1) + 4 * half(grid.z[s], lo.z(), 2);
+          half_of[s] = uint8_t(h);
+          used |= 1u << h;
+        }
+        sub_first[size_t(c) + 1] = uint32_t(__builtin_popcount(used));
       }
-      sub_first[size_t(c) + 1] = uint32_t(__builtin_popcount(used));
-    }
-  });
-  for (int c = 0; c < cells; ++c) sub_first[size_t(c) + 1] += sub_first[size_t(c)];
-  // Sparse scans (fewer than 2 points per sub-cell: ScanNet's, the demo room's densities) grow
-  // point by point, with each cell as one sub-cell: the walk over sub-cells pays only where
-  // they hold several points (the 1M-point demo room ~4, 3.7M ~11).
-  const bool by_sub = o.growth_by_sub_cells && n >= 2 * size_t(sub_first[size_t(cells)]);
-  if (!by_sub) {
-    std::fill(half_of.begin(), half_of.end(), 0);
-    for (int c = 0; c <= cells; ++c) sub_first[size_t(c)] = uint32_t(c);
+    });
+    for (int c = 0; c < cells; ++c) sub_first[size_t(c) + 1] += sub_first[size_t(c)];
+    by_sub = n >= 2 * size_t(sub_first[size_t(cells)]);
   }
+  if (!by_sub)
+    for (int c = 0; c <= cells; ++c) sub_first[size_t(c)] = uint32_t(c);
   const size_t subs = sub_first[size_t(cells)];
-  std::vector<uint32_t> sub_of(n), sub_start(subs), sub_size(subs);
-  std::vector<float> sub_box(subs * 6);
-  tbb::parallel_for(tbb::blocked_range<int>(0, cells, 1024), [&](const tbb::blocked_range<int>& range) {
-    for (int c = range.begin(); c != range.end(); ++c) {
-      int count[8] = {0, 0, 0, 0, 0, 0, 0, 0}, id[8];
-      for (int s = grid.cell_start[c]; s < grid.cell_start[c + 1]; ++s) ++count[half_of[s]];
-      uint32_t k = sub_first[size_t(c)], at = uint32_t(grid.cell_start[c]);
-      for (int h = 0; h < 8; ++h) {
-        id[h] = count[h] ? int(k) : -1;
-        if (!count[h]) continue;
-        sub_start[k] = at, sub_size[k] = uint32_t(count[h]);
-        float* b = &sub_box[size_t(k) * 6];
-        b[0] = b[1] = b[2] = std::numeric_limits<float>::infinity();
-        b[3] = b[4] = b[5] = -std::numeric_limits<float>::infinity();
-        at += uint32_t(count[h]), ++k;
+  std::vector<uint32_t> sub_of(by_sub ? n : 0), sub_start(subs);
+  std::vector<float> sub_box(by_sub ? subs * 6 : 0);
+  if (by_sub) {
+    tbb::parallel_for(tbb::blocked_range<int>(0, cells, 1024), [&](const tbb::blocked_range<int>& range) {
+      for (int c = range.begin(); c != range.end(); ++c) {
+        int count[8] = {0, 0, 0, 0, 0, 0, 0, 0}, id[8];
+        for (int s = grid.cell_start[c]; s < grid.cell_start[c + 1]; ++s) ++count[half_of[s]];
+        uint32_t k = sub_first[size_t(c)], at = uint32_t(grid.cell_start[c]);
+        for (int h = 0; h < 8; ++h) {
+          id[h] = count[h] ? int(k) : -1;
+          if (!count[h]) continue;
+          sub_start[k] = at;
+          float* b = &sub_box[size_t(k) * 6];
+          b[0] = b[1] = b[2] = std::numeric_limits<float>::infinity();
+          b[3] = b[4] = b[5] = -std::numeric_limits<float>::infinity();
+          at += uint32_t(count[h]), ++k;
+        }
+        for (int s = grid.cell_start[c]; s < grid.cell_start[c + 1]; ++s) {
+          const uint32_t q = uint32_t(id[half_of[s]]);
+          sub_of[s] = q;
+          float* b = &sub_box[size_t(q) * 6];
+          b[0] = std::min(b[0], grid.x[s]), b[1] = std::min(b[1], grid.y[s]), b[2] = std::min(b[2], grid.z[s]);
+          b[3] = std::max(b[3], grid.x[s]), b[4] = std::max(b[4], grid.y[s]), b[5] = std::max(b[5], grid.z[s]);
+        }
       }
-      for (int s = grid.cell_start[c]; s < grid.cell_start[c + 1]; ++s) {
-        const uint32_t q = uint32_t(id[half_of[s]]);
-        sub_of[s] = q;
-        float* b = &sub_box[size_t(q) * 6];
-        b[0] = std::min(b[0], grid.x[s]), b[1] = std::min(b[1], grid.y[s]), b[2] = std::min(b[2], grid.z[s]);
-        b[3] = std::max(b[3], grid.x[s]), b[4] = std::max(b[4], grid.y[s]), b[5] = std::max(b[5], grid.z[s]);
-      }
-    }
-  });
-  half_of.clear();
-  half_of.shrink_to_fit();
-  auto sub_cell = [&](uint32_t s) { return size_t(sub_of[s]); };
+    });
+    half_of.clear();
+    half_of.shrink_to_fit();
+  } else {
+    for (int c = 0; c < cells; ++c) sub_start[size_t(c)] = uint32_t(grid.cell_start[c]);
+  }
+  auto sub_cell = [&](uint32_t s) { return by_sub ? size_t(sub_of[s]) : size_t(grid.cell_of[s]); };
   // Unlabelled slots of each sub-cell are kept at the front of its range of `free_slots`
   // (swap-remove on labelling), in slot order after a reset; free_in_cell counts a cell's.
   std::vector<uint32_t> free_in_sub(subs), free_slots(n), pos(n);
@@ -713,7 +718,7 @@ Segmentation Segment(const Scan& scan, const RegionGrowingOptions& o, SegmentTim
         int free_here = 0;
         for (int s = grid.cell_start[c]; s < grid.cell_start[c + 1]; ++s)
           if (label[s] == -1) {
-            const uint32_t k = sub_of[s], w = sub_start[k] + free_in_sub[k]++;
+            const uint32_t k = uint32_t(sub_cell(uint32_t(s))), w = sub_start[k] + free_in_sub[k]++;
             free_slots[w] = uint32_t(s), pos[s] = w, ++free_here;
           }
         free_in_cell[c] = free_here;
@@ -721,7 +726,7 @@ Segmentation Segment(const Scan& scan, const RegionGrowingOptions& o, SegmentTim
         for (uint32_t k = k0; k < k1; ++k) used[k - k0] = free_in_sub[k];
         for (int s = grid.cell_start[c]; s < grid.cell_start[c + 1]; ++s)
           if (label[s] != -1) {
-            const uint32_t k = sub_of[s], w = sub_start[k] + used[k - k0]++;
+            const uint32_t k = uint32_t(sub_cell(uint32_t(s))), w = sub_start[k] + used[k - k0]++;
             free_slots[w] = uint32_t(s), pos[s] = w;
           }
       }
@@ -787,7 +792,7 @@ Segmentation Segment(const Scan& scan, const RegionGrowingOptions& o, SegmentTim
     size_t sub, begin, end;  // a sub-cell and its members in `members`
   };
   std::vector<Joined> joined;
-  std::vector<int> joined_in(subs, -1);  // the region a sub-cell last joined
+  std::vector<int> joined_in(by_sub ? subs : 0, -1);  // the region a sub-cell last joined
   auto grow = [&](uint32_t seed, int id, auto&& admit) {
     if (!by_sub) return grow_points(seed, id, admit);
     joined.clear();
@@ -900,14 +905,14 @@ Segmentation Segment(const Scan& scan, const RegionGrowingOptions& o, SegmentTim
 
   // A part's points in input order (so its centroid's sum does not depend on the growth's order).
   auto emit = [&](size_t b, size_t e, Part& part) {
-    std::sort(members.begin() + long(b), members.begin() + long(e),
-              [&](uint32_t l, uint32_t r) { return grid.order[l] < grid.order[r]; });
+    std::vector<uint32_t> local(e - b);
+    for (size_t k = b; k < e; ++k) local[k - b] = grid.order[members[k]];
+    std::sort(local.begin(), local.end());
     part.indices.reserve(e - b);
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    for (size_t k = b; k < e; ++k) {
-      const uint32_t s = members[k];
-      part.indices.push_back(lc.input[grid.order[s]]);
-      sum += Eigen::Vector3d(grid.x[s], grid.y[s], grid.z[s]);
+    for (uint32_t i : local) {
+      part.indices.push_back(lc.input[i]);
+      sum += lc.pts[i].cast<double>();
     }
     part.centroid = (sum / double(e - b) + lc.centre).cast<float>();
   };
