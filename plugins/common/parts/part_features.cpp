@@ -34,10 +34,16 @@ struct Dir {
 };
 
 // The 45 deg sector of direction (a, b), by comparisons only; sector k is pseudo-angle keys
-// [k / 2, (k + 1) / 2).
+// [k / 2, (k + 1) / 2). Without branches (they were a fifth of the boundary ratio's time on
+// dense parts, mispredicted half the time): quadrant q (0: a >= 0, b >= 0; 1: a < 0 <= b;
+// 2: a, b < 0; 3: b < 0 <= a), then its upper half where |b| >= |a| (q even) or |b| <= |a|
+// (q odd). Finite a, b.
 inline int Octant(float a, float b) {
-  if (b >= 0) return a >= 0 ? (b < a ? 0 : 1) : (b > -a ? 2 : 3);
-  return a < 0 ? (b > a ? 4 : 5) : (-b > a ? 6 : 7);
+  const int bn = b < 0, an = a < 0;
+  const int q = 2 * bn + (an ^ bn);
+  const float fa = std::fabs(a), fb = std::fabs(b);
+  const int upper = (q & 1) ? int(fb <= fa) : int(fb >= fa);
+  return 2 * q + upper;
 }
 
 // True when the counter-clockwise angle from p to q exceeds the threshold whose cosine is
