@@ -4,7 +4,6 @@
 #include <filesystem>
 #include <functional>
 #include <map>
-#include <regex>
 #include <set>
 
 #include "furnihost/io.hpp"
@@ -211,12 +210,22 @@ GraphConfig ValidateGraph(const std::string& path, const nlohmann::json& config,
   if (stages.empty()) throw InputError(w + "/stages: no stages");
 
   // First pass: structure and plugin names, collecting every missing plugin for one message.
-  static const std::regex tag_re("[A-Za-z0-9_-]+");
+  // Letters, digits, _ and -, checked character by character: std::regex_match recursed once
+  // per character and overflowed the stack on a 32 kB tag (fuzz_graph_config finding).
+  auto valid_tag = [](const std::string& t) {
+    return !t.empty() && std::all_of(t.begin(), t.end(), [](char c) {
+      return (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_' || c == '-';
+    });
+  };
   std::vector<std::string> missing;
   std::string first_missing_at;
   for (auto it = stages.begin(); it != stages.end(); ++it) {
     const std::string at = w + "/stages/" + it.key();
-    if (!std::regex_match(it.key(), tag_re)) throw InputError(at + ": stage tags may use letters, digits, _ and - only");
+    if (!valid_tag(it.key())) {
+      const std::string& k = it.key();  // quoted at most 60 characters long
+      throw InputError(w + "/stages/" + (k.size() > 60 ? k.substr(0, 57) + "..." : k) +
+                       ": stage tags may use letters, digits, _ and - only");
+    }
     const auto& st = it.value();
     if (!st.is_object()) throw InputError(at + ": expected an object, got " + Shown(st));
     CheckKeys(st, kStageKeys, at);

@@ -234,6 +234,9 @@ def main():
           '{"limits": {"max_points": "lots"}, "stages": {"input": {"type": "sensors.scan_file"}}}')
     write("graphs/threads_negative.json", '{"threads": -1, "stages": {"input": {"type": "sensors.scan_file"}}}')
     write("graphs/tag_with_slash.json", '{"stages": {"in/put~1": {"type": "sensors.scan_file"}}}')
+    # fuzz_graph_config finding: std::regex_match overflowed the stack on a 32 kB stage tag.
+    write("graphs/fuzz_long_stage_tag.json",
+          '{"stages": {"' + "in2put" * 8000 + '/": {"type": "sensors.scan_file"}}}')
     write("graphs/unknown_plugin.json",
           '{"stages": {"input": {"type": "sensors.scan_file"}, "seg": {"type": "segmenters.nope",'
           ' "inputs": ["input"]}}}')
