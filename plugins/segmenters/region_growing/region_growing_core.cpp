@@ -789,14 +789,15 @@ Segmentation Segment(const Scan& scan, const RegionGrowingOptions& o, SegmentTim
 
   // Growth from `seed` over unlabelled slots accepted by `admit`, sub-cell by sub-cell.
   struct Joined {
-    size_t sub, begin, end;  // a sub-cell and its members in `members`
+    size_t begin, end;  // a sub-cell's members in `members`
+    int cell;           // the cell it lies in
   };
   std::vector<Joined> joined;
   std::vector<int> joined_in(by_sub ? subs : 0, -1);  // the region a sub-cell last joined
   auto grow = [&](uint32_t seed, int id, auto&& admit) {
     if (!by_sub) return grow_points(seed, id, admit);
     joined.clear();
-    auto join = [&](size_t k, size_t mb) {
+    auto join = [&](size_t k, int cell, size_t mb) {
       joined_in[k] = id;
       for (uint32_t i = sub_start[k]; i < sub_start[k] + free_in_sub[k];) {
         const uint32_t q = free_slots[i];
@@ -808,13 +809,13 @@ Segmentation Segment(const Scan& scan, const RegionGrowingOptions& o, SegmentTim
         take(q);  // moves another free slot to position i: look at i again
         members.push_back(q);
       }
-      joined.push_back({k, mb, members.size()});
+      joined.push_back({mb, members.size(), cell});
     };
     const size_t begin = members.size();
     label[seed] = id;
     take(seed);
     members.push_back(seed);
-    join(sub_cell(seed), begin);
+    join(sub_cell(seed), grid.cell_of[seed], begin);
     for (size_t h = 0; h < joined.size(); ++h) {
       const Joined a = joined[h];
       float mbox[6] = {std::numeric_limits<float>::infinity(), std::numeric_limits<float>::infinity(),
@@ -825,7 +826,7 @@ Segmentation Segment(const Scan& scan, const RegionGrowingOptions& o, SegmentTim
         mbox[0] = std::min(mbox[0], grid.x[m]), mbox[1] = std::min(mbox[1], grid.y[m]), mbox[2] = std::min(mbox[2], grid.z[m]);
         mbox[3] = std::max(mbox[3], grid.x[m]), mbox[4] = std::max(mbox[4], grid.y[m]), mbox[5] = std::max(mbox[5], grid.z[m]);
       }
-      const int c = grid.cell_of[free_slots[sub_start[a.sub]]];
+      const int c = a.cell;
       const bool one = a.end - a.begin == 1;  // sparse scans: most sub-cells hold one point
       for (int kk = grid.nb_start[c]; kk < grid.nb_start[c + 1]; ++kk) {
         const int nc = grid.nb[kk];
@@ -850,7 +851,7 @@ Segmentation Segment(const Scan& scan, const RegionGrowingOptions& o, SegmentTim
               }
             }
           }
-          if (hit) join(k, members.size());
+          if (hit) join(k, nc, members.size());
         }
       }
     }
