@@ -258,6 +258,9 @@ int RunDetect(const std::vector<std::string>& args) {
       catalog = LoadCatalog(g.catalog, strict);
       model = EnsureModel(pipeline, catalog, ctx, retrain);
     });
+#ifdef FURNIHOST_HAVE_BIRDSEYE
+  if (chain) loading.run([] { WarmUpPlotFonts(); });  // the plots' first text, off the tail
+#endif
   auto await_loading = [&] {
     if (loaded) return;
     loaded = true;

@@ -145,6 +145,10 @@ void DetectWithOneAndTwoThreads(const std::string& dir, std::string results[2]) 
     ASSERT_TRUE(fs::exists(one)) << one;
     EXPECT_TRUE(Bytes(one) == Bytes(two)) << file << " differs between 1 and 2 threads";
   }
+  // The plot is opaque: written as RGB (PNG colour type 2, byte 25 of the file), not RGBA.
+  const auto png = Bytes(dir + "/out1/votes.png");
+  ASSERT_GT(png.size(), 26u);
+  EXPECT_EQ(int(static_cast<unsigned char>(png[25])), 2) << "votes.png colour type";
 }
 
 // The paper's graph (configs/paper.json) on the bundled demo room, with every real plugin it
