@@ -16,6 +16,7 @@
 #include "furnihost/geometry.hpp"
 #include "furnihost/io.hpp"
 #include "furnihost/pipeline.hpp"
+#include "cancel_on_unwind.hpp"
 #include "png_writer.hpp"
 
 namespace furnihost::app {
@@ -415,9 +416,10 @@ void WriteBirdsEye(const std::string& stem, const std::vector<const Scan*>& scan
   const Pixels raster = PixelsOf(points.get(), stem + ".svg");
   std::vector<unsigned char> raster_png;  // the SVG embeds the raster as this PNG (fast, not cairo's)
   Pixels image;
-  // Declared after everything its tasks use: when a drawing throws, its destructor cancels and
-  // waits for them before those go.
+  // Declared after everything its tasks use: when a drawing throws (a full disk fails the SVG
+  // while the PNG is written beside it), `unwind` cancels and waits for them before those go.
   tbb::task_group side;
+  CancelOnUnwind unwind(side);
   side.run([&] { raster_png = EncodePixels(raster, "bird's-eye raster"); });
   {
     ContextPtr cr(cairo_create(png.get()), cairo_destroy);

@@ -8,6 +8,7 @@
 #include <random>
 #include <tbb/task_group.h>
 
+#include "cancel_on_unwind.hpp"
 #include "cli_common.hpp"
 #include "commands.hpp"
 #include "furnihost/catalog.hpp"
@@ -250,8 +251,9 @@ int RunDetect(const std::vector<std::string>& args) {
   // the first scan is read, framed and grounded, which need neither: the start of a detection
   // left a core idle (~0.04 s of a 0.3 s detection of a 50k-point room). Detect waits for them
   // before its first stage; an error of theirs is thrown there. Declared after what its task
-  // uses: if the scan fails first, its destructor cancels and waits for the task.
+  // uses; if the scan fails first, `unwind` cancels the loading and waits for it.
   tbb::task_group loading;
+  CancelOnUnwind unwind(loading);
   bool loaded = !chain;
   if (chain)
     loading.run([&] {
