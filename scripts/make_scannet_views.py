@@ -37,13 +37,27 @@ HEIGHT, PITCH_DEG, MAX_RANGE = 1.3, 15.0, 6.0
 MIN_FRACTION, MIN_POINTS, MIN_VIEW_POINTS = 0.3, 50, 2000
 
 
+class InputError(Exception):
+    """A bad input file: one line naming it, exit 2."""
+
+
+def load_json(path):
+    with open(path) as f:
+        try:
+            return json.load(f)
+        except json.JSONDecodeError as e:
+            raise InputError(f"{path}: not valid JSON: {e}") from None
+
+
 def read_ply(path):
     with open(path, "rb") as f:
         data = f.read()
+    if b"end_header\n" not in data[:65536]:
+        raise InputError(f"{path}: not a PLY file (no end_header line)")
     end = data.index(b"end_header\n") + len(b"end_header\n")
     header = data[:end].decode("ascii", "replace").splitlines()
     if "format binary_little_endian 1.0" not in header:
-        raise SystemExit(f"{path}: expected a binary little-endian PLY")
+        raise InputError(f"{path}: expected a binary little-endian PLY")
     n, props = 0, []
     kinds = {"float": "f", "uchar": "B", "ushort": "H", "int": "i", "uint": "I", "double": "d", "short": "h", "char": "b"}
     for line in header:
@@ -51,12 +65,19 @@ def read_ply(path):
         if t[:2] == ["element", "vertex"]:
             n = int(t[2])
         elif t[:1] == ["property"] and len(t) == 3:
+            if t[1] not in kinds:
+                raise InputError(f"{path}: vertex property {t[2]} has an unknown type {t[1]}")
             props.append((t[2], kinds[t[1]]))
     fmt = "<" + "".join(k for _, k in props)
     size = struct.calcsize(fmt)
     names = [p for p, _ in props]
+    if len(data) < end + n * size:
+        raise InputError(f"{path}: {n} vertices of {size} bytes announced, the file is shorter")
     rows = [struct.unpack_from(fmt, data, end + i * size) for i in range(n)]
     col = {name: [r[j] for r in rows] for j, name in enumerate(names)}
+    for need in ("x", "y", "z", "red", "green", "blue"):
+        if need not in col:
+            raise InputError(f"{path}: no vertex property {need}")
     return col, n
 
 
@@ -163,17 +184,16 @@ def main():
     ap.add_argument("--out", default="runs/scannet_views")
     args = ap.parse_args()
     base = os.path.dirname(os.path.abspath(args.dataset))
-    with open(args.dataset) as f:
-        manifest = json.load(f)
+    manifest = load_json(args.dataset)
     os.makedirs(args.out, exist_ok=True)
     scenes = []
     for sc in manifest["scenes"]:
         scan = os.path.join(base, sc["scan"])
-        with open(os.path.join(base, sc["gt"])) as f:
-            gt = json.load(f)
+        gt = load_json(os.path.join(base, sc["gt"]))
         col, n = read_ply(scan)
         if "instance" not in col:
-            raise SystemExit(f"{scan}: no per-point 'instance' property (needed to count each object's points seen)")
+            raise InputError(f"{scan}: no per-point 'instance' property (needed to count each object's "
+                             "points seen)")
         xs, ys, zs = col["x"], col["y"], col["z"]
         floor = percentile(zs, 0.01)
         spacing = median_spacing(xs, ys, zs)
@@ -271,5 +291,19 @@ def main():
     print(f"{len(scenes)} views -> {os.path.join(args.out, 'dataset.json')}", file=sys.stderr)
 
 
+def fail(message):
+    print(f"make_scannet_views: {message}", file=sys.stderr)
+    sys.exit(2)
+
+
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except InputError as e:
+        fail(str(e))
+    except OSError as e:
+        fail(f"{e.filename}: {e.strerror}" if e.filename else str(e))
+    except json.JSONDecodeError as e:
+        fail(f"not valid JSON: {e}")
+    except (ValueError, KeyError, IndexError, TypeError, struct.error) as e:
+        fail(f"{type(e).__name__}: {e}")

@@ -2,8 +2,12 @@
 """scripts/make_scannet_views.py's camera: what a virtual camera sees (z-buffer of discs, occlusion,
 field of view) and how the ground-truth boxes move into its upright frame (stdlib unittest)."""
 import importlib.util
+import json
 import math
 import os
+import subprocess
+import sys
+import tempfile
 import unittest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -76,6 +80,34 @@ class BoxInView(unittest.TestCase):
         self.assertEqual([round(v, 6) for v in c], [-1.0, 3.0, -0.8])
         self.assertEqual(s, [0.4, 1.2, 0.9])
         self.assertTrue(math.isclose(c[2], 0.5 - 1.3))
+
+
+class BadInput(unittest.TestCase):
+    """A bad file ends the script with one line naming it and exit 2, never a traceback."""
+
+    def run_on(self, ply_bytes):
+        with tempfile.TemporaryDirectory() as d:
+            with open(os.path.join(d, "a.ply"), "wb") as f:
+                f.write(ply_bytes)
+            with open(os.path.join(d, "a.gt.json"), "w") as f:
+                json.dump({"objects": []}, f)
+            with open(os.path.join(d, "d.json"), "w") as f:
+                json.dump({"scenes": [{"scan": "a.ply", "gt": "a.gt.json"}], "classes": ["chair"]}, f)
+            r = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "make_scannet_views.py"), "--dataset",
+                                os.path.join(d, "d.json"), "--out", os.path.join(d, "out")], capture_output=True, text=True)
+        return r
+
+    def test_truncated_and_foreign_files(self):
+        header = b"ply\nformat binary_little_endian 1.0\nelement vertex 5\nproperty float x\nend_header\n"
+        for data, words in ((header + b"abc", "shorter"), (b"junk", "end_header"),
+                            (header.replace(b"float x", b"float x\nproperty float y\nproperty float z") + bytes(60),
+                             "red")):
+            r = self.run_on(data)
+            self.assertEqual(r.returncode, 2, r.stderr)
+            lines = [l for l in r.stderr.splitlines() if l.strip()]
+            self.assertEqual(len(lines), 1, r.stderr)
+            self.assertIn("a.ply", lines[0])
+            self.assertIn(words, lines[0])
 
 
 if __name__ == "__main__":
