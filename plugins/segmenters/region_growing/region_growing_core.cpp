@@ -270,6 +270,23 @@ void CellCentroids(const VoxelIndex& grid, int c, const Eigen::Vector3f& lo, int
   }
 }
 
+// Boxes as 6 floats (min x y z, max x y z): empty, grown by a point, and the squared gap
+// between two (0 where they touch or overlap).
+inline void EmptyBox(float* b) {
+  b[0] = b[1] = b[2] = std::numeric_limits<float>::infinity();
+  b[3] = b[4] = b[5] = -std::numeric_limits<float>::infinity();
+}
+inline void ExtendBox(float* b, float x, float y, float z) {
+  b[0] = std::min(b[0], x), b[1] = std::min(b[1], y), b[2] = std::min(b[2], z);
+  b[3] = std::max(b[3], x), b[4] = std::max(b[4], y), b[5] = std::max(b[5], z);
+}
+inline float BoxGap2(const float* a, const float* b) {
+  const float dx = std::max(std::max(a[0] - b[3], b[0] - a[3]), 0.f);
+  const float dy = std::max(std::max(a[1] - b[4], b[1] - a[4]), 0.f);
+  const float dz = std::max(std::max(a[2] - b[5], b[2] - a[5]), 0.f);
+  return dx * dx + dy * dy + dz * dz;
+}
+
 // The tight box of each cell's points, 6 floats per cell (min x y z, max x y z).
 std::vector<float> CellBoxes(const VoxelIndex& grid) {
   const int cells = grid.NumCells();
@@ -277,12 +294,8 @@ std::vector<float> CellBoxes(const VoxelIndex& grid) {
   tbb::parallel_for(tbb::blocked_range<int>(0, cells, 1024), [&](const tbb::blocked_range<int>& range) {
     for (int c = range.begin(); c != range.end(); ++c) {
       float* b = &box[size_t(c) * 6];
-      b[0] = b[1] = b[2] = std::numeric_limits<float>::infinity();
-      b[3] = b[4] = b[5] = -std::numeric_limits<float>::infinity();
-      for (int s = grid.cell_start[c]; s < grid.cell_start[c + 1]; ++s) {
-        b[0] = std::min(b[0], grid.x[s]), b[1] = std::min(b[1], grid.y[s]), b[2] = std::min(b[2], grid.z[s]);
-        b[3] = std::max(b[3], grid.x[s]), b[4] = std::max(b[4], grid.y[s]), b[5] = std::max(b[5], grid.z[s]);
-      }
+      EmptyBox(b);
+      for (int s = grid.cell_start[c]; s < grid.cell_start[c + 1]; ++s) ExtendBox(b, grid.x[s], grid.y[s], grid.z[s]);
     }
   });
   return box;
@@ -511,6 +524,46 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
   });
 }
 
+// Slots 0 .. n-1 by increasing key[slot] (32-bit keys), ties in slot order. The key and the
+// slot packed in one word (key high, slot low) and sorted by their key bits: a stable LSD radix
+// sort, 3 passes of 11 bits, each reading its input in order (sorting slots by key[slot], as
+// the SDK's RadixSortByKey does, read the keys at random: 70 % of a 3.7M-point growth), in
+// parallel over fixed chunks (per-chunk counts, then each chunk scatters to its own offsets:
+// stable, and the same order whatever the threads).
+std::vector<uint32_t> SlotsByKey(const std::vector<uint64_t>& seed_key) {
+  const size_t n = seed_key.size();
+  std::vector<uint64_t> packed(n), tmp(n);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 16384), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t s = r.begin(); s != r.end(); ++s) packed[s] = (seed_key[s] << 32) | uint64_t(s);
+  });
+  constexpr int kDigit = 11;
+  constexpr size_t kBuckets = size_t(1) << kDigit;
+  const size_t chunks = std::clamp<size_t>(n / 65536, 1, 16), per = (n + chunks - 1) / chunks;
+  std::vector<size_t> count(chunks * kBuckets);
+  for (int shift = 32; shift < 64; shift += kDigit) {
+    tbb::parallel_for(size_t(0), chunks, [&](size_t ch) {
+      size_t* cnt = &count[ch * kBuckets];
+      std::fill(cnt, cnt + kBuckets, 0);
+      for (size_t i = ch * per; i < std::min(n, (ch + 1) * per); ++i) ++cnt[(packed[i] >> shift) & (kBuckets - 1)];
+    });
+    size_t sum = 0;
+    for (size_t b = 0; b < kBuckets; ++b)
+      for (size_t ch = 0; ch < chunks; ++ch) {
+        const size_t t = count[ch * kBuckets + b];
+        count[ch * kBuckets + b] = sum;
+        sum += t;
+      }
+    tbb::parallel_for(size_t(0), chunks, [&](size_t ch) {
+      size_t* at = &count[ch * kBuckets];
+      for (size_t i = ch * per; i < std::min(n, (ch + 1) * per); ++i) tmp[at[(packed[i] >> shift) & (kBuckets - 1)]++] = packed[i];
+    });
+    packed.swap(tmp);
+  }
+  std::vector<uint32_t> seeds(n);
+  for (size_t s = 0; s < n; ++s) seeds[s] = uint32_t(packed[s]);
+  return seeds;
+}
+
 Eigen::Vector3f LocalViewpoint(const LocalCloud& lc, const std::optional<Eigen::Vector3f>& viewpoint) {
   if (viewpoint && viewpoint->allFinite()) return (viewpoint->cast<double>() - lc.centre).cast<float>();
   return Eigen::Vector3f::Zero();  // the bounding-box centre
@@ -590,43 +643,8 @@ Segmentation Segment(const Scan& scan, const RegionGrowingOptions& o, SegmentTim
       seed_key[s] = bits;
     }
   });
-  // Seeds by increasing curvature; ties keep slot order, so deterministic. The key and the
-  // slot packed in one word (key high, slot low) and sorted by their key bits: a stable LSD
-  // radix sort, 3 passes of 11 bits, each reading its input in order (sorting slots by
-  // key[slot] read the keys at random: 70 % of a 3.7M-point growth), in parallel over fixed
-  // chunks (per-chunk counts, then each chunk scatters to its own offsets: stable, and the
-  // same order whatever the threads).
-  std::vector<uint32_t> seeds(n);
-  {
-    std::vector<uint64_t> packed(n), tmp(n);
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 16384), [&](const tbb::blocked_range<size_t>& r) {
-      for (size_t s = r.begin(); s != r.end(); ++s) packed[s] = (seed_key[s] << 32) | uint64_t(s);
-    });
-    constexpr int kDigit = 11;
-    constexpr size_t kBuckets = size_t(1) << kDigit;
-    const size_t chunks = std::clamp<size_t>(n / 65536, 1, 16), per = (n + chunks - 1) / chunks;
-    std::vector<size_t> count(chunks * kBuckets);
-    for (int shift = 32; shift < 64; shift += kDigit) {
-      tbb::parallel_for(size_t(0), chunks, [&](size_t ch) {
-        size_t* cnt = &count[ch * kBuckets];
-        std::fill(cnt, cnt + kBuckets, 0);
-        for (size_t i = ch * per; i < std::min(n, (ch + 1) * per); ++i) ++cnt[(packed[i] >> shift) & (kBuckets - 1)];
-      });
-      size_t sum = 0;
-      for (size_t b = 0; b < kBuckets; ++b)
-        for (size_t ch = 0; ch < chunks; ++ch) {
-          const size_t t = count[ch * kBuckets + b];
-          count[ch * kBuckets + b] = sum;
-          sum += t;
-        }
-      tbb::parallel_for(size_t(0), chunks, [&](size_t ch) {
-        size_t* at = &count[ch * kBuckets];
-        for (size_t i = ch * per; i < std::min(n, (ch + 1) * per); ++i) tmp[at[(packed[i] >> shift) & (kBuckets - 1)]++] = packed[i];
-      });
-      packed.swap(tmp);
-    }
-    for (size_t s = 0; s < n; ++s) seeds[s] = uint32_t(packed[s]);
-  }
+  // Seeds by increasing curvature; ties keep slot order, so deterministic.
+  const std::vector<uint32_t> seeds = SlotsByKey(seed_key);
 
   const float cos_a = float(std::cos(o.angle_deg * M_PI / 180.0));
   const bool signed_normals = o.signed_normals;
@@ -686,17 +704,13 @@ Segmentation Segment(const Scan& scan, const RegionGrowingOptions& o, SegmentTim
           id[h] = count[h] ? int(k) : -1;
           if (!count[h]) continue;
           sub_start[k] = at;
-          float* b = &sub_box[size_t(k) * 6];
-          b[0] = b[1] = b[2] = std::numeric_limits<float>::infinity();
-          b[3] = b[4] = b[5] = -std::numeric_limits<float>::infinity();
+          EmptyBox(&sub_box[size_t(k) * 6]);
           at += uint32_t(count[h]), ++k;
         }
         for (int s = grid.cell_start[c]; s < grid.cell_start[c + 1]; ++s) {
           const uint32_t q = uint32_t(id[half_of[s]]);
           sub_of[s] = q;
-          float* b = &sub_box[size_t(q) * 6];
-          b[0] = std::min(b[0], grid.x[s]), b[1] = std::min(b[1], grid.y[s]), b[2] = std::min(b[2], grid.z[s]);
-          b[3] = std::max(b[3], grid.x[s]), b[4] = std::max(b[4], grid.y[s]), b[5] = std::max(b[5], grid.z[s]);
+          ExtendBox(&sub_box[size_t(q) * 6], grid.x[s], grid.y[s], grid.z[s]);
         }
       }
     });
@@ -750,12 +764,6 @@ Segmentation Segment(const Scan& scan, const RegionGrowingOptions& o, SegmentTim
   // Cells' tight boxes: a neighbour cell at delta or farther from a joined sub-cell's members
   // holds none of their neighbours.
   const std::vector<float> box = CellBoxes(grid);
-  auto box_gap2 = [](const float* a, const float* b) {
-    const float dx = std::max(std::max(a[0] - b[3], b[0] - a[3]), 0.f);
-    const float dy = std::max(std::max(a[1] - b[4], b[1] - a[4]), 0.f);
-    const float dz = std::max(std::max(a[2] - b[5], b[2] - a[5]), 0.f);
-    return dx * dx + dy * dy + dz * dz;
-  };
 
   // Growth from `seed` over unlabelled slots accepted by `admit`, point by point (breadth
   // first; sparse scans).
@@ -818,28 +826,23 @@ Segmentation Segment(const Scan& scan, const RegionGrowingOptions& o, SegmentTim
     join(sub_cell(seed), grid.cell_of[seed], begin);
     for (size_t h = 0; h < joined.size(); ++h) {
       const Joined a = joined[h];
-      float mbox[6] = {std::numeric_limits<float>::infinity(), std::numeric_limits<float>::infinity(),
-                       std::numeric_limits<float>::infinity(), -std::numeric_limits<float>::infinity(),
-                       -std::numeric_limits<float>::infinity(), -std::numeric_limits<float>::infinity()};
-      for (size_t t = a.begin; t < a.end; ++t) {
-        const uint32_t m = members[t];
-        mbox[0] = std::min(mbox[0], grid.x[m]), mbox[1] = std::min(mbox[1], grid.y[m]), mbox[2] = std::min(mbox[2], grid.z[m]);
-        mbox[3] = std::max(mbox[3], grid.x[m]), mbox[4] = std::max(mbox[4], grid.y[m]), mbox[5] = std::max(mbox[5], grid.z[m]);
-      }
+      float mbox[6];
+      EmptyBox(mbox);
+      for (size_t t = a.begin; t < a.end; ++t) ExtendBox(mbox, grid.x[members[t]], grid.y[members[t]], grid.z[members[t]]);
       const int c = a.cell;
       const bool one = a.end - a.begin == 1;  // sparse scans: most sub-cells hold one point
       for (int kk = grid.nb_start[c]; kk < grid.nb_start[c + 1]; ++kk) {
         const int nc = grid.nb[kk];
-        if (free_in_cell[nc] == 0 || box_gap2(mbox, &box[size_t(nc) * 6]) >= delta2) continue;
+        if (free_in_cell[nc] == 0 || BoxGap2(mbox, &box[size_t(nc) * 6]) >= delta2) continue;
         for (size_t k = sub_first[size_t(nc)]; k < sub_first[size_t(nc) + 1]; ++k) {
           const uint32_t nf = free_in_sub[k];
-          if (nf == 0 || joined_in[k] == id || (nf > 1 && box_gap2(mbox, &sub_box[k * 6]) >= delta2)) continue;
+          if (nf == 0 || joined_in[k] == id || (nf > 1 && BoxGap2(mbox, &sub_box[k * 6]) >= delta2)) continue;
           bool hit = false;
           for (uint32_t i = sub_start[k]; i < sub_start[k] + nf && !hit; ++i) {
             const uint32_t q = free_slots[i];
             if (!one) {
               const float qb[6] = {grid.x[q], grid.y[q], grid.z[q], grid.x[q], grid.y[q], grid.z[q]};
-              if (box_gap2(mbox, qb) >= delta2) continue;
+              if (BoxGap2(mbox, qb) >= delta2) continue;
             }
             if (!admit(q)) continue;
             for (size_t t = a.begin; t < a.end; ++t) {
