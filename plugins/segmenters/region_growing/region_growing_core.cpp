@@ -334,8 +334,7 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
   // Dense cells and the voxel centroids of every cell next to one.
   const int K = o.max_normal_points;
   const int q = kCentroidVoxelsPerRadius;
-  Eigen::Vector3f lo = lc.pts[0];  // VoxelIndex's anchor, computed alike
-  for (const auto& p : lc.pts) lo = lo.cwiseMin(p);
+  const Eigen::Vector3f lo = grid.Origin();
   std::vector<char> dense(size_t(cells), 0);
   std::vector<std::vector<Eigen::Vector4f>> centroids;
   if (K > 0) {
@@ -524,46 +523,6 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
   });
 }
 
-// Slots 0 .. n-1 by increasing key[slot] (32-bit keys), ties in slot order. The key and the
-// slot packed in one word (key high, slot low) and sorted by their key bits: a stable LSD radix
-// sort, 3 passes of 11 bits, each reading its input in order (sorting slots by key[slot], as
-// the SDK's RadixSortByKey does, read the keys at random: 70 % of a 3.7M-point growth), in
-// parallel over fixed chunks (per-chunk counts, then each chunk scatters to its own offsets:
-// stable, and the same order whatever the threads).
-std::vector<uint32_t> SlotsByKey(const std::vector<uint64_t>& seed_key) {
-  const size_t n = seed_key.size();
-  std::vector<uint64_t> packed(n), tmp(n);
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 16384), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t s = r.begin(); s != r.end(); ++s) packed[s] = (seed_key[s] << 32) | uint64_t(s);
-  });
-  constexpr int kDigit = 11;
-  constexpr size_t kBuckets = size_t(1) << kDigit;
-  const size_t chunks = std::clamp<size_t>(n / 65536, 1, 16), per = (n + chunks - 1) / chunks;
-  std::vector<size_t> count(chunks * kBuckets);
-  for (int shift = 32; shift < 64; shift += kDigit) {
-    tbb::parallel_for(size_t(0), chunks, [&](size_t ch) {
-      size_t* cnt = &count[ch * kBuckets];
-      std::fill(cnt, cnt + kBuckets, 0);
-      for (size_t i = ch * per; i < std::min(n, (ch + 1) * per); ++i) ++cnt[(packed[i] >> shift) & (kBuckets - 1)];
-    });
-    size_t sum = 0;
-    for (size_t b = 0; b < kBuckets; ++b)
-      for (size_t ch = 0; ch < chunks; ++ch) {
-        const size_t t = count[ch * kBuckets + b];
-        count[ch * kBuckets + b] = sum;
-        sum += t;
-      }
-    tbb::parallel_for(size_t(0), chunks, [&](size_t ch) {
-      size_t* at = &count[ch * kBuckets];
-      for (size_t i = ch * per; i < std::min(n, (ch + 1) * per); ++i) tmp[at[(packed[i] >> shift) & (kBuckets - 1)]++] = packed[i];
-    });
-    packed.swap(tmp);
-  }
-  std::vector<uint32_t> seeds(n);
-  for (size_t s = 0; s < n; ++s) seeds[s] = uint32_t(packed[s]);
-  return seeds;
-}
-
 Eigen::Vector3f LocalViewpoint(const LocalCloud& lc, const std::optional<Eigen::Vector3f>& viewpoint) {
   if (viewpoint && viewpoint->allFinite()) return (viewpoint->cast<double>() - lc.centre).cast<float>();
   return Eigen::Vector3f::Zero();  // the bounding-box centre
@@ -644,7 +603,7 @@ Segmentation Segment(const Scan& scan, const RegionGrowingOptions& o, SegmentTim
     }
   });
   // Seeds by increasing curvature; ties keep slot order, so deterministic.
-  const std::vector<uint32_t> seeds = SlotsByKey(seed_key);
+  const std::vector<uint32_t> seeds = SortedByKey(seed_key, 32, TbbFor());  // ties in slot order
 
   const float cos_a = float(std::cos(o.angle_deg * M_PI / 180.0));
   const bool signed_normals = o.signed_normals;
@@ -659,8 +618,7 @@ Segmentation Segment(const Scan& scan, const RegionGrowingOptions& o, SegmentTim
   // free points lies within delta of a member of a joined neighbour. The same parts as growing
   // point by point; a dense scan costs a walk over its sub-cells instead of a scan of every
   // member's neighbourhood (3.7M-point room: growing 2.5 s -> see the commit).
-  Eigen::Vector3f lo = lc.pts[0];  // VoxelIndex's anchor, computed alike
-  for (const auto& p : lc.pts) lo = lo.cwiseMin(p);
+  const Eigen::Vector3f lo = grid.Origin();
   const float inv_half = 2.f / grid.cell;
   // The non-empty sub-cells, numbered cell after cell (cell c's are [sub_first[c],
   // sub_first[c + 1])), each a contiguous range of its cell's slots in `free_slots` (from
