@@ -149,7 +149,7 @@ class VoxelIndex {
     cell = cell_size;
     anchor_ = anchor;
     const size_t n = pts.size();
-    order.resize(n);
+    order.clear();  // SortedByKey below gives it its n entries
     x.resize(n);
     y.resize(n);
     z.resize(n);

@@ -603,7 +603,7 @@ Segmentation Segment(const Scan& scan, const RegionGrowingOptions& o, SegmentTim
     }
   });
   // Seeds by increasing curvature; ties keep slot order, so deterministic.
-  const std::vector<uint32_t> seeds = SortedByKey(seed_key, 32, TbbFor());  // ties in slot order
+  const std::vector<uint32_t> seeds = SortedByKey(seed_key, 32, TbbFor());
 
   const float cos_a = float(std::cos(o.angle_deg * M_PI / 180.0));
   const bool signed_normals = o.signed_normals;
