@@ -37,10 +37,10 @@ std::string Join(const std::vector<std::string>& v) {
   return s;
 }
 
-std::string Shown(const nlohmann::json& v) {
-  std::string d = v.dump();
-  return d.size() > 60 ? d.substr(0, 57) + "..." : d;
-}
+// At most 60 characters of `s`, so a message stays readable.
+std::string Clipped(const std::string& s) { return s.size() > 60 ? s.substr(0, 57) + "..." : s; }
+
+std::string Shown(const nlohmann::json& v) { return Clipped(v.dump()); }
 
 void CheckKeys(const nlohmann::json& obj, const std::vector<std::string>& allowed, const std::string& where) {
   for (auto it = obj.begin(); it != obj.end(); ++it)
@@ -221,11 +221,8 @@ GraphConfig ValidateGraph(const std::string& path, const nlohmann::json& config,
   std::string first_missing_at;
   for (auto it = stages.begin(); it != stages.end(); ++it) {
     const std::string at = w + "/stages/" + it.key();
-    if (!valid_tag(it.key())) {
-      const std::string& k = it.key();  // quoted at most 60 characters long
-      throw InputError(w + "/stages/" + (k.size() > 60 ? k.substr(0, 57) + "..." : k) +
-                       ": stage tags may use letters, digits, _ and - only");
-    }
+    if (!valid_tag(it.key()))
+      throw InputError(w + "/stages/" + Clipped(it.key()) + ": stage tags may use letters, digits, _ and - only");
     const auto& st = it.value();
     if (!st.is_object()) throw InputError(at + ": expected an object, got " + Shown(st));
     CheckKeys(st, kStageKeys, at);
