@@ -7,6 +7,7 @@
 #include <set>
 
 #include "furnihost/io.hpp"
+#include "shown.hpp"
 
 namespace fs = std::filesystem;
 
@@ -36,11 +37,6 @@ std::string Join(const std::vector<std::string>& v) {
   for (const auto& x : v) s += (s.empty() ? "" : ", ") + x;
   return s;
 }
-
-// At most 60 characters of `s`, so a message stays readable.
-std::string Clipped(const std::string& s) { return s.size() > 60 ? s.substr(0, 57) + "..." : s; }
-
-std::string Shown(const nlohmann::json& v) { return Clipped(v.dump()); }
 
 void CheckKeys(const nlohmann::json& obj, const std::vector<std::string>& allowed, const std::string& where) {
   for (auto it = obj.begin(); it != obj.end(); ++it)

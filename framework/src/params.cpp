@@ -4,7 +4,20 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "shown.hpp"
+
 namespace furnihost {
+
+std::string Clipped(const std::string& s, std::size_t max) {
+  std::string out = s.size() > max ? s.substr(0, max >= 3 ? max - 3 : 0) : s;
+  for (char& c : out)
+    if (c < 32 || c >= 127) c = '?';  // char may be signed: bytes >= 128 are negative
+  return s.size() > max ? out + "..." : out;
+}
+
+std::string Shown(const nlohmann::json& v, std::size_t max) {
+  return Clipped(v.dump(-1, ' ', true, nlohmann::json::error_handler_t::replace), max);
+}
 
 const char* ToString(ParamType t) {
   switch (t) {
@@ -27,13 +40,6 @@ std::string FormatNumber(double v) {
   if (std::abs(v) < 1e15 && v == std::floor(v)) s << static_cast<long long>(v);  // 2147483647, not 2.14748e+09
   else s << v;
   return s.str();
-}
-
-// Shortened dump of an offending value for messages.
-std::string Shown(const nlohmann::json& v) {
-  std::string d = v.dump();
-  if (d.size() > 60) d = d.substr(0, 57) + "...";
-  return d;
 }
 
 bool InRange(const ParamSpec& s, double v) {

@@ -16,6 +16,8 @@
 #include <map>
 #include <sstream>
 
+#include "shown.hpp"
+
 namespace fs = std::filesystem;
 
 namespace furnihost {
@@ -117,12 +119,8 @@ struct PcdHeader {
   std::optional<Eigen::Vector3d> viewpoint;  // unset when it is PCL's default (no sensor origin)
 };
 
-// A token as shown in a message: printable and short, so the error stays one line.
-std::string Shown(const std::string& s) {
-  std::string out;
-  for (char c : s.substr(0, 24)) out += (c >= 32 && c < 127) ? c : '?';
-  return s.size() > 24 ? out + "..." : out;
-}
+// A header token as shown in a message: printable and short, so the error stays one line.
+std::string Token(const std::string& s) { return Clipped(s, 27); }
 
 [[noreturn]] void BadPcdHeader(const std::string& path, const std::string& what) {
   throw InputError(path + ": not a valid PCD file (bad header: " + what + ")");
@@ -186,13 +184,13 @@ PcdHeader ReadPcdHeader(const std::string& path, std::ifstream& in, uint64_t fil
     static const char* const kKeys[] = {"VERSION", "FIELDS", "SIZE", "TYPE", "COUNT",
                                         "WIDTH",   "HEIGHT", "VIEWPOINT", "POINTS", "DATA"};
     if (std::none_of(std::begin(kKeys), std::end(kKeys), [&](const char* k) { return key == k; }))
-      BadPcdHeader(path, "unknown line '" + Shown(line) + "'");
+      BadPcdHeader(path, "unknown line '" + Token(line) + "'");
     // A keyword given twice is a second header inside the first (the fuzzer's crash).
     if (lines.count(key)) BadPcdHeader(path, key + " given twice");
     t.erase(t.begin());
     if (key == "DATA") {
       if (t.size() != 1 || (t[0] != "ascii" && t[0] != "binary" && t[0] != "binary_compressed"))
-        BadPcdHeader(path, "DATA '" + Shown(line.substr(std::min<size_t>(line.size(), 5))) +
+        BadPcdHeader(path, "DATA '" + Token(line.substr(std::min<size_t>(line.size(), 5))) +
                                "', expected ascii, binary or binary_compressed");
       h.data = t[0];
       h.data_offset = std::min<size_t>(pos, head.size());
@@ -226,17 +224,17 @@ PcdHeader ReadPcdHeader(const std::string& path, std::ifstream& in, uint64_t fil
     f.name = names[i];
     if (f.name != "_")  // "_" pads; every other name must be unique
       for (size_t j = 0; j < i; ++j)
-        if (names[j] == f.name) BadPcdHeader(path, "field '" + Shown(f.name) + "' given twice");
+        if (names[j] == f.name) BadPcdHeader(path, "field '" + Token(f.name) + "' given twice");
     uint64_t v = 0;
     if (!ParseCount(sizes[i], 8, v) || (v != 1 && v != 2 && v != 4 && v != 8))
-      BadPcdHeader(path, "SIZE '" + Shown(sizes[i]) + "' of field '" + Shown(f.name) + "', expected 1, 2, 4 or 8");
+      BadPcdHeader(path, "SIZE '" + Token(sizes[i]) + "' of field '" + Token(f.name) + "', expected 1, 2, 4 or 8");
     f.size = int(v);
     if (types[i].size() != 1 || (types[i][0] != 'I' && types[i][0] != 'U' && types[i][0] != 'F'))
-      BadPcdHeader(path, "TYPE '" + Shown(types[i]) + "' of field '" + Shown(f.name) + "', expected I, U or F");
+      BadPcdHeader(path, "TYPE '" + Token(types[i]) + "' of field '" + Token(f.name) + "', expected I, U or F");
     f.type = types[i][0];
-    if (f.type == 'F' && f.size < 4) BadPcdHeader(path, "field '" + Shown(f.name) + "' is a float of size " + sizes[i]);
+    if (f.type == 'F' && f.size < 4) BadPcdHeader(path, "field '" + Token(f.name) + "' is a float of size " + sizes[i]);
     if (!counts.empty() && (!ParseCount(counts[i], kPcdMaxPointStep, f.count) || f.count == 0))
-      BadPcdHeader(path, "COUNT '" + Shown(counts[i]) + "' of field '" + Shown(f.name) + "'");
+      BadPcdHeader(path, "COUNT '" + Token(counts[i]) + "' of field '" + Token(f.name) + "'");
     f.offset = static_cast<size_t>(step);
     step += uint64_t(f.size) * f.count;
     values += f.count;
@@ -256,7 +254,7 @@ PcdHeader ReadPcdHeader(const std::string& path, std::ifstream& in, uint64_t fil
     if (!lines.count(key)) return false;
     const auto& t = values_of(key);
     if (t.size() != 1 || !ParseCount(t[0], 0xFFFFFFFFull, v))
-      BadPcdHeader(path, std::string(key) + " '" + Shown(t.empty() ? "" : t[0]) + (t.size() > 1 ? " ..." : "") +
+      BadPcdHeader(path, std::string(key) + " '" + Token(t.empty() ? "" : t[0]) + (t.size() > 1 ? " ..." : "") +
                              "' is not a count below 2^32");
     return true;
   };
@@ -276,7 +274,7 @@ PcdHeader ReadPcdHeader(const std::string& path, std::ifstream& in, uint64_t fil
     double vp[7];
     if (t.size() != 7) BadPcdHeader(path, "VIEWPOINT needs 7 numbers (tx ty tz qw qx qy qz)");
     for (int k = 0; k < 7; ++k)
-      if (!ParseReal(t[k], vp[k])) BadPcdHeader(path, "VIEWPOINT value '" + Shown(t[k]) + "' is not a number");
+      if (!ParseReal(t[k], vp[k])) BadPcdHeader(path, "VIEWPOINT value '" + Token(t[k]) + "' is not a number");
     // PCL writes 0 0 0 1 0 0 0 when nothing is known: that is no sensor origin.
     const bool default_view = vp[0] == 0 && vp[1] == 0 && vp[2] == 0 && std::abs(vp[3] - 1) < 1e-5 &&
                               std::abs(vp[4]) < 1e-5 && std::abs(vp[5]) < 1e-5 && std::abs(vp[6]) < 1e-5;
@@ -403,7 +401,7 @@ void ReadPcdAscii(const std::string& path, std::ifstream& in, const PcdHeader& h
                        " values, its header's fields need " + std::to_string(h.values));
     for (size_t k = 0; k < t.size(); ++k)
       if (!ParseReal(t[k], vals[k]))
-        throw InputError(path + ": PCD point " + std::to_string(i) + ": '" + Shown(t[k]) + "' is not a number");
+        throw InputError(path + ": PCD point " + std::to_string(i) + ": '" + Token(t[k]) + "' is not a number");
     if (sink.roles.rgb >= 0) {
       // PCL writes a packed colour as its integer; other writers as the float of the same bits.
       const std::string& c = t[first[sink.roles.rgb]];

@@ -57,6 +57,17 @@ TEST(Params, EachErrorNamesThePointer) {
   EXPECT_NE(ErrorOf(json::array()).find("expected an object of parameters"), std::string::npos);
 }
 
+// An offending value is shown on one line in printable ASCII, at most 60 characters: a name in
+// another script escaped as JSON writes it, a long value cut (config errors show values alike).
+TEST(Params, OffendingValuesAreShownShortAndPrintable) {
+  EXPECT_EQ(ErrorOf({{"angle_deg", "St\u00fchle"}}),
+            "g.json:/stages/seg/params/angle_deg: expected a number in [0, 180], got \"St\\u00fchle\"");
+  const std::string long_error = ErrorOf({{"angle_deg", std::string(100, 'x')}});
+  const std::string shown = "got \"" + std::string(56, 'x') + "...";
+  EXPECT_EQ(long_error.substr(long_error.size() - shown.size()), shown) << long_error;
+  EXPECT_EQ(ErrorOf({{"angle_deg", "a\tb"}}).find('\t'), std::string::npos);
+}
+
 TEST(Params, SchemaJsonListsRanges) {
   json j = Schema().ToJson();
   ASSERT_EQ(j.size(), 7u);
