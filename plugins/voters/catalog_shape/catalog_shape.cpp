@@ -54,6 +54,7 @@ struct ClassParams {
   float floor_under = 0.5f, floor_over = 0.2f;
   float compete = 0.f;
   float wall_mount = 0.f;  // 0: models stand on the floor; > 0: they may also hang above it, at this extra cost
+  float view_edge = 0.f;   // cost of a proposal the left or right edge of a single view cuts (0 = off)
   std::string source = "catalog";  // proposals scored: "catalog" (from the class's model heights), "any", or a rule name
 };
 
@@ -65,7 +66,7 @@ const std::vector<std::pair<std::string, float ClassParams::*>>& Fields() {
       {"sig_bottom", &ClassParams::bottom},          {"sig_profile", &ClassParams::profile},
       {"sig_surround", &ClassParams::surround},      {"sig_floor_less", &ClassParams::floor_under},
       {"sig_floor_more", &ClassParams::floor_over},  {"compete", &ClassParams::compete},
-      {"wall_mount", &ClassParams::wall_mount}};
+      {"wall_mount", &ClassParams::wall_mount},       {"view_edge", &ClassParams::view_edge}};
   return f;
 }
 
@@ -90,6 +91,7 @@ struct Options {
   float tall_class = 1.2f;
   bool floor_term = true;
   bool view_profiles = false;  // single views (scans with a sensor origin): also the models' one-eye profiles
+  float edge_band_deg = 1.5f;  // a point this close to its row's end of the view lies at the view's edge
 
   const ClassParams& Of(const std::string& c) const {
     auto it = per_class.find(c);
@@ -205,6 +207,16 @@ const ParamBinding<Options>& Binding() {
                   "model then spans the proposal's own height extent, the bottom, top-view profile and floor terms are "
                   "dropped (a sensor below a wall cabinet rarely sees its top) and this cost is added to the energy")
           .DetectionOnly()
+          .Number("view_edge", base(&ClassParams::view_edge), 0, 100, "",
+                  "on scans with a sensor origin (single views): a cost added to the energy of a proposal that the "
+                  "left or right end of the view cuts (3 or more of its points within edge_band_deg of the end of "
+                  "their row of the view): what the camera saw of it may be part of a larger object, e.g. a sofa's "
+                  "end looking like an armchair (0 = off)")
+          .DetectionOnly()
+          .Number("edge_band_deg", &O::edge_band_deg, 0.01, 20, "deg",
+                  "angular band at the left and right ends of each 1 deg row of a single view whose points count as "
+                  "at the view's edge (view_edge)")
+          .DetectionOnly()
           .NumberMap("thresholds", &O::thresholds, 0, std::nullopt, "",
                      "operating score per detected class: detections at or above it are accepted (verified), the "
                      "others kept as rejected candidates")
@@ -270,6 +282,65 @@ class FloorCells {
   }
   std::set<uint64_t> cells_;
 };
+
+// Single views (a scan with a sensor origin): 1 for the points at the left or right end of what
+// the sensor saw. A camera's image ends left and right; an object the edge cuts is seen in part,
+// and its part may look like a smaller object (a sofa's end like an armchair). Each point's
+// azimuth and elevation about the origin (azimuth from the points' mean horizontal heading); per
+// 1 deg row of elevation holding 10 or more points, those within `band_deg` of the row's smallest
+// or largest azimuth (a pitched camera's edges are curves in azimuth: the rows follow them). A
+// row also ends where nothing was seen beyond an object (no return from a window, a dark surface,
+// open space beyond the range): what lies beside that object is unknown too, so it counts as cut
+// as well. Real views are ragged there (SUN RGB-D dev rows end 5-8 deg apart from one degree of
+// elevation to the next). All 0 for a scan whose points surround the origin (a panoramic laser:
+// 1 % or more of them behind it, or an azimuth span over 150 deg), and for a scan without an
+// origin. Linear in the points.
+std::vector<uint8_t> ViewEdges(const Scan& scan, float band_deg) {
+  const size_t n = scan.points.size();
+  std::vector<uint8_t> edge(n, 0);
+  if (!scan.origin || !scan.origin->allFinite()) return edge;
+  const Eigen::Vector3f o = *scan.origin;
+  Eigen::Vector2d heading = Eigen::Vector2d::Zero();
+  for (const auto& p : scan.points) {
+    const Eigen::Vector2f d = (p - o).head<2>();
+    const float len = d.norm();
+    if (p.allFinite() && len > 1e-6f) heading += (d / len).cast<double>();
+  }
+  if (!(heading.norm() > 1e-9)) return edge;
+  heading.normalize();
+  const float hx = float(heading.x()), hy = float(heading.y());
+  constexpr float kDeg = float(180.0 / M_PI);
+  std::vector<float> az(n, NAN);
+  std::vector<int> row(n, -1);
+  size_t finite = 0, behind = 0;
+  float lo = INFINITY, hi = -INFINITY;
+  for (size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3f d = scan.points[i] - o;
+    if (!d.allFinite() || d.squaredNorm() < 1e-12f) continue;
+    ++finite;
+    const float f = d.x() * hx + d.y() * hy, r = d.y() * hx - d.x() * hy;  // along the heading; to its left
+    behind += f <= 0.f;
+    az[i] = std::atan2(r, f) * kDeg;
+    row[i] = std::clamp(int(std::floor(std::atan2(d.z(), std::hypot(f, r)) * kDeg)) + 90, 0, 179);
+    lo = std::min(lo, az[i]), hi = std::max(hi, az[i]);
+  }
+  if (finite == 0 || double(behind) >= 0.01 * double(finite) || hi - lo > 150.f) return edge;
+  std::array<float, 180> row_lo, row_hi;
+  std::array<int, 180> count{};
+  row_lo.fill(INFINITY), row_hi.fill(-INFINITY);
+  for (size_t i = 0; i < n; ++i)
+    if (row[i] >= 0) {
+      const int b = row[i];
+      ++count[size_t(b)];
+      row_lo[size_t(b)] = std::min(row_lo[size_t(b)], az[i]), row_hi[size_t(b)] = std::max(row_hi[size_t(b)], az[i]);
+    }
+  for (size_t i = 0; i < n; ++i)
+    if (row[i] >= 0 && count[size_t(row[i])] >= 10)
+      edge[i] = az[i] - row_lo[size_t(row[i])] < band_deg || row_hi[size_t(row[i])] - az[i] < band_deg;
+  spdlog::debug("catalog_shape: {} of {} points at the view's left or right edge (azimuth span {:.1f} deg)",
+                std::count(edge.begin(), edge.end(), uint8_t(1)), n, hi - lo);
+  return edge;
+}
 
 // The share of a model's inner footprint (model frame: bounding-box bottom centre at the
 // origin, size = extents) whose floor one of its training views' sensors sees: the segment
@@ -518,6 +589,11 @@ class CatalogShapeVoter : public Voter {
       const size_t n = items.size();
       const FloorCells floor = o_.floor_term ? FloorCells(scan) : FloorCells();
       const bool views = o_.view_profiles && scan.origin.has_value();
+      // The view's edges, where a class uses them.
+      bool edges_used = false;
+      for (const auto& c : classes_) edges_used = edges_used || o_.Of(c).view_edge > 0.f;
+      const std::vector<uint8_t> at_edge =
+          edges_used && scan.origin ? ViewEdges(scan, o_.edge_band_deg) : std::vector<uint8_t>();
       const size_t C = classes_.size();
       std::vector<std::vector<float>> score(C, std::vector<float>(n, 0.f));
       std::vector<std::vector<int>> best_model(C, std::vector<int>(n, -1));
@@ -540,6 +616,11 @@ class CatalogShapeVoter : public Voter {
         const float T = std::max(p.box.max().z() - p.ground_z, 0.02f), B = std::max(p.box.min().z() - p.ground_z, 0.f);
         const shape::Profile prof = shape::TopViewProfile(xy, h, T, o_.cell);
         const float seen = o_.floor_term ? floor.SeenUnder(foot[i]) : 0.f;
+        // Cut by the view's edge: 3 or more of its points there.
+        int edge_points = 0;
+        if (!at_edge.empty())
+          for (int k : p.indices) edge_points += at_edge[size_t(k)];
+        const float cut = edge_points >= 3 ? 1.f : 0.f;
         for (size_t c = 0; c < C; ++c) {
           const ClassParams& cp = o_.Of(classes_[c]);
           float best = INFINITY;
@@ -573,13 +654,17 @@ class CatalogShapeVoter : public Voter {
             }
             if (E < best) best = E, best_model[c][i] = int(m), terms = t;
           }
-          score[c][i] = std::exp(-best - p.surround / cp.surround);
+          score[c][i] = std::exp(-best - p.surround / cp.surround - cut * cp.view_edge);
           evidence[c][i] = {{"length_m", L},          {"width_m", W},         {"top_m", T},
                             {"bottom_m", B},          {"surround", p.surround}, {"floor_seen", seen},
                             {"points", float(p.indices.size())},
                             {"e_length", terms[0]},   {"e_width", terms[1]},  {"e_top", terms[2]},
                             {"e_bottom", terms[3]},   {"e_profile", terms[4]}, {"e_floor", terms[5]},
                             {"e_surround", p.surround / cp.surround}};
+          if (!at_edge.empty() && cp.view_edge > 0.f) {
+            evidence[c][i]["view_edge_points"] = float(edge_points);
+            evidence[c][i]["e_view_edge"] = cut * cp.view_edge;
+          }
           if (spdlog::should_log(spdlog::level::trace) && score[c][i] >= o_.min_score)
             spdlog::trace("catalog_shape: {} {} box ({:.2f} {:.2f} {:.2f})-({:.2f} {:.2f} {:.2f}) L {:.3f} W {:.3f} T {:.3f} "
                           "B {:.3f} surround {:.3f} floor seen {:.3f} -> {} {:.4f}",

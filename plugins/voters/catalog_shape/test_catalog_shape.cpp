@@ -282,5 +282,110 @@ TEST(CatalogShape, ViewProfilesScoreAnArmchairSeenFromItsSide) {
   EXPECT_FLOAT_EQ(c->score, d->score);
 }
 
+// A depth camera's single view (640 x 480 px, 525 px focal length: 62 deg wide; 8 m range) of an
+// armchair in the middle of the image and of a sofa of the same section, 2.4 m long, that the
+// image's left edge cuts 0.8 m into: what the camera saw of the sofa is armchair-sized. With
+// view_edge, the chair hypotheses on the cut proposal pay its cost (score x exp(-1)); the armchair
+// in the middle pays nothing (its rows go on to the wall behind it). A scan whose points surround
+// its origin (four sensors around) has no view edge, and a scan without an origin is scored as
+// before.
+TEST(CatalogShape, ViewEdgeCostsProposalsTheViewCuts) {
+  auto seat_back_arms = [](CatalogModel& m, float half) {
+    AddBox(m.mesh, {-0.35f, -half, 0.f}, {0.25f, half, 0.45f});              // seat
+    AddBox(m.mesh, {0.25f, -half, 0.f}, {0.35f, half, 0.85f});               // back (+x side)
+    AddBox(m.mesh, {-0.35f, -half, 0.45f}, {0.25f, -half + 0.08f, 0.65f});  // armrests
+    AddBox(m.mesh, {-0.35f, half - 0.08f, 0.45f}, {0.25f, half, 0.65f});
+    m.size = m.mesh.Bounds().sizes();
+  };
+  CatalogModel chair, sofa;
+  chair.id = "test_armchair", chair.cls = "chair";
+  seat_back_arms(chair, 0.35f);
+  sofa.id = "test_long_sofa", sofa.cls = "sofa";
+  seat_back_arms(sofa, 1.2f);
+  RunContext ctx;
+  auto voter = [&](float cost) {
+    auto v = Make<Voter>("voters.catalog_shape", {{"class_params", {{"chair", {{"view_edge", cost}}}}},
+                                                  {"min_score", 1e-9}, {"nms_iou", 1.0}});
+    v->Load(v->Train(Views({&chair}), ctx));
+    return v;
+  };
+  const auto with = voter(1.f), without = voter(0.f);
+
+  // Both face the camera (backs away from it, at +x); the camera 1.3 m above the floor, looking
+  // along +x, 15 deg down. At x = 3 m the image spans y = -1.8 .. 1.8 m (+y on its left).
+  Eigen::Isometry3f cp = Eigen::Isometry3f::Identity(), sp = Eigen::Isometry3f::Identity();
+  cp.translation() = Eigen::Vector3f(3.f, 0.f, 0.f);
+  sp.translation() = Eigen::Vector3f(3.f, 2.2f, 0.f);
+  SensorRequest req;
+  req.objects = {{&chair, cp}, {&sofa, sp}};
+  AddBox(req.extra, {-1.f, -6.f, -0.02f}, {8.f, 6.f, 0.f});   // the floor
+  AddBox(req.extra, {6.f, -6.f, 0.f}, {6.1f, 6.f, 2.6f});     // the wall behind: rows end at the image's edges
+  Eigen::Isometry3f cam = Eigen::Isometry3f::Identity();
+  cam.linear() = Eigen::AngleAxisf(0.2618f, Eigen::Vector3f::UnitY()).toRotationMatrix();
+  cam.translation() = Eigen::Vector3f(0.f, 0.f, 1.3f);
+  req.poses.push_back(cam);
+  Scan scan;
+  const json camera = {{"pattern", "depth_camera"}, {"camera_max_range_m", 8.0}, {"voxel_m", 0.015}};
+  for (auto& v : Make<Sensor>("sensors.simulated_laser", camera)->Acquire(req, ctx))
+    scan.points.insert(scan.points.end(), v.points.begin(), v.points.end());
+  ASSERT_GT(scan.points.size(), 1000u);
+  scan.ground = EstimateGround(scan.points, GroundOptions{});
+  scan.origin = cam.translation();
+  const Proposals props = Make<Proposer>("proposals.clusters")->Propose(scan, nullptr, ctx);
+  SceneParts parts;
+  parts.scan = &scan;
+  parts.proposals = &props;
+  // The best chair hypothesis centred within 0.3 m of `at` (x, y), and the same proposal's
+  // hypothesis from `other` (same box).
+  auto best_at = [&](const VoteResult& r, const Eigen::Vector2f& at) {
+    std::optional<Hypothesis> b;
+    for (const auto& h : r.hypotheses)
+      if (h.cls == "chair" && (h.center.head<2>() - at).norm() < 0.3f && (!b || h.score > b->score)) b = h;
+    return b;
+  };
+  auto same_box = [&](const VoteResult& r, const Hypothesis& h) {
+    std::optional<Hypothesis> b;
+    for (const auto& g : r.hypotheses)
+      if (g.cls == "chair" && g.box && h.box && (g.box->center - h.box->center).norm() < 1e-5f &&
+          (g.box->size - h.box->size).norm() < 1e-5f)
+        b = g;
+    return b;
+  };
+  const VoteResult rw = with->Vote({parts}, ctx), ro = without->Vote({parts}, ctx);
+  const auto middle = best_at(rw, {3.f, 0.f});
+  ASSERT_TRUE(middle);
+  EXPECT_EQ(middle->evidence.at("view_edge_points"), 0.f);
+  EXPECT_EQ(middle->evidence.at("e_view_edge"), 0.f);
+  const auto middle_without = same_box(ro, *middle);
+  ASSERT_TRUE(middle_without);
+  EXPECT_FLOAT_EQ(middle->score, middle_without->score);
+  EXPECT_EQ(middle_without->evidence.count("view_edge_points"), 0u);  // off: not measured
+  // The sofa's visible end: cut by the edge, at exp(-1) of its score without the cost.
+  const auto cut = best_at(ro, {3.f, 1.4f});
+  ASSERT_TRUE(cut);
+  const auto cut_with = same_box(rw, *cut);
+  ASSERT_TRUE(cut_with);
+  EXPECT_GE(cut_with->evidence.at("view_edge_points"), 3.f);
+  EXPECT_EQ(cut_with->evidence.at("e_view_edge"), 1.f);
+  EXPECT_NEAR(cut_with->score, cut->score * std::exp(-1.f), 1e-6f + 1e-4f * cut->score);
+
+  // Points all around the origin (a panoramic scan): no view edge. No origin: no measure.
+  Scan around = ScanRoom({{&chair, cp}}, 0.f, ctx);
+  around.origin = Eigen::Vector3f(1.f, 0.f, 1.5f);
+  const Proposals around_props = Make<Proposer>("proposals.clusters")->Propose(around, nullptr, ctx);
+  SceneParts around_parts;
+  around_parts.scan = &around;
+  around_parts.proposals = &around_props;
+  int measured = 0;
+  for (const auto& h : with->Vote({around_parts}, ctx).hypotheses)
+    if (h.cls == "chair") {
+      ++measured;
+      EXPECT_EQ(h.evidence.at("view_edge_points"), 0.f);
+    }
+  EXPECT_GT(measured, 0);
+  scan.origin.reset();
+  for (const auto& h : with->Vote({parts}, ctx).hypotheses) EXPECT_EQ(h.evidence.count("e_view_edge"), 0u);
+}
+
 }  // namespace
 }  // namespace furnihost
