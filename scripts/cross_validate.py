@@ -37,6 +37,7 @@ GRIDS = {
     "g6": {"sig_top_big": [0.1, 0.2], "sig_profile": [0.05, 0.08], "sig_surround": [0.15, 0.3, 0.6],
            "compete": [0, 1], "sig_long_big": [0.2, 0.5]},
     "tiny": {"sig_surround": [0.15, 0.6], "compete": [0, 1]},
+    "none": {},  # the graph's own parameters: only the thresholds are chosen
 }
 # g6 and whether a class's models may hang above the floor (kitchen wall cabinets; 0 = they stand on it).
 GRIDS["g6w"] = dict(GRIDS["g6"], wall_mount=[0, 3])
