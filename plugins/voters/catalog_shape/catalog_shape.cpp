@@ -19,7 +19,8 @@
 //   with wall_mount > 0 (a class whose objects may hang on a wall, as kitchen wall cabinets do),
 //   also E_m' = pen(ln L/L_m) + pen(ln W/W_m) + pen(ln (T - B)/H_m; top) + wall_mount: the model
 //   lifted to the proposal's bottom, without the bottom, profile and floor terms; E_m = min(E_m, E_m');
-//   score_c = exp(-min over the class's models m of E_m - s / sig_surround),
+//   score_c = exp(-min over the class's models m of E_m - s / sig_surround - cut * view_edge), cut = 1
+//   when the left or right end of a single view cuts the proposal (ViewEdges), else 0,
 // then optionally class competition (score_c * (score_c / best class score of the proposal's
 // group)^compete): one object is one class, whatever variant of its cluster is looked at.
 //
