@@ -53,6 +53,18 @@ Scan ScanRoom(const std::vector<PlacedObject>& objects, float floor_z,
   return scan;
 }
 
+// What one sensor at `pose` sees of `req`'s objects, with its ground estimated and the sensor's
+// position as the scan's origin.
+Scan ScanOneView(SensorRequest req, const Eigen::Isometry3f& pose, const json& sensor, RunContext& ctx) {
+  req.poses = {pose};
+  Scan scan;
+  for (auto& v : Make<Sensor>("sensors.simulated_laser", sensor)->Acquire(req, ctx))
+    scan.points.insert(scan.points.end(), v.points.begin(), v.points.end());
+  scan.ground = EstimateGround(scan.points, GroundOptions{});
+  scan.origin = pose.translation();
+  return scan;
+}
+
 TEST(CatalogShape, TrainsSizesProfilesAndOpenFloor) {
   const CatalogModel table = Table(), cabinet = Cabinet();
   auto voter = Make<Voter>("voters.catalog_shape");
@@ -255,12 +267,7 @@ TEST(CatalogShape, ViewProfilesScoreAnArmchairSeenFromItsSide) {
   Eigen::Isometry3f s = Eigen::Isometry3f::Identity();
   s.linear() = Eigen::AngleAxisf(-1.5708f, Eigen::Vector3f::UnitZ()).toRotationMatrix();
   s.translation() = Eigen::Vector3f(0.f, 2.5f, 1.5f);
-  req.poses.push_back(s);
-  Scan scan;
-  for (auto& v : Make<Sensor>("sensors.simulated_laser", {{"voxel_m", 0.015}})->Acquire(req, ctx))
-    scan.points.insert(scan.points.end(), v.points.begin(), v.points.end());
-  scan.ground = EstimateGround(scan.points, GroundOptions{});
-  scan.origin = s.translation();
+  Scan scan = ScanOneView(req, s, {{"voxel_m", 0.015}}, ctx);
   const Proposals props = Make<Proposer>("proposals.clusters")->Propose(scan, nullptr, ctx);
   SceneParts parts;
   parts.scan = &scan;
@@ -323,14 +330,9 @@ TEST(CatalogShape, ViewEdgeCostsProposalsTheViewCuts) {
   Eigen::Isometry3f cam = Eigen::Isometry3f::Identity();
   cam.linear() = Eigen::AngleAxisf(0.2618f, Eigen::Vector3f::UnitY()).toRotationMatrix();
   cam.translation() = Eigen::Vector3f(0.f, 0.f, 1.3f);
-  req.poses.push_back(cam);
-  Scan scan;
   const json camera = {{"pattern", "depth_camera"}, {"camera_max_range_m", 8.0}, {"voxel_m", 0.015}};
-  for (auto& v : Make<Sensor>("sensors.simulated_laser", camera)->Acquire(req, ctx))
-    scan.points.insert(scan.points.end(), v.points.begin(), v.points.end());
+  Scan scan = ScanOneView(req, cam, camera, ctx);
   ASSERT_GT(scan.points.size(), 1000u);
-  scan.ground = EstimateGround(scan.points, GroundOptions{});
-  scan.origin = cam.translation();
   const Proposals props = Make<Proposer>("proposals.clusters")->Propose(scan, nullptr, ctx);
   SceneParts parts;
   parts.scan = &scan;
