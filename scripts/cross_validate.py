@@ -41,7 +41,7 @@ GRIDS = {
 }
 # g6 and whether a class's models may hang above the floor (kitchen wall cabinets; 0 = they stand on it).
 GRIDS["g6w"] = dict(GRIDS["g6"], wall_mount=[0, 3])
-# g6 and the spread of a footprint wider than the model's (stop 39: 0.2 -> 0.4 shared in scannet.json).
+# g6 and the spread of a footprint wider than the model's (stop 39: chairs and tables 0.2 -> 0.4 in scannet.json).
 GRIDS["g7"] = dict(GRIDS["g6"], sig_short_big=[0.2, 0.4])
 # g7 and, for chairs only, the spread of more open floor seen under a proposal than under the model.
 GRIDS["g8"] = dict(GRIDS["g7"], sig_floor_more=[0.2, 0.4])
