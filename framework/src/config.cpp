@@ -13,6 +13,9 @@ namespace fs = std::filesystem;
 
 namespace furnihost {
 
+using detail::Clipped;
+using detail::Shown;
+
 namespace {
 
 const std::vector<std::string> kTopKeys = {"extends", "description", "comment", "seed", "threads",

@@ -8,14 +8,16 @@
 
 namespace furnihost {
 
-std::string Clipped(const std::string& s, std::size_t max) {
+using detail::Shown;
+
+std::string detail::Clipped(const std::string& s, std::size_t max) {
   std::string out = s.size() > max ? s.substr(0, max >= 3 ? max - 3 : 0) : s;
   for (char& c : out)
     if (c < 32 || c >= 127) c = '?';  // char may be signed: bytes >= 128 are negative
   return s.size() > max ? out + "..." : out;
 }
 
-std::string Shown(const nlohmann::json& v, std::size_t max) {
+std::string detail::Shown(const nlohmann::json& v, std::size_t max) {
   return Clipped(v.dump(-1, ' ', true, nlohmann::json::error_handler_t::replace), max);
 }
 

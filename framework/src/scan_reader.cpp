@@ -22,6 +22,8 @@ namespace fs = std::filesystem;
 
 namespace furnihost {
 
+using detail::Clipped;
+
 void RequireRegularFile(const std::string& path, const std::string& what) {
   struct stat st {};
   if (::stat(path.c_str(), &st) != 0) throw InputError(path + ": no such " + what);

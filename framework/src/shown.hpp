@@ -9,7 +9,9 @@
 
 #include "furnihost/error.hpp"  // FURNIHOST_API
 
-namespace furnihost {
+// In namespace detail: exported from the SDK library (the host's config checks call them across
+// the library boundary) but no part of the plugin API.
+namespace furnihost::detail {
 
 // `s` as printable ASCII on one line: every other byte (control characters, a binary file's
 // bytes, UTF-8) as '?'; longer than `max`: its first max - 3 characters and "...".
@@ -19,4 +21,4 @@ FURNIHOST_API std::string Clipped(const std::string& s, std::size_t max = 60);
 // so a name in another script stays readable and is not replaced by '?'.
 FURNIHOST_API std::string Shown(const nlohmann::json& v, std::size_t max = 60);
 
-}  // namespace furnihost
+}  // namespace furnihost::detail
