@@ -310,10 +310,12 @@ TEST(CatalogShape, ViewEdgeCostsProposalsTheViewCuts) {
   sofa.id = "test_long_sofa", sofa.cls = "sofa";
   seat_back_arms(sofa, 1.2f);
   RunContext ctx;
+  // One model (training does not depend on the cost), loaded by a voter per cost.
+  const json model = Make<Voter>("voters.catalog_shape")->Train(Views({&chair}), ctx);
   auto voter = [&](float cost) {
     auto v = Make<Voter>("voters.catalog_shape", {{"class_params", {{"chair", {{"view_edge", cost}}}}},
                                                   {"min_score", 1e-9}, {"nms_iou", 1.0}});
-    v->Load(v->Train(Views({&chair}), ctx));
+    v->Load(model);
     return v;
   };
   const auto with = voter(1.f), without = voter(0.f);
