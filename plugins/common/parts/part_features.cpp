@@ -121,12 +121,22 @@ float BoundaryRatio(const Points& q, const Points& normals, const Eigen::Vector3
   std::atomic<int> boundary{0};
   tbb::parallel_for(tbb::blocked_range<int>(0, grid.NumCells(), 32), [&](const tbb::blocked_range<int>& range) {
     std::vector<Dir> dirs;
-    std::vector<float> cx, cy, cz, pa, pb, keys;
-    std::vector<int> slots, weights;
+    std::vector<float> pa, pb, keys;
+    std::vector<int> slots, weights, run_b, run_e;
     int count = 0;
     for (int c = range.begin(); c != range.end(); ++c) {
-      grid.GatherNeighbourhood(c, cx, cy, cz);
-      const int m = int(cx.size());
+      // The 27 cells' points read in place, as runs of contiguous slots (cells next to each
+      // other along x are consecutive): no copy, and ~9 loops instead of 27.
+      run_b.clear(), run_e.clear();
+      for (int k = grid.nb_start[c]; k < grid.nb_start[c + 1]; ++k) {
+        const int b = grid.cell_start[grid.nb[k]], e = grid.cell_start[grid.nb[k] + 1];
+        if (!run_e.empty() && run_e.back() == b)
+          run_e.back() = e;
+        else
+          run_b.push_back(b), run_e.push_back(e);
+      }
+      int m = 0;
+      for (size_t k = 0; k < run_b.size(); ++k) m += run_e[k] - run_b[k];
       // Copies of one point (with one normal) have one answer: test it once, weighted by its
       // copies, or N copies (a (0, 0, 0) flood) cost N tests of N neighbours each. Only cells
       // that could hold many copies are sorted; a small cell costs at most its size times its
@@ -177,9 +187,10 @@ float BoundaryRatio(const Points& q, const Points& normals, const Eigen::Vector3
         // Projections of the neighbours on the tangent plane, compacted without branches.
         pa.resize(m), pb.resize(m);
         int cnt = 0;
+        const float *gx = grid.x.data(), *gy = grid.y.data(), *gz = grid.z.data();
         auto project = [&](int j_begin, int j_end) {
           for (int j = j_begin; j < j_end; ++j) {
-            const float dx = cx[j] - px, dy = cy[j] - py, dz = cz[j] - pz;
+            const float dx = gx[j] - px, dy = gy[j] - py, dz = gz[j] - pz;
             const float a = u.x() * dx + u.y() * dy + u.z() * dz;
             const float b = v.x() * dx + v.y() * dy + v.z() * dz;
             pa[cnt] = a, pb[cnt] = b;
@@ -193,14 +204,15 @@ float BoundaryRatio(const Points& q, const Points& normals, const Eigen::Vector3
           // Otherwise every neighbour is projected, as without the chunks.
           constexpr int kChunk = 64;
           unsigned sectors = 0;
-          for (int j0 = 0; j0 < m && sectors != 0xffu; j0 += kChunk) {
-            const int first = cnt;
-            project(j0, std::min(m, j0 + kChunk));
-            for (int j = first; j < cnt; ++j) sectors |= 1u << Octant(pa[j], pb[j]);
-          }
+          for (size_t k = 0; k < run_b.size() && sectors != 0xffu; ++k)
+            for (int j0 = run_b[k]; j0 < run_e[k] && sectors != 0xffu; j0 += kChunk) {
+              const int first = cnt;
+              project(j0, std::min(run_e[k], j0 + kChunk));
+              for (int j = first; j < cnt; ++j) sectors |= 1u << Octant(pa[j], pb[j]);
+            }
           last = sectors != 0xffu && GapAtEmptySectors(pa.data(), pb.data(), cnt, sectors, cos_t, keys);
         } else {
-          project(0, m);
+          for (size_t k = 0; k < run_b.size(); ++k) project(run_b[k], run_e[k]);
           dirs.clear();
           for (int j = 0; j < cnt; ++j) dirs.push_back({PseudoAngle(pa[j], pb[j]), pa[j], pb[j]});
           last = HasGap(dirs, cos_t);

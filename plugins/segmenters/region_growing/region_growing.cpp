@@ -33,7 +33,10 @@ const ParamBinding<rg::RegionGrowingOptions>& Binding() {
                 "compare signed normals (needs a sensor origin); false treats n and -n as parallel")
           .Bool("growth_by_sub_cells", &O::growth_by_sub_cells,
                 "dense scans (>= 2 points per cube of distance_m / 2) grow cube by cube, the same parts as point "
-                "by point (false) in time about linear in the points");
+                "by point (false) in time about linear in the points")
+          .Int("max_list_candidates", &O::max_list_candidates, 0, 1e6, "",
+               "sparse scans list each point's neighbours within distance_m before growing (the same parts, "
+               "faster) while each point has at most this many candidates in its 27 cells on average; 0 = never");
   return b;
 }
 

@@ -2,11 +2,13 @@
 
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_invoke.h>
+#include <tbb/parallel_reduce.h>
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <limits>
 #include <numeric>
 #include <tuple>
@@ -367,12 +369,10 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
     }
   }
 
-  const std::vector<float> cell_box = CellBoxes(grid);
-  const float r2 = r * r;
   tbb::parallel_for(tbb::blocked_range<int>(0, cells, 16), [&](const tbb::blocked_range<int>& range) {
     Neighbours nb;
     std::vector<float> cx, cy, cz, cw;
-    std::vector<int> slots, key, start, members, pending, seg, segc;
+    std::vector<int> slots, key, start, members, pending, run_b, run_e;
     std::vector<Eigen::Vector3f> query;
     // Neighbours of p among the m candidates (cx, cy, cz) into nb, scaled by 1/r; with
     // kCentroids also their point counts cw.
@@ -412,16 +412,18 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
     };
     // The exact normals of `slots` (points of cell c) from every point of their ball.
     auto exact = [&](int c) {
-      // The 27 cells' points, cell after cell (segment k: [seg[k], seg[k + 1]) from cell segc[k]).
-      cx.clear(), cy.clear(), cz.clear(), seg.clear(), segc.clear();
+      // The 27 cells' points are read in place: cell after cell, each a contiguous range of
+      // slots (a copy into one buffer cost more than it saved).
+      int cands = 0;
+      run_b.clear(), run_e.clear();
       for (int k = grid.nb_start[c]; k < grid.nb_start[c + 1]; ++k) {
-        const int nc = grid.nb[k], b = grid.cell_start[nc], e = grid.cell_start[nc + 1];
-        seg.push_back(int(cx.size())), segc.push_back(nc);
-        cx.insert(cx.end(), grid.x.begin() + b, grid.x.begin() + e);
-        cy.insert(cy.end(), grid.y.begin() + b, grid.y.begin() + e);
-        cz.insert(cz.end(), grid.z.begin() + b, grid.z.begin() + e);
+        const int b = grid.cell_start[grid.nb[k]], e = grid.cell_start[grid.nb[k] + 1];
+        if (!run_e.empty() && run_e.back() == b)
+          run_e.back() = e;
+        else
+          run_b.push_back(b), run_e.push_back(e);
+        cands += e - b;
       }
-      seg.push_back(int(cx.size()));
       // Copies of one point have the same neighbourhood, so one fit serves them all: without
       // this, N identical points (a (0, 0, 0) flood) cost N fits of N neighbours each. Only
       // cells that could hold many copies are sorted; a small cell costs at most its size
@@ -444,13 +446,13 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
         }
         // The neighbours, skipping the cells whose tight box lies r or farther from p (they
         // hold none: the same neighbours in the same order as scanning all 27).
-        nb.reserve(int(cx.size()));
+        nb.reserve(cands);
         int cnt = 0;
         float *nx = nb.x.data(), *ny = nb.y.data(), *nz = nb.z.data(), *nd = nb.d2.data();
-        for (size_t k = 0; k + 1 < seg.size(); ++k) {
-          if (Far(cell_box, segc[k], p, r2)) continue;
-          for (int j = seg[k]; j < seg[k + 1]; ++j) {
-            const float dx = (cx[j] - p.x()) * inv_r, dy = (cy[j] - p.y()) * inv_r, dz = (cz[j] - p.z()) * inv_r;
+        const float *gx = grid.x.data(), *gy = grid.y.data(), *gz = grid.z.data();
+        for (size_t k = 0; k < run_b.size(); ++k) {
+          for (int j = run_b[k]; j < run_e[k]; ++j) {
+            const float dx = (gx[j] - p.x()) * inv_r, dy = (gy[j] - p.y()) * inv_r, dz = (gz[j] - p.z()) * inv_r;
             const float d2 = dx * dx + dy * dy + dz * dz;
             nx[cnt] = dx, ny[cnt] = dy, nz[cnt] = dz, nd[cnt] = d2;
             cnt += d2 < 1.f;
@@ -523,6 +525,121 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
   });
 }
 
+// The sub-cells of the growth's grid (cells of delta, each split into 2 x 2 x 2 cubes of edge
+// delta / 2; see Segment). The non-empty sub-cells, numbered cell after cell (cell c's are
+// [sub_first[c], sub_first[c + 1])), each a contiguous range of its cell's slots in `free_slots`
+// (from sub_start), with its tight box; sub_of[s] is slot s's. Sized by the non-empty
+// sub-cells, not 8 per cell: a sparse scan has about one point per sub-cell.
+// Sparse scans grow point by point, each cell its own sub-cell: sub-cells pay only where they
+// hold several points (the 1M-point demo room ~4, 3.7M ~11). Fewer than 2 points per cell
+// (the demo room's 5 cm cells) or per non-empty sub-cell (ScanNet's) count as sparse.
+// True (grow by sub-cells) with half_of (each slot's sub-cell in its cell) and sub_first's
+// counts filled; false leaves both empty.
+bool CountSubCells(const VoxelIndex& grid, bool allowed, std::vector<uint8_t>& half_of,
+                   std::vector<uint32_t>& sub_first) {
+  const size_t n = grid.x.size();
+  const int cells = grid.NumCells();
+  if (!allowed || n < 2 * size_t(cells)) return false;
+  const Eigen::Vector3f lo = grid.Origin();
+  const float inv_half = 2.f / grid.cell;
+  sub_first.assign(size_t(cells) + 1, 0);
+  half_of.resize(n);
+  tbb::parallel_for(tbb::blocked_range<int>(0, cells, 1024), [&](const tbb::blocked_range<int>& range) {
+    for (int c = range.begin(); c != range.end(); ++c) {
+      const Eigen::Vector3i cc = grid.CellCoords(c);
+      auto half = [&](float p, float l, int a) { return std::clamp(int((p - l) * inv_half) - 2 * cc[a], 0, 1); };
+      unsigned used = 0;
+      for (int s = grid.cell_start[c]; s < grid.cell_start[c + 1]; ++s) {
+        const int h = half(grid.x[s], lo.x(), 0) + 2 * half(grid.y[s], lo.y(), 1) + 4 * half(grid.z[s], lo.z(), 2);
+        half_of[s] = uint8_t(h);
+        used |= 1u << h;
+      }
+      sub_first[size_t(c) + 1] = uint32_t(__builtin_popcount(used));
+    }
+  });
+  for (int c = 0; c < cells; ++c) sub_first[size_t(c) + 1] += sub_first[size_t(c)];
+  if (n >= 2 * size_t(sub_first[size_t(cells)])) return true;
+  half_of.clear();
+  sub_first.clear();
+  return false;
+}
+
+// Every slot's neighbours within sqrt(delta2) in `grid` (itself excluded), by slot: slot s's
+// are nb[start[s], start[s + 1]), in neighbour-cell then slot order. Built in chunks of cells
+// (contiguous slots) in parallel. Not built (false) when the candidate pairs, each point times
+// the points of its 27 cells, exceed max_per_point per point.
+struct NeighbourLists {
+  std::vector<uint32_t> start, nb;
+};
+bool BuildNeighbourLists(const VoxelIndex& grid, float delta2, int max_per_point, NeighbourLists& out) {
+  const int cells = grid.NumCells();
+  const size_t n = grid.x.size();
+  if (max_per_point <= 0 || n == 0) return false;
+  auto count_of = [&](int c) { return int64_t(grid.cell_start[c + 1] - grid.cell_start[c]); };
+  const int64_t pairs = tbb::parallel_reduce(
+      tbb::blocked_range<int>(0, cells, 1024), int64_t(0),
+      [&](const tbb::blocked_range<int>& range, int64_t acc) {
+        for (int c = range.begin(); c != range.end(); ++c) {
+          int64_t around = 0;
+          for (int k = grid.nb_start[c]; k < grid.nb_start[c + 1]; ++k) around += count_of(grid.nb[k]);
+          acc += count_of(c) * around;
+        }
+        return acc;
+      },
+      std::plus<int64_t>());
+  if (pairs > int64_t(max_per_point) * int64_t(n)) return false;
+  constexpr int kChunk = 512;
+  const int chunks = (cells + kChunk - 1) / kChunk;
+  std::vector<std::vector<uint32_t>> lists(static_cast<size_t>(chunks));
+  out.start.assign(n + 1, 0);
+  tbb::parallel_for(tbb::blocked_range<int>(0, chunks, 1), [&](const tbb::blocked_range<int>& range) {
+    std::vector<int> run_b, run_e;
+    for (int ch = range.begin(); ch != range.end(); ++ch) {
+      auto& list = lists[size_t(ch)];
+      size_t used = 0;
+      for (int c = ch * kChunk; c < std::min(cells, (ch + 1) * kChunk); ++c) {
+        // The 27 cells as runs of contiguous slots (cells next to each other along x are
+        // consecutive): ~9 loops of several points instead of 27 of one or two, whose exits the
+        // branch predictor misses.
+        run_b.clear(), run_e.clear();
+        int cands = 0;
+        for (int k = grid.nb_start[c]; k < grid.nb_start[c + 1]; ++k) {
+          const int nb = grid.cell_start[grid.nb[k]], ne = grid.cell_start[grid.nb[k] + 1];
+          if (!run_e.empty() && run_e.back() == nb)
+            run_e.back() = ne;
+          else
+            run_b.push_back(nb), run_e.push_back(ne);
+          cands += ne - nb;
+        }
+        for (int s = grid.cell_start[c]; s < grid.cell_start[c + 1]; ++s) {
+          if (list.size() < used + size_t(cands)) list.resize(std::max(2 * list.size(), used + size_t(cands)));
+          uint32_t* w = list.data() + used;
+          int cnt = 0;
+          const float px = grid.x[s], py = grid.y[s], pz = grid.z[s];
+          for (size_t r = 0; r < run_b.size(); ++r)
+            for (int q = run_b[r]; q < run_e[r]; ++q) {
+              const float dx = grid.x[q] - px, dy = grid.y[q] - py, dz = grid.z[q] - pz;
+              w[cnt] = uint32_t(q);  // branch-free: written always, kept when near
+              cnt += int((dx * dx + dy * dy + dz * dz < delta2) & (q != s));
+            }
+          used += size_t(cnt);
+          out.start[size_t(s) + 1] = uint32_t(cnt);
+        }
+      }
+      list.resize(used);
+    }
+  });
+  for (size_t s = 0; s < n; ++s) out.start[s + 1] += out.start[s];
+  out.nb.resize(out.start[n]);
+  tbb::parallel_for(tbb::blocked_range<int>(0, chunks, 1), [&](const tbb::blocked_range<int>& range) {
+    for (int ch = range.begin(); ch != range.end(); ++ch) {
+      const auto& list = lists[size_t(ch)];
+      std::copy(list.begin(), list.end(), out.nb.begin() + out.start[size_t(grid.cell_start[ch * kChunk])]);
+    }
+  });
+  return true;
+}
+
 Eigen::Vector3f LocalViewpoint(const LocalCloud& lc, const std::optional<Eigen::Vector3f>& viewpoint) {
   if (viewpoint && viewpoint->allFinite()) return (viewpoint->cast<double>() - lc.centre).cast<float>();
   return Eigen::Vector3f::Zero();  // the bounding-box centre
@@ -537,6 +654,7 @@ void RegionGrowingOptions::Check() const {
   if (min_points < 1) throw StageError("min_points must be >= 1");
   if (min_fit_points < 3) throw StageError("min_fit_points must be >= 3");
   if (max_normal_points < 0) throw StageError("max_normal_points must be >= 0 (0: always exact)");
+  if (max_list_candidates < 0) throw StageError("max_list_candidates must be >= 0 (0: never list)");
 }
 
 NormalResult EstimateNormals(const Points& points, const std::optional<Eigen::Vector3f>& viewpoint,
@@ -568,8 +686,18 @@ Segmentation Segment(const Scan& scan, const RegionGrowingOptions& o, SegmentTim
   const float delta = float(o.distance_m);
   const float delta2 = delta * delta;
   VoxelIndex grid;
+  // Dense scans grow by sub-cells (CountSubCells), sparse ones from neighbour lists when they
+  // are affordable, else point by point over the cells.
+  bool by_sub = false, listed = false;
+  std::vector<uint8_t> half_of;
+  std::vector<uint32_t> sub_first;
+  NeighbourLists lists;
   tbb::parallel_invoke([&] { NormalsLocal(lc, LocalViewpoint(lc, scan.origin), o, normals_local, curv_local); },
-                       [&] { grid.Build(lc.pts, delta, VoxelIndex::Anchor::kBoundingBox, TbbFor()); });
+                       [&] {
+                         grid.Build(lc.pts, delta, VoxelIndex::Anchor::kBoundingBox, TbbFor());
+                         by_sub = CountSubCells(grid, o.growth_by_sub_cells, half_of, sub_first);
+                       });
+  if (!by_sub) listed = BuildNeighbourLists(grid, delta2, o.max_list_candidates, lists);
   const double normals_ms = watch.Ms();
 
   Segmentation seg;
@@ -618,37 +746,10 @@ Segmentation Segment(const Scan& scan, const RegionGrowingOptions& o, SegmentTim
   // free points lies within delta of a member of a joined neighbour. The same parts as growing
   // point by point; a dense scan costs a walk over its sub-cells instead of a scan of every
   // member's neighbourhood (3.7M-point room: growing 2.5 s -> see the commit).
-  const Eigen::Vector3f lo = grid.Origin();
-  const float inv_half = 2.f / grid.cell;
-  // The non-empty sub-cells, numbered cell after cell (cell c's are [sub_first[c],
-  // sub_first[c + 1])), each a contiguous range of its cell's slots in `free_slots` (from
-  // sub_start), with its tight box; sub_of[s] is slot s's. Sized by the non-empty sub-cells,
-  // not 8 per cell: a sparse scan has about one point per sub-cell.
-  // Sparse scans grow point by point, each cell its own sub-cell: sub-cells pay only where they
-  // hold several points (the 1M-point demo room ~4, 3.7M ~11). Fewer than 2 points per cell
-  // (ScanNet's and the demo room's 5 cm cells) or per non-empty sub-cell count as sparse.
-  bool by_sub = o.growth_by_sub_cells && n >= 2 * size_t(cells);
-  std::vector<uint32_t> sub_first(size_t(cells) + 1, 0);
-  std::vector<uint8_t> half_of(by_sub ? n : 0);
-  if (by_sub) {
-    tbb::parallel_for(tbb::blocked_range<int>(0, cells, 1024), [&](const tbb::blocked_range<int>& range) {
-      for (int c = range.begin(); c != range.end(); ++c) {
-        const Eigen::Vector3i cc = grid.CellCoords(c);
-        auto half = [&](float p, float l, int a) { return std::clamp(int((p - l) * inv_half) - 2 * cc[a], 0, 1); };
-        unsigned used = 0;
-        for (int s = grid.cell_start[c]; s < grid.cell_start[c + 1]; ++s) {
-          const int h = half(grid.x[s], lo.x(), 0) + 2 * half(grid.y[s], lo.y(), 1) + 4 * half(grid.z[s], lo.z(), 2);
-          half_of[s] = uint8_t(h);
-          used |= 1u << h;
-        }
-        sub_first[size_t(c) + 1] = uint32_t(__builtin_popcount(used));
-      }
-    });
-    for (int c = 0; c < cells; ++c) sub_first[size_t(c) + 1] += sub_first[size_t(c)];
-    by_sub = n >= 2 * size_t(sub_first[size_t(cells)]);
-  }
-  if (!by_sub)
+  if (!by_sub) {
+    sub_first.resize(size_t(cells) + 1);
     for (int c = 0; c <= cells; ++c) sub_first[size_t(c)] = uint32_t(c);
+  }
   const size_t subs = sub_first[size_t(cells)];
   std::vector<uint32_t> sub_of(by_sub ? n : 0), sub_start(subs);
   std::vector<float> sub_box(by_sub ? subs * 6 : 0);
@@ -714,14 +815,14 @@ Segmentation Segment(const Scan& scan, const RegionGrowingOptions& o, SegmentTim
     free_slots[last] = q;
     pos[q] = last;
   };
-  reset_free();
+  if (!listed) reset_free();
   std::vector<uint32_t> members;  // slots of all parts, part after part
   std::vector<size_t> part_begin{0};
   members.reserve(n);
 
   // Cells' tight boxes: a neighbour cell at delta or farther from a joined sub-cell's members
   // holds none of their neighbours.
-  const std::vector<float> box = CellBoxes(grid);
+  const std::vector<float> box = listed ? std::vector<float>() : CellBoxes(grid);
 
   // Growth from `seed` over unlabelled slots accepted by `admit`, point by point (breadth
   // first; sparse scans).
@@ -760,7 +861,24 @@ Segmentation Segment(const Scan& scan, const RegionGrowingOptions& o, SegmentTim
   };
   std::vector<Joined> joined;
   std::vector<int> joined_in(by_sub ? subs : 0, -1);  // the region a sub-cell last joined
+  // The same from the neighbour lists (sparse scans): a member's free neighbours are read
+  // from its list. The same parts: a part is the seed's connected component of admitted points.
+  auto grow_listed = [&](uint32_t seed, int id, auto&& admit) {
+    const size_t begin = members.size();
+    label[seed] = id;
+    members.push_back(seed);
+    for (size_t head = begin; head < members.size(); ++head) {
+      const uint32_t p = members[head];
+      for (uint32_t j = lists.start[p]; j < lists.start[size_t(p) + 1]; ++j) {
+        const uint32_t q = lists.nb[j];
+        if (label[q] != -1 || !admit(q)) continue;
+        label[q] = id;
+        members.push_back(q);
+      }
+    }
+  };
   auto grow = [&](uint32_t seed, int id, auto&& admit) {
+    if (listed) return grow_listed(seed, id, admit);
     if (!by_sub) return grow_points(seed, id, admit);
     joined.clear();
     auto join = [&](size_t k, int cell, size_t mb) {
@@ -848,7 +966,7 @@ Segmentation Segment(const Scan& scan, const RegionGrowingOptions& o, SegmentTim
   // Pass 1 labelled every slot, so after this only the pool is unlabelled and the distance-only
   // growth below cannot reach into the kept parts.
   for (uint32_t s : pool) label[s] = -1;
-  reset_free();
+  if (!listed) reset_free();
   int regrouped = 0, discarded = 0;
   std::vector<std::pair<size_t, size_t>> regroup_parts;
   for (uint32_t s : pool) {
@@ -888,6 +1006,7 @@ Segmentation Segment(const Scan& scan, const RegionGrowingOptions& o, SegmentTim
   if (timings) {
     timings->normals_ms = normals_ms;
     timings->growing_ms = growing_ms;
+    timings->growth = by_sub ? "sub-cells" : listed ? "lists" : "cells";
   }
   return seg;
 }

@@ -34,6 +34,12 @@ struct RegionGrowingOptions {
   // join together. The same parts as growing point by point (false), in time about linear in
   // the points whatever the density.
   bool growth_by_sub_cells = true;
+  // Sparse scans (grown point by point) first list every point's neighbours within distance_m,
+  // in parallel beside the normals, so the serial growth reads a member's list instead of
+  // scanning its 27 cells: the same parts. Only while the candidate pairs (points times the
+  // points of their 27 cells) stay within this many per point, so a clump of copies cannot make
+  // the lists quadratic; beyond it, or at 0, the growth scans the cells.
+  int max_list_candidates = 96;
   void Check() const;  // throws StageError naming the bad field
 };
 
@@ -63,6 +69,7 @@ NormalResult EstimateNormals(const Points& points, const std::optional<Eigen::Ve
 // includes the growing's grid, built concurrently with the normals.
 struct SegmentTimings {
   double normals_ms = 0, growing_ms = 0;
+  const char* growth = "";  // how the parts grew: "sub-cells" (dense), "lists" or "cells" (sparse)
 };
 
 // Full segmentation. A point joins a part when it lies within distance_m of one of the part's

@@ -13,6 +13,7 @@
 #include "furnihost/stage.hpp"
 #include "furnihost/voxel_index.hpp"
 #include "parallel/tbb_for.hpp"
+#include "region_growing_core.hpp"
 #include "test_support.hpp"
 
 namespace {
@@ -21,6 +22,7 @@ using furnihost::Points;
 using furnihost::Scan;
 using furnihost::Segmentation;
 using furnihost::Segmenter;
+namespace rg = furnihost::rg;
 
 constexpr double kPi = 3.14159265358979323846;
 
@@ -675,6 +677,48 @@ TEST(RegionGrowing, GrowthBySubCellsGivesThePartsOfGrowthByPoints) {
     EXPECT_EQ(a.parts[k].centroid, b.parts[k].centroid) << "part " << k;
   }
   EXPECT_EQ(a.discarded_points, b.discarded_points);
+}
+
+// A sparse scan (2 cm spacing, 5 cm distance: about one point per sub-cell) grows from
+// per-point neighbour lists: the same parts, point for point, as scanning the cells
+// (max_list_candidates 0). A clump of 20 000 copies of one point would make the lists
+// quadratic: that scan grows over the cells (point by point, without sub-cells, which it
+// would otherwise take for its density).
+TEST(RegionGrowing, NeighbourListsGiveThePartsOfTheCellScan) {
+  std::mt19937_64 rng(9);
+  Scan scan;
+  const Eigen::Vector3f lo(0.2f, 0.1f, 0.3f);
+  const Eigen::Vector3f X(1.2f, 0, 0), Y(0, 0.8f, 0), Z(0, 0, 0.7f);
+  const float d = 2500.f;
+  AddQuad(scan.points, nullptr, 0, lo, X, Y, d, rng);
+  AddQuad(scan.points, nullptr, 0, lo + Z, X, Y, d, rng);
+  AddQuad(scan.points, nullptr, 0, lo, X, Z, d, rng);
+  const Points ball = Sphere(Eigen::Vector3f(0.8f, 0.5f, 1.5f), 0.3f, d, rng);
+  scan.points.insert(scan.points.end(), ball.begin(), ball.end());
+  std::normal_distribution<float> noise(0.f, 0.004f);
+  for (auto& p : scan.points) p += Eigen::Vector3f(noise(rng), noise(rng), noise(rng));
+  rg::RegionGrowingOptions listed, cells;
+  listed.normal_radius_m = cells.normal_radius_m = 0.08;
+  listed.angle_deg = cells.angle_deg = 20;
+  cells.max_list_candidates = 0;
+  auto compare = [&](const Scan& s, const char* expected_growth) {
+    rg::SegmentTimings ta, tb;
+    const auto a = rg::Segment(s, listed, &ta), b = rg::Segment(s, cells, &tb);
+    EXPECT_STREQ(ta.growth, expected_growth);
+    EXPECT_STREQ(tb.growth, "cells");
+    ASSERT_GT(a.parts.size(), 4u);
+    ASSERT_EQ(a.parts.size(), b.parts.size());
+    for (size_t k = 0; k < a.parts.size(); ++k) {
+      EXPECT_EQ(a.parts[k].indices, b.parts[k].indices) << "part " << k;
+      EXPECT_EQ(a.parts[k].centroid, b.parts[k].centroid) << "part " << k;
+    }
+    EXPECT_EQ(a.discarded_points, b.discarded_points);
+  };
+  compare(scan, "lists");
+  listed.growth_by_sub_cells = cells.growth_by_sub_cells = false;
+  Scan clump = scan;
+  clump.points.insert(clump.points.end(), 20000, Eigen::Vector3f(0.5f, 0.5f, 0.3f));
+  compare(clump, "cells");
 }
 
 }  // namespace
