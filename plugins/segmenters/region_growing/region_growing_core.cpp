@@ -369,10 +369,13 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
     }
   }
 
+  const std::vector<float> cell_box = CellBoxes(grid);
+  const float r2 = r * r;
   tbb::parallel_for(tbb::blocked_range<int>(0, cells, 16), [&](const tbb::blocked_range<int>& range) {
     Neighbours nb;
     std::vector<float> cx, cy, cz, cw;
     std::vector<int> slots, key, start, members, pending, run_b, run_e;
+    std::vector<float> run_box;  // tight box of each run's points (6 floats)
     std::vector<Eigen::Vector3f> query;
     // Neighbours of p among the m candidates (cx, cy, cz) into nb, scaled by 1/r; with
     // kCentroids also their point counts cw.
@@ -415,13 +418,18 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
       // The 27 cells' points are read in place: cell after cell, each a contiguous range of
       // slots (a copy into one buffer cost more than it saved).
       int cands = 0;
-      run_b.clear(), run_e.clear();
+      run_b.clear(), run_e.clear(), run_box.clear();
       for (int k = grid.nb_start[c]; k < grid.nb_start[c + 1]; ++k) {
         const int b = grid.cell_start[grid.nb[k]], e = grid.cell_start[grid.nb[k] + 1];
-        if (!run_e.empty() && run_e.back() == b)
+        const float* cb = &cell_box[size_t(grid.nb[k]) * 6];
+        if (!run_e.empty() && run_e.back() == b) {
           run_e.back() = e;
-        else
+          float* rb = &run_box[run_box.size() - 6];
+          for (int a = 0; a < 3; ++a) rb[a] = std::min(rb[a], cb[a]), rb[a + 3] = std::max(rb[a + 3], cb[a + 3]);
+        } else {
           run_b.push_back(b), run_e.push_back(e);
+          run_box.insert(run_box.end(), cb, cb + 6);
+        }
         cands += e - b;
       }
       // Copies of one point have the same neighbourhood, so one fit serves them all: without
@@ -451,6 +459,7 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
         float *nx = nb.x.data(), *ny = nb.y.data(), *nz = nb.z.data(), *nd = nb.d2.data();
         const float *gx = grid.x.data(), *gy = grid.y.data(), *gz = grid.z.data();
         for (size_t k = 0; k < run_b.size(); ++k) {
+          if (Far(run_box, int(k), p, r2)) continue;
           for (int j = run_b[k]; j < run_e[k]; ++j) {
             const float dx = (gx[j] - p.x()) * inv_r, dy = (gy[j] - p.y()) * inv_r, dz = (gz[j] - p.z()) * inv_r;
             const float d2 = dx * dx + dy * dy + dz * dz;
