@@ -83,6 +83,8 @@ struct ClustersOptions {
   float fronts_length = 0.f;      // "fronts" rule: wall segments are at least this long (0 = no such rule) [m]
   std::string wall_normals = "points";  // normals the walls are found by: "points" (k-NN), "blocks", "auto", "both"
   float wall_voxel = 0.05f;       // "blocks": voxel edge [m]; each point takes its 3x3x3 voxel block's plane
+  // "both": the rules whose clusters the blocks' walls give (the recogniser may use only some).
+  std::vector<std::string> blocks_rules = {"all", "segs", "fronts"};
 
 };
 
@@ -136,6 +138,16 @@ const ParamBinding<ClustersOptions>& Binding() {
                 "sensor origin; 'both' = the points' walls, and a second set of removals from the blocks' walls whose "
                 "proposals' rules are named all_blocks, segs_blocks (fronts_blocks): a recogniser picks per class")
           .Number("wall_voxel_m", &O::wall_voxel, 0.005, 1, "m", "wall_normals 'blocks' and 'both': voxel edge")
+          .StringList("blocks_rules", &O::blocks_rules,
+                      "wall_normals 'both': the removals of the blocks' walls that give proposals, of 'all', 'segs', "
+                      "'fronts' (the last only with fronts_length_m); list only those a recogniser's source names: "
+                      "each costs a clustering and its proposals' scoring")
+          .Rule([](const O& o) {
+            for (const auto& r : o.blocks_rules)
+              if (r != "all" && r != "segs" && r != "fronts")
+                return "blocks_rules: '" + r + "' is not a removal rule (all, segs, fronts)";
+            return std::string();
+          })
           .Rule([](const O& o) { return o.radii.empty() ? "radii: give at least one clustering radius" : ""; })
           .Rule([](const O& o) {
             return o.top_max > o.top_min + 0.05f ? "" : "work_top_max_m: must exceed work_top_min_m by more than 5 cm";
@@ -289,10 +301,16 @@ class ClusterProposer : public Proposer {
     const int nrules = fronts ? 3 : 2;
     const int ntasks = nrules * int(sets.size());
     std::vector<std::vector<std::vector<std::vector<int>>>> per_radius(static_cast<size_t>(ntasks));
+    auto wanted = [&](int k) {
+      return k < nrules || std::find(o_.blocks_rules.begin(), o_.blocks_rules.end(), rules[k % nrules]) !=
+                               o_.blocks_rules.end();
+    };
     tbb::parallel_for(0, ntasks, [&](int k) {
+      if (!wanted(k)) return;
       per_radius[size_t(k)] = Cluster(P, sets[size_t(k / nrules)].keep[k % nrules], ls.nn4, sp, o_.radii, adaptive);
     });
     for (int k = 0; k < ntasks; ++k) {
+      if (!wanted(k)) continue;
       const std::string rule = std::string(rules[k % nrules]) + (k >= nrules ? "_blocks" : "");
       for (size_t mi = 0; mi < o_.radii.size(); ++mi)
         for (auto& c : per_radius[size_t(k)][mi]) {

@@ -175,7 +175,7 @@ TEST(Clusters, WallsOfANoisySensorAreFoundByBlockNormals) {
 // wall_normals "both": the proposals of "points" and those of "blocks", the latter's rules named
 // all_blocks, segs_blocks and fronts_blocks, each with the same points, box and surround as in its
 // own run (the noisy room, where the two sets of walls differ). The removed-points mask is the
-// points' walls'.
+// points' walls'. blocks_rules keeps only the listed rules of the blocks' walls.
 TEST(Clusters, BothWallSetsGiveEachSetsProposalsUnderTheirOwnRules) {
   const Room room = MakeRoom({{"voxel_m", 0.015}, {"noise_a", 0.002}, {"noise_b", 0.004}});
   RunContext ctx;
@@ -211,6 +211,22 @@ TEST(Clusters, BothWallSetsGiveEachSetsProposalsUnderTheirOwnRules) {
   }
   EXPECT_EQ(both.removed, points.removed);
   EXPECT_NE(blocks.removed, points.removed);  // the two sets of walls differ in this room
+
+  // blocks_rules "segs": of the blocks' walls only the segs_blocks proposals, the same as above.
+  const json segs_only = {{"wall_normals", "both"}, {"wall_voxel_m", 0.08}, {"fronts_length_m", 1.3},
+                          {"blocks_rules", "segs"}};
+  std::map<Key, std::pair<Eigen::AlignedBox3f, float>> fewer, kept;
+  index(Make<Proposer>("proposals.clusters", segs_only)->Propose(room.scan, nullptr, ctx), "", fewer);
+  for (const auto& [key, value] : got)
+    if (std::get<0>(key) != "all_blocks" && std::get<0>(key) != "fronts_blocks") kept.emplace(key, value);
+  ASSERT_EQ(fewer.size(), kept.size());
+  for (const auto& [key, value] : kept) {
+    const auto it = fewer.find(key);
+    ASSERT_NE(it, fewer.end()) << std::get<1>(key);
+    EXPECT_TRUE(it->second.first.isApprox(value.first)) << std::get<1>(key);
+    EXPECT_FLOAT_EQ(it->second.second, value.second) << std::get<1>(key);
+  }
+  EXPECT_THROW(Make<Proposer>("proposals.clusters", {{"blocks_rules", "segs, walls"}}), std::exception);
 }
 
 // A desk under a monitor: its cluster reaches the monitor's top, and a work-top variant gives the
