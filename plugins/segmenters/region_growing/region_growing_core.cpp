@@ -374,7 +374,7 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
   tbb::parallel_for(tbb::blocked_range<int>(0, cells, 16), [&](const tbb::blocked_range<int>& range) {
     Neighbours nb;
     std::vector<float> cx, cy, cz, cw;
-    std::vector<int> slots, key, start, members, pending, run_b, run_e;
+    std::vector<int> slots, key, start, members, pending, run_first, run_last, run_b, run_e;
     std::vector<float> run_box;  // tight box of each run's points (6 floats)
     std::vector<Eigen::Vector3f> query;
     // Neighbours of p among the m candidates (cx, cy, cz) into nb, scaled by 1/r; with
@@ -415,22 +415,22 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
     };
     // The exact normals of `slots` (points of cell c) from every point of their ball.
     auto exact = [&](int c) {
-      // The 27 cells' points are read in place: cell after cell, each a contiguous range of
-      // slots (a copy into one buffer cost more than it saved).
+      // The 27 cells' points are read in place (a copy into one buffer cost more than it
+      // saved), as runs of consecutive cells (neighbours along x are stored one after the other,
+      // their slots contiguous): up to 9 loops instead of 27, each run with its tight box.
+      grid.NeighbourRuns(c, run_first, run_last);
+      const size_t runs = run_first.size();
+      run_b.resize(runs), run_e.resize(runs), run_box.resize(runs * 6);
       int cands = 0;
-      run_b.clear(), run_e.clear(), run_box.clear();
-      for (int k = grid.nb_start[c]; k < grid.nb_start[c + 1]; ++k) {
-        const int b = grid.cell_start[grid.nb[k]], e = grid.cell_start[grid.nb[k] + 1];
-        const float* cb = &cell_box[size_t(grid.nb[k]) * 6];
-        if (!run_e.empty() && run_e.back() == b) {
-          run_e.back() = e;
-          float* rb = &run_box[run_box.size() - 6];
+      for (size_t k = 0; k < runs; ++k) {
+        run_b[k] = grid.cell_start[run_first[k]], run_e[k] = grid.cell_start[run_last[k] + 1];
+        cands += run_e[k] - run_b[k];
+        float* rb = &run_box[k * 6];
+        EmptyBox(rb);
+        for (int nc = run_first[k]; nc <= run_last[k]; ++nc) {
+          const float* cb = &cell_box[size_t(nc) * 6];
           for (int a = 0; a < 3; ++a) rb[a] = std::min(rb[a], cb[a]), rb[a + 3] = std::max(rb[a + 3], cb[a + 3]);
-        } else {
-          run_b.push_back(b), run_e.push_back(e);
-          run_box.insert(run_box.end(), cb, cb + 6);
         }
-        cands += e - b;
       }
       // Copies of one point have the same neighbourhood, so one fit serves them all: without
       // this, N identical points (a (0, 0, 0) flood) cost N fits of N neighbours each. Only
@@ -452,8 +452,8 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
             continue;
           }
         }
-        // The neighbours, skipping the cells whose tight box lies r or farther from p (they
-        // hold none: the same neighbours in the same order as scanning all 27).
+        // The neighbours, skipping the runs whose tight box lies r or farther from p (they
+        // hold none: the same neighbours in the same order as scanning all 27 cells).
         nb.reserve(cands);
         int cnt = 0;
         float *nx = nb.x.data(), *ny = nb.y.data(), *nz = nb.z.data(), *nd = nb.d2.data();
@@ -534,11 +534,11 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
   });
 }
 
-// The sub-cells of the growth's grid (cells of delta, each split into 2 x 2 x 2 cubes of edge
-// delta / 2; see Segment). The non-empty sub-cells, numbered cell after cell (cell c's are
-// [sub_first[c], sub_first[c + 1])), each a contiguous range of its cell's slots in `free_slots`
-// (from sub_start), with its tight box; sub_of[s] is slot s's. Sized by the non-empty
-// sub-cells, not 8 per cell: a sparse scan has about one point per sub-cell.
+// Whether the growth walks sub-cells: the growth's grid (cells of delta) with each cell split
+// into 2 x 2 x 2 cubes of edge delta / 2 (see Segment). Its non-empty sub-cells are numbered
+// cell after cell (cell c's are [sub_first[c], sub_first[c + 1])); Segment then gives each a
+// contiguous range of its cell's slots and a tight box. Sized by the non-empty sub-cells, not 8
+// per cell: a sparse scan has about one point per sub-cell.
 // Sparse scans grow point by point, each cell its own sub-cell: sub-cells pay only where they
 // hold several points (the 1M-point demo room ~4, 3.7M ~11). Fewer than 2 points per cell
 // (the demo room's 5 cm cells) or per non-empty sub-cell (ScanNet's) count as sparse.
@@ -607,18 +607,12 @@ bool BuildNeighbourLists(const VoxelIndex& grid, float delta2, int max_per_point
       auto& list = lists[size_t(ch)];
       size_t used = 0;
       for (int c = ch * kChunk; c < std::min(cells, (ch + 1) * kChunk); ++c) {
-        // The 27 cells as runs of contiguous slots (cells next to each other along x are
-        // consecutive): ~9 loops of several points instead of 27 of one or two, whose exits the
-        // branch predictor misses.
-        run_b.clear(), run_e.clear();
+        // The 27 cells as up to 9 runs of contiguous slots (VoxelIndex::NeighbourRuns).
+        grid.NeighbourRuns(c, run_b, run_e);
         int cands = 0;
-        for (int k = grid.nb_start[c]; k < grid.nb_start[c + 1]; ++k) {
-          const int nb = grid.cell_start[grid.nb[k]], ne = grid.cell_start[grid.nb[k] + 1];
-          if (!run_e.empty() && run_e.back() == nb)
-            run_e.back() = ne;
-          else
-            run_b.push_back(nb), run_e.push_back(ne);
-          cands += ne - nb;
+        for (size_t r = 0; r < run_b.size(); ++r) {
+          run_b[r] = grid.cell_start[run_b[r]], run_e[r] = grid.cell_start[run_e[r] + 1];
+          cands += run_e[r] - run_b[r];
         }
         for (int s = grid.cell_start[c]; s < grid.cell_start[c + 1]; ++s) {
           if (list.size() < used + size_t(cands)) list.resize(std::max(2 * list.size(), used + size_t(cands)));
