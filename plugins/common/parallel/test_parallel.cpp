@@ -54,6 +54,42 @@ TEST(TbbFor, SortedByKeyIsTheStableSortByKey) {
   EXPECT_TRUE(SortedByKey(std::vector<uint64_t>(), 8, TbbFor()).empty());
 }
 
+// Each cell's neighbours are exactly the occupied cells within one step on every axis, in
+// ascending order, on a sparse cloud (clumps and wide gaps: the cursors skip far at times), and
+// NeighbourRuns groups them into maximal runs of consecutive cells.
+TEST(TbbFor, VoxelIndexNeighboursAreTheAdjacentCells) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(0.f, 3.f), v(-0.05f, 0.05f);
+  std::vector<Eigen::Vector3f> pts;
+  for (int k = 0; k < 300; ++k) {
+    const Eigen::Vector3f c(u(rng), u(rng), u(rng));
+    for (int j = 0; j < 10; ++j) pts.push_back(c + Eigen::Vector3f(v(rng), v(rng), v(rng)));
+  }
+  VoxelIndex index;
+  index.Build(pts, 0.04f, VoxelIndex::Anchor::kBoundingBox, TbbFor());
+  const int cells = index.NumCells();
+  ASSERT_GT(cells, 1000);
+  std::vector<int> first, last;
+  for (int c = 0; c < cells; ++c) {
+    const Eigen::Vector3i a = index.CellCoords(c);
+    std::vector<int> want;
+    for (int d = 0; d < cells; ++d)
+      if ((index.CellCoords(d) - a).cwiseAbs().maxCoeff() <= 1) want.push_back(d);
+    const std::vector<int> got(index.nb.begin() + index.nb_start[c], index.nb.begin() + index.nb_start[c + 1]);
+    ASSERT_EQ(got, want) << "cell " << c;
+    index.NeighbourRuns(c, first, last);
+    std::vector<int> joined;
+    for (size_t r = 0; r < first.size(); ++r) {
+      if (r > 0) {
+        EXPECT_NE(last[r - 1] + 1, first[r]) << "cell " << c << ": runs " << r - 1 << " and " << r << " touch";
+      }
+      for (int d = first[r]; d <= last[r]; ++d) joined.push_back(d);
+    }
+    EXPECT_EQ(joined, want) << "cell " << c;
+    EXPECT_LE(first.size(), 9u);
+  }
+}
+
 TEST(TbbFor, VoxelIndexOriginIsThePointsMinimumCorner) {
   const std::vector<Eigen::Vector3f> pts = {{1.f, -2.f, 0.5f}, {-0.25f, 3.f, 0.75f}, {0.5f, 0.f, -1.f}};
   VoxelIndex index;
