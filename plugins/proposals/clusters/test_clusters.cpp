@@ -202,13 +202,18 @@ TEST(Clusters, BothWallSetsGiveEachSetsProposalsUnderTheirOwnRules) {
   std::set<std::string> rules;
   for (const auto& q : both.items) rules.insert(q.source);
   EXPECT_EQ(rules, (std::set<std::string>{"all", "segs", "fronts", "all_blocks", "segs_blocks", "fronts_blocks"}));
-  ASSERT_EQ(got.size(), expected.size());
-  for (const auto& [key, value] : expected) {
-    const auto it = got.find(key);
-    ASSERT_NE(it, got.end()) << std::get<1>(key);
-    EXPECT_TRUE(it->second.first.isApprox(value.first)) << std::get<1>(key);
-    EXPECT_FLOAT_EQ(it->second.second, value.second) << std::get<1>(key);
-  }
+  // Every expected proposal once in `have`, with its box and surround.
+  auto expect_same = [](const std::map<Key, std::pair<Eigen::AlignedBox3f, float>>& want,
+                        const std::map<Key, std::pair<Eigen::AlignedBox3f, float>>& have) {
+    ASSERT_EQ(have.size(), want.size());
+    for (const auto& [key, value] : want) {
+      const auto it = have.find(key);
+      ASSERT_NE(it, have.end()) << std::get<1>(key);
+      EXPECT_TRUE(it->second.first.isApprox(value.first)) << std::get<1>(key);
+      EXPECT_FLOAT_EQ(it->second.second, value.second) << std::get<1>(key);
+    }
+  };
+  expect_same(expected, got);
   EXPECT_EQ(both.removed, points.removed);
   EXPECT_NE(blocks.removed, points.removed);  // the two sets of walls differ in this room
 
@@ -219,13 +224,7 @@ TEST(Clusters, BothWallSetsGiveEachSetsProposalsUnderTheirOwnRules) {
   index(Make<Proposer>("proposals.clusters", segs_only)->Propose(room.scan, nullptr, ctx), "", fewer);
   for (const auto& [key, value] : got)
     if (std::get<0>(key) != "all_blocks" && std::get<0>(key) != "fronts_blocks") kept.emplace(key, value);
-  ASSERT_EQ(fewer.size(), kept.size());
-  for (const auto& [key, value] : kept) {
-    const auto it = fewer.find(key);
-    ASSERT_NE(it, fewer.end()) << std::get<1>(key);
-    EXPECT_TRUE(it->second.first.isApprox(value.first)) << std::get<1>(key);
-    EXPECT_FLOAT_EQ(it->second.second, value.second) << std::get<1>(key);
-  }
+  expect_same(kept, fewer);
   EXPECT_THROW(Make<Proposer>("proposals.clusters", {{"blocks_rules", "segs, walls"}}), std::exception);
 }
 

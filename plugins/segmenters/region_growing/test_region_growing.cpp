@@ -650,27 +650,24 @@ TEST(RegionGrowing, DenseNormalsGiveTheBoxTheSamePartsAsSparse) {
   EXPECT_EQ(big(b, dense.points.size()), 6);
 }
 
-// A dense scan (3 mm spacing: ~60 points per 2.5 cm sub-cell) grows sub-cell by sub-cell: the
-// same parts, point for point, and the same centroids as growing point by point.
-TEST(RegionGrowing, GrowthBySubCellsGivesThePartsOfGrowthByPoints) {
-  std::mt19937_64 rng(5);
+// The first `faces` of a box's bottom, top, front and back faces (corner lo, edges X, Y, Z) and
+// a ball, `d` points per m2, with Gaussian noise of `sigma` on every coordinate.
+Scan FacesAndBall(uint64_t seed, const Eigen::Vector3f& lo, const Eigen::Vector3f& X, const Eigen::Vector3f& Y,
+                  const Eigen::Vector3f& Z, int faces, const Eigen::Vector3f& centre, float radius, float d,
+                  float sigma) {
+  std::mt19937_64 rng(seed);
   Scan scan;
-  const Eigen::Vector3f lo(0.2f, 0.1f, 0.3f);
-  const Eigen::Vector3f X(0.6f, 0, 0), Y(0, 0.4f, 0), Z(0, 0, 0.5f);
-  const float d = 100000.f;
-  AddQuad(scan.points, nullptr, 0, lo, X, Y, d, rng);
-  AddQuad(scan.points, nullptr, 0, lo + Z, X, Y, d, rng);
-  AddQuad(scan.points, nullptr, 0, lo, X, Z, d, rng);
-  AddQuad(scan.points, nullptr, 0, lo + Y, X, Z, d, rng);
-  const Points ball = Sphere(Eigen::Vector3f(0.5f, 0.3f, 1.2f), 0.15f, d, rng);
+  const Eigen::Vector3f o[4] = {lo, lo + Z, lo, lo + Y}, a[4] = {X, X, X, X}, b[4] = {Y, Y, Z, Z};
+  for (int f = 0; f < faces; ++f) AddQuad(scan.points, nullptr, 0, o[f], a[f], b[f], d, rng);
+  const Points ball = Sphere(centre, radius, d, rng);
   scan.points.insert(scan.points.end(), ball.begin(), ball.end());
-  std::normal_distribution<float> noise(0.f, 0.002f);
+  std::normal_distribution<float> noise(0.f, sigma);
   for (auto& p : scan.points) p += Eigen::Vector3f(noise(rng), noise(rng), noise(rng));
-  const nlohmann::json base = {{"normal_radius_m", 0.03}, {"angle_deg", 20}};
-  nlohmann::json points = base;
-  points["growth_by_sub_cells"] = false;
-  const auto a = RunSeg(scan, base), b = RunSeg(scan, points);
-  ASSERT_GT(a.parts.size(), 6u);
+  return scan;
+}
+
+// The same parts, point for point, with the same centroids, and the same discarded points.
+void ExpectSameParts(const Segmentation& a, const Segmentation& b) {
   ASSERT_EQ(a.parts.size(), b.parts.size());
   for (size_t k = 0; k < a.parts.size(); ++k) {
     EXPECT_EQ(a.parts[k].indices, b.parts[k].indices) << "part " << k;
@@ -679,24 +676,29 @@ TEST(RegionGrowing, GrowthBySubCellsGivesThePartsOfGrowthByPoints) {
   EXPECT_EQ(a.discarded_points, b.discarded_points);
 }
 
+// A dense scan (3 mm spacing: ~60 points per 2.5 cm sub-cell) grows sub-cell by sub-cell: the
+// same parts, point for point, and the same centroids as growing point by point.
+TEST(RegionGrowing, GrowthBySubCellsGivesThePartsOfGrowthByPoints) {
+  const Scan scan = FacesAndBall(5, Eigen::Vector3f(0.2f, 0.1f, 0.3f), Eigen::Vector3f(0.6f, 0, 0),
+                                 Eigen::Vector3f(0, 0.4f, 0), Eigen::Vector3f(0, 0, 0.5f), 4,
+                                 Eigen::Vector3f(0.5f, 0.3f, 1.2f), 0.15f, 100000.f, 0.002f);
+  const nlohmann::json base = {{"normal_radius_m", 0.03}, {"angle_deg", 20}};
+  nlohmann::json points = base;
+  points["growth_by_sub_cells"] = false;
+  const auto a = RunSeg(scan, base), b = RunSeg(scan, points);
+  ASSERT_GT(a.parts.size(), 6u);
+  ExpectSameParts(a, b);
+}
+
 // A sparse scan (2 cm spacing, 5 cm distance: about one point per sub-cell) grows from
 // per-point neighbour lists: the same parts, point for point, as scanning the cells
 // (max_list_candidates 0). A clump of 20 000 copies of one point would make the lists
 // quadratic: that scan grows over the cells (point by point, without sub-cells, which it
 // would otherwise take for its density).
 TEST(RegionGrowing, NeighbourListsGiveThePartsOfTheCellScan) {
-  std::mt19937_64 rng(9);
-  Scan scan;
-  const Eigen::Vector3f lo(0.2f, 0.1f, 0.3f);
-  const Eigen::Vector3f X(1.2f, 0, 0), Y(0, 0.8f, 0), Z(0, 0, 0.7f);
-  const float d = 2500.f;
-  AddQuad(scan.points, nullptr, 0, lo, X, Y, d, rng);
-  AddQuad(scan.points, nullptr, 0, lo + Z, X, Y, d, rng);
-  AddQuad(scan.points, nullptr, 0, lo, X, Z, d, rng);
-  const Points ball = Sphere(Eigen::Vector3f(0.8f, 0.5f, 1.5f), 0.3f, d, rng);
-  scan.points.insert(scan.points.end(), ball.begin(), ball.end());
-  std::normal_distribution<float> noise(0.f, 0.004f);
-  for (auto& p : scan.points) p += Eigen::Vector3f(noise(rng), noise(rng), noise(rng));
+  const Scan scan = FacesAndBall(9, Eigen::Vector3f(0.2f, 0.1f, 0.3f), Eigen::Vector3f(1.2f, 0, 0),
+                                 Eigen::Vector3f(0, 0.8f, 0), Eigen::Vector3f(0, 0, 0.7f), 3,
+                                 Eigen::Vector3f(0.8f, 0.5f, 1.5f), 0.3f, 2500.f, 0.004f);
   rg::RegionGrowingOptions listed, cells;
   listed.normal_radius_m = cells.normal_radius_m = 0.08;
   listed.angle_deg = cells.angle_deg = 20;
@@ -707,12 +709,7 @@ TEST(RegionGrowing, NeighbourListsGiveThePartsOfTheCellScan) {
     EXPECT_STREQ(ta.growth, expected_growth);
     EXPECT_STREQ(tb.growth, "cells");
     ASSERT_GT(a.parts.size(), 4u);
-    ASSERT_EQ(a.parts.size(), b.parts.size());
-    for (size_t k = 0; k < a.parts.size(); ++k) {
-      EXPECT_EQ(a.parts[k].indices, b.parts[k].indices) << "part " << k;
-      EXPECT_EQ(a.parts[k].centroid, b.parts[k].centroid) << "part " << k;
-    }
-    EXPECT_EQ(a.discarded_points, b.discarded_points);
+    ExpectSameParts(a, b);
   };
   compare(scan, "lists");
   listed.growth_by_sub_cells = cells.growth_by_sub_cells = false;
