@@ -40,12 +40,14 @@
 // by index into Scan::points.
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <memory>
 #include <numeric>
 #include <optional>
 #include <unordered_map>
@@ -240,7 +242,15 @@ class ClusterProposer : public Proposer {
     if (n < 10) return out;
     // Working copy: finite points only (the readers drop the others; stay safe).
     const Points& P = scan.points;
-    shape::KnnIndex knn(P);
+    // The blocks' normals (when asked for) need only the points: computed beside the k-d tree,
+    // whose build is serial.
+    const bool both = o_.wall_normals == "both";
+    const bool blocks = o_.wall_normals == "blocks" || (o_.wall_normals == "auto" && scan.origin.has_value());
+    Points block_normals;
+    std::unique_ptr<shape::KnnIndex> knn_ptr;
+    tbb::parallel_invoke([&] { knn_ptr = std::make_unique<shape::KnnIndex>(P); },
+                         [&] { if (blocks || both) block_normals = shape::BlockNormals(P, o_.wall_voxel); });
+    const shape::KnnIndex& knn = *knn_ptr;
     const shape::LocalShape ls = shape::EstimateLocalShape(knn, o_.neighbours);
     const float sp = std::max(shape::MedianSpacing(ls.nn), 1e-3f);
     out.spacing = sp;
@@ -253,9 +263,6 @@ class ClusterProposer : public Proposer {
     // The walls' normals: the points' own (k nearest neighbours), or at a fixed metric scale
     // where a raw sensor's noise swamps those (single views: "auto"). With "both", a second set
     // of removals from the blocks' walls gives its own proposals, their rules suffixed "_blocks".
-    const bool both = o_.wall_normals == "both";
-    const bool blocks = o_.wall_normals == "blocks" || (o_.wall_normals == "auto" && scan.origin.has_value());
-    const Points block_normals = blocks || both ? shape::BlockNormals(P, o_.wall_voxel) : Points();
     const bool fronts = o_.fronts_length > kSegsLength;
     // One wall set: the removals ("all", "segs" and, with fronts_length_m > 0, "fronts") of one
     // set of vertical planes, and the points each keeps.
