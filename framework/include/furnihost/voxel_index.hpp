@@ -259,6 +259,17 @@ class VoxelIndex {
     }
   }
 
+  // The same runs as slot ranges [begin[r], end[r]); returns the number of slots they hold.
+  int NeighbourSlotRuns(int c, std::vector<int>& begin, std::vector<int>& end) const {
+    NeighbourRuns(c, begin, end);
+    int slots = 0;
+    for (size_t r = 0; r < begin.size(); ++r) {
+      begin[r] = cell_start[begin[r]], end[r] = cell_start[end[r] + 1];
+      slots += end[r] - begin[r];
+    }
+    return slots;
+  }
+
   // Calls f(slot, dx, dy, dz, d2) for every point with d2 = |p - q|^2 < radius^2, radius <=
   // cell, q = (px, py, pz) in cell `c` (e.g. one of its points). Includes the query itself.
   template <class F>

@@ -56,7 +56,8 @@ TEST(TbbFor, SortedByKeyIsTheStableSortByKey) {
 
 // Each cell's neighbours are exactly the occupied cells within one step on every axis, in
 // ascending order, on a sparse cloud (clumps and wide gaps: the cursors skip far at times), and
-// NeighbourRuns groups them into maximal runs of consecutive cells.
+// NeighbourRuns groups them into maximal runs of consecutive cells (NeighbourSlotRuns: their
+// slots).
 TEST(TbbFor, VoxelIndexNeighboursAreTheAdjacentCells) {
   std::mt19937 rng(3);
   std::uniform_real_distribution<float> u(0.f, 3.f), v(-0.05f, 0.05f);
@@ -87,6 +88,16 @@ TEST(TbbFor, VoxelIndexNeighboursAreTheAdjacentCells) {
     }
     EXPECT_EQ(joined, want) << "cell " << c;
     EXPECT_LE(first.size(), 9u);
+    // As slot ranges: each run's cells' slots, and their count.
+    std::vector<int> b, e;
+    int slots = 0;
+    for (int d : want) slots += index.cell_start[d + 1] - index.cell_start[d];
+    EXPECT_EQ(index.NeighbourSlotRuns(c, b, e), slots) << "cell " << c;
+    ASSERT_EQ(b.size(), first.size());
+    for (size_t r = 0; r < b.size(); ++r) {
+      EXPECT_EQ(b[r], index.cell_start[first[r]]);
+      EXPECT_EQ(e[r], index.cell_start[last[r] + 1]);
+    }
   }
 }
 

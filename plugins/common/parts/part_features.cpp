@@ -126,13 +126,8 @@ float BoundaryRatio(const Points& q, const Points& normals, const Eigen::Vector3
     int count = 0;
     for (int c = range.begin(); c != range.end(); ++c) {
       // The 27 cells' points read in place, as up to 9 runs of contiguous slots
-      // (VoxelIndex::NeighbourRuns): no copy, and a third of the loops.
-      grid.NeighbourRuns(c, run_b, run_e);
-      int m = 0;
-      for (size_t k = 0; k < run_b.size(); ++k) {
-        run_b[k] = grid.cell_start[run_b[k]], run_e[k] = grid.cell_start[run_e[k] + 1];
-        m += run_e[k] - run_b[k];
-      }
+      // (VoxelIndex::NeighbourSlotRuns): no copy, and a third of the loops.
+      const int m = grid.NeighbourSlotRuns(c, run_b, run_e);
       // Copies of one point (with one normal) have one answer: test it once, weighted by its
       // copies, or N copies (a (0, 0, 0) flood) cost N tests of N neighbours each. Only cells
       // that could hold many copies are sorted; a small cell costs at most its size times its

@@ -607,13 +607,8 @@ bool BuildNeighbourLists(const VoxelIndex& grid, float delta2, int max_per_point
       auto& list = lists[size_t(ch)];
       size_t used = 0;
       for (int c = ch * kChunk; c < std::min(cells, (ch + 1) * kChunk); ++c) {
-        // The 27 cells as up to 9 runs of contiguous slots (VoxelIndex::NeighbourRuns).
-        grid.NeighbourRuns(c, run_b, run_e);
-        int cands = 0;
-        for (size_t r = 0; r < run_b.size(); ++r) {
-          run_b[r] = grid.cell_start[run_b[r]], run_e[r] = grid.cell_start[run_e[r] + 1];
-          cands += run_e[r] - run_b[r];
-        }
+        // The 27 cells as up to 9 runs of contiguous slots.
+        const int cands = grid.NeighbourSlotRuns(c, run_b, run_e);
         for (int s = grid.cell_start[c]; s < grid.cell_start[c + 1]; ++s) {
           if (list.size() < used + size_t(cands)) list.resize(std::max(2 * list.size(), used + size_t(cands)));
           uint32_t* w = list.data() + used;
@@ -784,8 +779,9 @@ Segmentation Segment(const Scan& scan, const RegionGrowingOptions& o, SegmentTim
   auto sub_cell = [&](uint32_t s) { return by_sub ? size_t(sub_of[s]) : size_t(grid.cell_of[s]); };
   // Unlabelled slots of each sub-cell are kept at the front of its range of `free_slots`
   // (swap-remove on labelling), in slot order after a reset; free_in_cell counts a cell's.
-  std::vector<uint32_t> free_in_sub(subs), free_slots(n), pos(n);
-  std::vector<int> free_in_cell(cells, 0);
+  // (Not needed when growing from the lists.)
+  std::vector<uint32_t> free_in_sub(listed ? 0 : subs), free_slots(listed ? 0 : n), pos(listed ? 0 : n);
+  std::vector<int> free_in_cell(listed ? 0 : size_t(cells), 0);
   auto reset_free = [&] {
     tbb::parallel_for(tbb::blocked_range<int>(0, cells, 1024), [&](const tbb::blocked_range<int>& range) {
       for (int c = range.begin(); c != range.end(); ++c) {

@@ -35,7 +35,7 @@ struct RegionGrowingOptions {
   // the points whatever the density.
   bool growth_by_sub_cells = true;
   // Sparse scans (grown point by point) first list every point's neighbours within distance_m,
-  // in parallel beside the normals, so the serial growth reads a member's list instead of
+  // in parallel after the normals, so the serial growth reads a member's list instead of
   // scanning its 27 cells: the same parts. Only while the candidate pairs (points times the
   // points of their 27 cells) stay within this many per point, so a clump of copies cannot make
   // the lists quadratic; beyond it, or at 0, the growth scans the cells.
@@ -66,7 +66,7 @@ NormalResult EstimateNormals(const Points& points, const std::optional<Eigen::Ve
                              const RegionGrowingOptions& o);
 
 // Wall-clock timings of one Segment call [ms], for the benchmark and debug logs. normals_ms
-// includes the growing's grid, built concurrently with the normals.
+// includes the growing's grid, built concurrently with the normals, and the neighbour lists.
 struct SegmentTimings {
   double normals_ms = 0, growing_ms = 0;
   const char* growth = "";  // how the parts grew: "sub-cells" (dense), "lists" or "cells" (sparse)
