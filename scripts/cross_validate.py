@@ -47,7 +47,10 @@ GRIDS["g7"] = dict(GRIDS["g6"], sig_short_big=[0.2, 0.4])
 GRIDS["g8"] = dict(GRIDS["g7"], sig_floor_more=[0.2, 0.4])
 # Keys a grid varies for some classes only: the other classes keep the key's first value (the
 # recogniser's default), i.e. choose among the points that have it.
-CLASS_ONLY = {"g8": {"sig_floor_more": {"chair"}}}
+# Whether cabinets may hang on a wall, and how low (stop 41; the graph's other spreads kept).
+GRIDS["wall"] = {"wall_mount": [0, 1.5, 2, 3], "wall_mount_bottom_m": [0, 1.2]}
+CLASS_ONLY = {"g8": {"sig_floor_more": {"chair"}},
+              "wall": {"wall_mount": {"cabinet"}, "wall_mount_bottom_m": {"cabinet"}}}
 
 
 def load(path):

@@ -18,7 +18,8 @@
 //   scan is tolerated), sig_*_big when larger;
 //   with wall_mount > 0 (a class whose objects may hang on a wall, as kitchen wall cabinets do),
 //   also E_m' = pen(ln L/L_m) + pen(ln W/W_m) + pen(ln (T - B)/H_m; top) + wall_mount: the model
-//   lifted to the proposal's bottom, without the bottom, profile and floor terms; E_m = min(E_m, E_m');
+//   lifted to the proposal's bottom, without the bottom, profile and floor terms, plus
+//   (max(0, wall_mount_bottom_m - B) / sig_bottom)^2 / 2 (wall units hang high); E_m = min(E_m, E_m');
 //   score_c = exp(-min over the class's models m of E_m - s / sig_surround - cut * view_edge), cut = 1
 //   when the left or right end of a single view cuts the proposal (ViewEdges), else 0,
 // then optionally class competition (score_c * (score_c / best class score of the proposal's
@@ -55,6 +56,7 @@ struct ClassParams {
   float floor_under = 0.5f, floor_over = 0.2f;
   float compete = 0.f;
   float wall_mount = 0.f;  // 0: models stand on the floor; > 0: they may also hang above it, at this extra cost
+  float mount_bottom = 0.f;  // lowest bottom of a hanging model above the ground (m); lower costs as the bottom term
   float view_edge = 0.f;   // cost of a proposal the left or right edge of a single view cuts (0 = off)
   std::string source = "catalog";  // proposals scored: "catalog" (from the class's model heights), "any", or a rule name
 };
@@ -67,7 +69,8 @@ const std::vector<std::pair<std::string, float ClassParams::*>>& Fields() {
       {"sig_bottom", &ClassParams::bottom},          {"sig_profile", &ClassParams::profile},
       {"sig_surround", &ClassParams::surround},      {"sig_floor_less", &ClassParams::floor_under},
       {"sig_floor_more", &ClassParams::floor_over},  {"compete", &ClassParams::compete},
-      {"wall_mount", &ClassParams::wall_mount},       {"view_edge", &ClassParams::view_edge}};
+      {"wall_mount", &ClassParams::wall_mount},       {"wall_mount_bottom_m", &ClassParams::mount_bottom},
+      {"view_edge", &ClassParams::view_edge}};
   return f;
 }
 
@@ -208,6 +211,11 @@ const ParamBinding<Options>& Binding() {
                   "model then spans the proposal's own height extent, the bottom, top-view profile and floor terms are "
                   "dropped (a sensor below a wall cabinet rarely sees its top) and this cost is added to the energy")
           .DetectionOnly()
+          .Number("wall_mount_bottom_m", base(&ClassParams::mount_bottom), 0, 100, "m",
+                  "with wall_mount: the lowest a hanging model's bottom sits above the ground (kitchen wall units hang "
+                  "~1.35 m up, 18 in above a 36 in counter); a hanging proposal whose bottom is lower by d costs "
+                  "(d / sig_bottom)^2 / 2 more (0 = any height)")
+          .DetectionOnly()
           .Number("view_edge", base(&ClassParams::view_edge), 0, 100, "",
                   "on scans with a sensor origin (single views): a cost added to the energy of a proposal that the "
                   "left or right end of the view cuts (3 or more of its points within edge_band_deg of the end of "
@@ -240,6 +248,12 @@ const ParamBinding<Options>& Binding() {
 float Pen(float d, float small, float big) {
   const float s = d < 0 ? small : big;
   return d * d / (2 * s * s);
+}
+
+// The extra energy of a model hung with its bottom B above the ground: below the lowest mount.
+float Hung(float B, const ClassParams& cp) {
+  const float d = std::max(cp.mount_bottom - B, 0.f) / cp.bottom;
+  return 0.5f * d * d;
 }
 
 // Inner footprint cells (10 cm, the rectangle shrunk by 10 cm on every side) of a footprint.
@@ -649,7 +663,7 @@ class CatalogShapeVoter : public Voter {
               // evidence (a sensor below a wall cabinet rarely sees its top).
               const std::array<float, 6> tl = {t[0], t[1],
                                                Pen(std::log(std::max(T - B, 0.02f) / md.height), cp.top_small, cp.top_big),
-                                               cp.wall_mount, 0.f, 0.f};
+                                               cp.wall_mount + Hung(B, cp), 0.f, 0.f};
               const float El = tl[0] + tl[1] + tl[2] + tl[3] + tl[4] + tl[5];
               if (El < E) E = El, t = tl;
             }

@@ -192,9 +192,10 @@ TEST(CatalogShape, WallMountFindsAHangingCabinet) {
   SceneParts parts;
   parts.scan = &scan;
   parts.proposals = &props;
-  auto cabinet_at = [&](float wall_mount) {
-    auto voter = Make<Voter>("voters.catalog_shape",
-                             {{"class_params", {{"cabinet", {{"wall_mount", wall_mount}}}}}, {"min_score", 1e-4}});
+  auto cabinet_at = [&](float wall_mount, float lowest = 0.f) {
+    auto voter = Make<Voter>(
+        "voters.catalog_shape",
+        {{"class_params", {{"cabinet", {{"wall_mount", wall_mount}, {"wall_mount_bottom_m", lowest}}}}}, {"min_score", 1e-4}});
     voter->Load(voter->Train(Views({&cabinet}), ctx));
     std::optional<Hypothesis> best;
     for (const auto& h : voter->Vote({parts}, ctx).hypotheses)
@@ -212,6 +213,18 @@ TEST(CatalogShape, WallMountFindsAHangingCabinet) {
   EXPECT_LE(h->score, std::exp(-2.f) + 1e-6f);
   ASSERT_TRUE(h->box);
   EXPECT_NEAR(h->box->size.z(), 0.7f, 0.06f);
+  // Hung above the lowest mount (wall_mount_bottom_m) it costs nothing more; hung lower by d it
+  // costs (d / sig_bottom)^2 / 2 more (sig_bottom 0.15 m).
+  const auto high = cabinet_at(2.f, 1.2f);
+  ASSERT_TRUE(high.has_value());
+  EXPECT_FLOAT_EQ(high->evidence.at("e_bottom"), 2.f);
+  EXPECT_FLOAT_EQ(high->score, h->score);
+  const auto low = cabinet_at(2.f, 1.6f);
+  ASSERT_TRUE(low.has_value());
+  const float d = (1.6f - low->evidence.at("bottom_m")) / 0.15f;
+  EXPECT_GT(d, 1.5f);
+  EXPECT_NEAR(low->evidence.at("e_bottom"), 2.f + 0.5f * d * d, 1e-3f);
+  EXPECT_NEAR(low->score, h->score * std::exp(-0.5f * d * d), 1e-4f);
 }
 
 // An armchair (a closed seat, a back and two armrests) seen by one sensor from its side: the near
