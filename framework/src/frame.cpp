@@ -187,7 +187,10 @@ struct CloudAdaptor {
 using CloudTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, CloudAdaptor>, CloudAdaptor, 3, uint32_t>;
 }  // namespace
 
-Eigen::Isometry3d EstimateCanonicalFrame(const Points& upright) {
+Eigen::Isometry3d EstimateCanonicalFrame(const Points& upright) { return EstimateCanonicalFrame(upright, nullptr); }
+
+Eigen::Isometry3d EstimateCanonicalFrame(const Points& upright, ScanNeighbours* neighbours) {
+  if (neighbours) *neighbours = ScanNeighbours();
   std::vector<uint32_t> finite;
   finite.reserve(upright.size());
   for (size_t i = 0; i < upright.size(); ++i)
@@ -198,27 +201,42 @@ Eigen::Isometry3d EstimateCanonicalFrame(const Points& upright) {
   const size_t stride = std::max<size_t>(1, finite.size() / 30000);
   Points sample;
   for (size_t k = 0; k < finite.size(); k += stride) sample.push_back(upright[finite[k]]);
-  sample = GroupEqualPoints(sample);  // the first of equal points kept
+  std::vector<uint32_t> which;  // the distinct position of each sampled point
+  sample = GroupEqualPoints(sample, &which);  // the first of equal points kept
+  // Every point sampled: its neighbours are the scan's, kept for the stages (ScanNeighbours).
+  const bool keep = neighbours && stride == 1 && finite.size() == upright.size() && sample.size() >= 20;
   // Azimuths of the vertical surfaces' normals (plane fits over 12 neighbours), as 4 x angle.
   double C = 0, S = 0, W = 0;
   if (sample.size() >= 20) {
     CloudAdaptor ad{sample};
     CloudTree tree(3, ad, nanoflann::KDTreeSingleIndexAdaptorParams(16));  // built by its constructor
     const size_t k = 12;
+    // With `keep`, kScanNeighbours are searched: a k-d tree's search for more neighbours visits
+    // the same leaves in the same order and more, so its first 12 are the 12 (ties included).
+    const size_t searched = keep ? size_t(kScanNeighbours) : k;
+    if (keep) {
+      neighbours->k = kScanNeighbours;
+      neighbours->nearest.assign(sample.size() * searched, 0);
+      neighbours->count.assign(sample.size(), 0);
+    }
     std::vector<Eigen::Vector3d> acc(sample.size(), Eigen::Vector3d::Zero());  // (cos, sin, weight)
     // Queries in the tree's leaf order (each point's result is its own, summed below in point
     // order): neighbouring queries walk the same branches, which a scan's file order (random
     // for ScanNet's sampled vertices) does not.
     const auto& leaf_order = tree.vAcc;
     tbb::parallel_for(tbb::blocked_range<size_t>(0, sample.size(), 2048), [&](const tbb::blocked_range<size_t>& r) {
-      std::vector<uint32_t> idx(k);
-      std::vector<float> d2(k);
+      std::vector<uint32_t> idx(searched);
+      std::vector<float> d2(searched);
       for (size_t t = r.begin(); t != r.end(); ++t) {
         const size_t i = leaf_order[t];
-        nanoflann::KNNResultSet<float, uint32_t> rs(k);
+        nanoflann::KNNResultSet<float, uint32_t> rs(searched);
         rs.init(idx.data(), d2.data());
         tree.findNeighbors(rs, sample[i].data(), nanoflann::SearchParams());
-        const size_t n = rs.size();
+        if (keep) {
+          std::copy(idx.begin(), idx.begin() + long(rs.size()), neighbours->nearest.begin() + long(i * searched));
+          neighbours->count[i] = uint8_t(rs.size());
+        }
+        const size_t n = std::min(rs.size(), k);
         if (n < 6) continue;
         Eigen::Vector3d mean = Eigen::Vector3d::Zero();
         for (size_t j = 0; j < n; ++j) mean += sample[idx[j]].cast<double>();
@@ -239,6 +257,16 @@ Eigen::Isometry3d EstimateCanonicalFrame(const Points& upright) {
       }
     });
     for (const auto& a : acc) C += a.x(), S += a.y(), W += a.z();
+    if (keep) {  // each point's position, and each position's points
+      neighbours->points = upright.size();
+      neighbours->position = std::move(which);
+      neighbours->start.assign(sample.size() + 1, 0);
+      for (uint32_t u : neighbours->position) ++neighbours->start[u + 1];
+      for (size_t u = 0; u < sample.size(); ++u) neighbours->start[u + 1] += neighbours->start[u];
+      neighbours->members.resize(upright.size());
+      std::vector<uint32_t> fill(neighbours->start.begin(), neighbours->start.end() - 1);
+      for (size_t i = 0; i < upright.size(); ++i) neighbours->members[fill[neighbours->position[i]]++] = uint32_t(i);
+    }
   }
   double yaw = 0;  // of the dominant directions, in (-45, 45] degrees
   // Walls decide when their directions agree beyond what chance gives noisy normals (a
@@ -365,7 +393,10 @@ void ToWorkingFrame(Scan& scan, const FrameOptions& o) {
       for (size_t i = 0; i < upright.size(); ++i) upright[i] = tf * scan.points[i];
       u = &upright;
     }
-    scan.frame.canonical = EstimateCanonicalFrame(*u);
+    auto nb = std::make_shared<ScanNeighbours>();
+    scan.frame.canonical = EstimateCanonicalFrame(*u, nb.get());
+    // The working frame is a turn and a shift of the z-up one: the same neighbours.
+    scan.neighbours = nb->k > 0 ? std::move(nb) : nullptr;
     const Eigen::Isometry3d& c = scan.frame.canonical;
     spdlog::debug("{}: canonical frame: turned {:.3f} deg about z, shifted by ({:.3f}, {:.3f}, {:.3f}) m", scan.source,
                   std::atan2(c.linear()(1, 0), c.linear()(0, 0)) * 180.0 / M_PI, c.translation().x(),

@@ -61,6 +61,11 @@ FURNIHOST_API std::optional<Eigen::Vector3d> EstimateUpAxis(const Points& points
 // points up to rounding (and, for turns of a quarter, up to that quarter turn).
 // Identity for fewer than 10 finite points.
 FURNIHOST_API Eigen::Isometry3d EstimateCanonicalFrame(const Points& upright);
+// The same, and when the sample is every point (at most ~60k finite points), the points'
+// kScanNeighbours nearest positions (the 12 the normals are fitted to are the first 12 of them,
+// so the frame is the same) into *neighbours; otherwise *neighbours is left empty (k = 0).
+constexpr int kScanNeighbours = 17;
+FURNIHOST_API Eigen::Isometry3d EstimateCanonicalFrame(const Points& upright, ScanNeighbours* neighbours);
 
 // Applies the frame options to a scan just read (its points and origin are in the file's frame,
 // shifted): turns them into the z-up frame and then into the canonical one (unless

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -87,6 +88,28 @@ struct ScanFrame {
   }
 };
 
+// The nearest neighbours of every point of a scan, found once by the pipeline (while it estimates
+// the canonical frame, which needs them too) for the stages that would search them again. The
+// search runs over the distinct positions of the points (equal points are one position, as in a
+// k-d tree over a cloud with copies): per position, its `k` nearest positions, itself first,
+// nearest first (fewer when the scan has fewer positions). Distances are not kept: they are the
+// scan's own, recomputed in its working frame (the search ran in the z-up frame, a turn and a
+// shift away, so an order can differ from a search of the working points where two distances
+// are within rounding of each other). Describes `points` points: a stage that changes a scan's
+// points must drop it.
+struct ScanNeighbours {
+  int k = 0;                       // positions listed per position
+  size_t points = 0;               // of the scan it was found for
+  std::vector<uint32_t> position;  // per point: its position
+  std::vector<uint32_t> start;     // per position u: its points are members[start[u] .. start[u + 1]), ascending
+  std::vector<uint32_t> members;
+  std::vector<uint32_t> nearest;   // per position u: nearest[u * k .. u * k + count[u])
+  std::vector<uint8_t> count;
+  size_t Positions() const { return count.size(); }
+  // Whether it describes a scan of n points.
+  bool Describes(size_t n) const { return k > 0 && points == n && position.size() == n; }
+};
+
 // A point cloud as acquired by a sensor, in the scan's working frame.
 // `pose` maps scan coordinates to the common (world) frame used for multi-view fusion.
 struct Scan {
@@ -98,6 +121,8 @@ struct Scan {
   // The floor under the scan in its working frame: set by simulated sensors ("known"), else
   // by the pipeline once per scan before any stage sees the scan.
   std::optional<GroundModel> ground;
+  // Set by the pipeline with the working frame (ScanNeighbours); null when not found.
+  std::shared_ptr<const ScanNeighbours> neighbours;
   // Height of a world-frame point above this scan's ground (poses are upright: yaw and
   // translation). Without a ground: the world z.
   float HeightAboveGround(const Eigen::Vector3f& world) const {

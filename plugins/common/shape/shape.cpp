@@ -191,48 +191,104 @@ Points BlockNormals(const Points& pts, float voxel) {
   return normals;
 }
 
+namespace {
+// One point's local shape from its neighbours (idx: points, nearest first, the point itself
+// and its copies among them; d2: their squared distances).
+void ShapeOf(const Points& pts, size_t i, const std::vector<uint32_t>& idx, const std::vector<float>& d2,
+             std::vector<float>& others, LocalShape& out) {
+  // Distances to other points: skip the query itself (and exact duplicates count as 0).
+  others.clear();
+  bool self = false;
+  for (size_t j = 0; j < idx.size(); ++j) {
+    if (!self && idx[j] == i) {
+      self = true;
+      continue;
+    }
+    others.push_back(std::sqrt(d2[j]));
+  }
+  if (!others.empty()) out.nn[i] = others.front();
+  if (others.size() >= 4) out.nn4[i] = others[3];
+  else if (!others.empty()) out.nn4[i] = others.back();
+  if (idx.size() < 3) return;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (uint32_t j : idx) mean += pts[j].cast<double>();
+  mean /= double(idx.size());
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (uint32_t j : idx) {
+    const Eigen::Vector3d d = pts[j].cast<double>() - mean;
+    cov += d * d.transpose();
+  }
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+  es.computeDirect(cov);  // closed form: a third of the iterative solver's time
+  const Eigen::Vector3d n = es.eigenvectors().col(0);
+  if (n.allFinite()) out.normals[i] = n.cast<float>();
+}
+
+LocalShape EmptyShape(size_t n) {
+  LocalShape out;
+  out.normals.assign(n, Eigen::Vector3f::UnitZ());
+  out.nn.assign(n, 0.f);
+  out.nn4.assign(n, 0.f);
+  return out;
+}
+}  // namespace
+
 LocalShape EstimateLocalShape(const KnnIndex& index, int k) {
   const Points& pts = index.Cloud();
-  LocalShape out;
-  out.normals.assign(pts.size(), Eigen::Vector3f::UnitZ());
-  out.nn.assign(pts.size(), 0.f);
-  out.nn4.assign(pts.size(), 0.f);
+  LocalShape out = EmptyShape(pts.size());
   // Queries in the tree's leaf order (each point's result is its own): a scan's file order is
   // random for ScanNet's sampled vertices, and queries in it miss the cache on every level.
   const std::vector<uint32_t> order = index.LeafOrder();
   tbb::parallel_for(tbb::blocked_range<size_t>(0, pts.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
     std::vector<uint32_t> idx;
-    std::vector<float> d2;
-    std::vector<float> others;
+    std::vector<float> d2, others;
     for (size_t t = r.begin(); t != r.end(); ++t) {
       const size_t i = order[t];
       index.Query(pts[i], k + 1, idx, d2);
-      // Distances to other points: skip the query itself (and exact duplicates count as 0).
-      others.clear();
-      bool self = false;
-      for (size_t j = 0; j < idx.size(); ++j) {
-        if (!self && idx[j] == i) {
-          self = true;
-          continue;
+      ShapeOf(pts, i, idx, d2, others, out);
+    }
+  });
+  return out;
+}
+
+bool CanUse(const ScanNeighbours* nb, const Points& pts, int k) {
+  return nb && nb->Describes(pts.size()) && k + 1 <= nb->k;
+}
+
+LocalShape EstimateLocalShape(const Points& pts, const ScanNeighbours& nb, int k) {
+  LocalShape out = EmptyShape(pts.size());
+  const size_t positions = nb.Positions();
+  const size_t want = std::min<size_t>(size_t(std::max(k + 1, 1)), pts.size());
+  const size_t look = std::min(want, positions);
+  const size_t stride = size_t(nb.k);
+  // Per position (its points share its neighbours), as KnnIndex::Query answers a query at it:
+  // the nearest `look` positions by their distance in this frame, each position's points in
+  // index order until `want` points.
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, positions, 512), [&](const tbb::blocked_range<size_t>& r) {
+    std::vector<std::pair<float, uint32_t>> near;
+    std::vector<uint32_t> idx;
+    std::vector<float> d2, others;
+    for (size_t u = r.begin(); u != r.end(); ++u) {
+      const Eigen::Vector3f& q = pts[nb.members[nb.start[u]]];
+      near.clear();
+      const size_t c = std::min<size_t>(nb.count[u], look);
+      for (size_t j = 0; j < c; ++j) {
+        const uint32_t v = nb.nearest[u * stride + j];
+        const Eigen::Vector3f& p = pts[nb.members[nb.start[v]]];
+        // As nanoflann's L2_Simple_Adaptor sums it.
+        float s = 0.f;
+        for (int d = 0; d < 3; ++d) {
+          const float diff = q[d] - p[d];
+          s += diff * diff;
         }
-        others.push_back(std::sqrt(d2[j]));
+        near.emplace_back(s, v);
       }
-      if (!others.empty()) out.nn[i] = others.front();
-      if (others.size() >= 4) out.nn4[i] = others[3];
-      else if (!others.empty()) out.nn4[i] = others.back();
-      if (idx.size() < 3) continue;
-      Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-      for (uint32_t j : idx) mean += pts[j].cast<double>();
-      mean /= double(idx.size());
-      Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-      for (uint32_t j : idx) {
-        const Eigen::Vector3d d = pts[j].cast<double>() - mean;
-        cov += d * d.transpose();
-      }
-      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
-      es.computeDirect(cov);  // closed form: a third of the iterative solver's time
-      const Eigen::Vector3d n = es.eigenvectors().col(0);
-      if (n.allFinite()) out.normals[i] = n.cast<float>();
+      std::stable_sort(near.begin(), near.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+      idx.clear(), d2.clear();
+      for (size_t j = 0; j < near.size() && idx.size() < want; ++j)
+        for (uint32_t m = nb.start[near[j].second]; m < nb.start[near[j].second + 1] && idx.size() < want; ++m)
+          idx.push_back(nb.members[m]), d2.push_back(near[j].first);
+      for (uint32_t m = nb.start[u]; m < nb.start[u + 1]; ++m) ShapeOf(pts, nb.members[m], idx, d2, others, out);
     }
   });
   return out;

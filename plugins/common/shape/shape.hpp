@@ -41,6 +41,10 @@ struct LocalShape {
   std::vector<float> nn4;  // 4th nearest other point [m]
 };
 LocalShape EstimateLocalShape(const KnnIndex& index, int k = 16);
+// The same from the neighbours the pipeline found with the working frame (ScanNeighbours; the
+// distances recomputed in this frame), without a search of its own. Only when CanUse.
+bool CanUse(const ScanNeighbours* neighbours, const Points& points, int k);
+LocalShape EstimateLocalShape(const Points& points, const ScanNeighbours& neighbours, int k = 16);
 
 // Per point: the unit normal (sign arbitrary; +z where undefined) of the plane fitted (PCA) to
 // the points of its voxel (edge `voxel` [m], anchored at the origin) and the 26 voxels around it:

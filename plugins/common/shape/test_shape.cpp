@@ -1,7 +1,10 @@
 // furnihost::shape: nearest neighbours against brute force, PCA normals of a plane, the
 // spacing of a grid, the footprint of a turned rectangle with outliers, profiles and their
-// distance, visibility behind an occluder.
+// distance, visibility behind an occluder; the neighbours the pipeline finds with the working
+// frame give the shape a k-d tree of the working points gives.
 #include "shape/shape.hpp"
+
+#include "furnihost/frame.hpp"
 
 #include <gtest/gtest.h>
 
@@ -95,6 +98,65 @@ TEST(LocalShape, ZeroFloodLeavesTheViewAlone) {
     EXPECT_EQ(sb.nn4[200000 + i], sa.nn4[i]) << i;
   }
   EXPECT_EQ(sb.nn[0], 0.f);
+}
+
+// The pipeline finds each point's 17 nearest positions while it estimates the canonical frame
+// (in the z-up frame), and proposals.clusters takes its local shape from them instead of a k-d
+// tree of the working points. A room-like cloud turned 0.7 rad: noisy walls and random points,
+// copies of some points (a position of several points) and a regular grid (ties of distance).
+// The frame is the same with and without the neighbours kept; the shapes agree (the distances
+// are recomputed in the working frame; only near-ties may order differently).
+TEST(LocalShape, TheFramesNeighboursGiveTheTreesShape) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(0.f, 1.f);
+  std::normal_distribution<float> noise(0.f, 0.004f);
+  Points room;
+  for (int i = 0; i < 6000; ++i) room.emplace_back(4.f * u(rng), noise(rng), 2.5f * u(rng));      // wall y = 0
+  for (int i = 0; i < 4000; ++i) room.emplace_back(noise(rng), 3.f * u(rng), 2.5f * u(rng));      // wall x = 0
+  for (int i = 0; i < 50; ++i)
+    for (int j = 0; j < 50; ++j) room.emplace_back(1.f + 0.02f * float(i), 1.f + 0.02f * float(j), 0.f);  // grid floor
+  for (int i = 0; i < 3000; ++i) room.emplace_back(4.f * u(rng), 3.f * u(rng), 2.5f * u(rng));
+  for (int i = 0; i < 500; ++i) room.push_back(room[size_t(i * 7)]);  // copies
+  const Eigen::Isometry3f turn(Eigen::AngleAxisf(0.7f, Eigen::Vector3f::UnitZ()));
+  for (auto& p : room) p = turn * p;
+  ScanNeighbours nb;
+  const Eigen::Isometry3d c = EstimateCanonicalFrame(room, &nb);
+  EXPECT_TRUE(c.isApprox(EstimateCanonicalFrame(room), 0.0)) << "the frame changed";
+  ASSERT_TRUE(nb.Describes(room.size()));
+  ASSERT_EQ(nb.k, kScanNeighbours);
+  EXPECT_EQ(nb.Positions(), room.size() - 500);
+  // Each position's list: itself first, then its nearest, as a brute-force search (distances).
+  for (size_t v = 0; v < nb.Positions(); v += 97) {
+    const Eigen::Vector3f& q = room[nb.members[nb.start[v]]];
+    std::vector<float> all;
+    for (size_t w = 0; w < nb.Positions(); ++w) all.push_back((room[nb.members[nb.start[w]]] - q).squaredNorm());
+    std::sort(all.begin(), all.end());
+    ASSERT_EQ(nb.count[v], kScanNeighbours);
+    EXPECT_EQ(nb.nearest[v * size_t(nb.k)], v);
+    for (int j = 0; j < nb.k; ++j)
+      EXPECT_NEAR((room[nb.members[nb.start[nb.nearest[v * size_t(nb.k) + size_t(j)]]]] - q).squaredNorm(), all[size_t(j)], 1e-6f);
+  }
+  Points work(room.size());
+  for (size_t i = 0; i < room.size(); ++i) work[i] = (c * room[i].cast<double>()).cast<float>();
+  ASSERT_TRUE(CanUse(&nb, work, 16));
+  EXPECT_FALSE(CanUse(&nb, work, 17));  // 18 points asked of 17 positions
+  EXPECT_FALSE(CanUse(&nb, Points(work.begin(), work.end() - 1), 16));
+  KnnIndex index(work);
+  const LocalShape tree = EstimateLocalShape(index, 16), shared = EstimateLocalShape(work, nb, 16);
+  ASSERT_EQ(shared.normals.size(), work.size());
+  size_t exact = 0;
+  for (size_t i = 0; i < work.size(); ++i) {
+    exact += shared.normals[i] == tree.normals[i] && shared.nn[i] == tree.nn[i] && shared.nn4[i] == tree.nn4[i];
+    EXPECT_GT(std::abs(shared.normals[i].dot(tree.normals[i])), 0.999f) << i;  // a tie at the grid: another 17th point
+    EXPECT_NEAR(shared.nn[i], tree.nn[i], 1e-6f) << i;
+    EXPECT_NEAR(shared.nn4[i], tree.nn4[i], 1e-6f) << i;
+  }
+  EXPECT_GT(double(exact), 0.98 * double(work.size()));  // measured 98.8 %: the grid's ties
+  // A cloud the frame samples (more than ~60k points) gets none.
+  ScanNeighbours none;
+  EstimateCanonicalFrame(RandomCloud(70000, 4), &none);
+  EXPECT_EQ(none.k, 0);
+  EXPECT_FALSE(CanUse(&none, work, 16));
 }
 
 TEST(LocalShape, PlaneNormalsAndGridSpacing) {

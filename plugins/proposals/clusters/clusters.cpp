@@ -246,12 +246,19 @@ class ClusterProposer : public Proposer {
     // whose build is serial.
     const bool both = o_.wall_normals == "both";
     const bool blocks = o_.wall_normals == "blocks" || (o_.wall_normals == "auto" && scan.origin.has_value());
+    // The points' k nearest neighbours: those the pipeline found with the working frame when it
+    // has them (the same up to rounding; no second search), else a k-d tree's.
     Points block_normals;
-    std::unique_ptr<shape::KnnIndex> knn_ptr;
-    tbb::parallel_invoke([&] { knn_ptr = std::make_unique<shape::KnnIndex>(P); },
-                         [&] { if (blocks || both) block_normals = shape::BlockNormals(P, o_.wall_voxel); });
-    const shape::KnnIndex& knn = *knn_ptr;
-    const shape::LocalShape ls = shape::EstimateLocalShape(knn, o_.neighbours);
+    shape::LocalShape ls;
+    if (shape::CanUse(scan.neighbours.get(), P, o_.neighbours)) {
+      tbb::parallel_invoke([&] { ls = shape::EstimateLocalShape(P, *scan.neighbours, o_.neighbours); },
+                           [&] { if (blocks || both) block_normals = shape::BlockNormals(P, o_.wall_voxel); });
+    } else {
+      std::unique_ptr<shape::KnnIndex> knn_ptr;
+      tbb::parallel_invoke([&] { knn_ptr = std::make_unique<shape::KnnIndex>(P); },
+                           [&] { if (blocks || both) block_normals = shape::BlockNormals(P, o_.wall_voxel); });
+      ls = shape::EstimateLocalShape(*knn_ptr, o_.neighbours);
+    }
     const float sp = std::max(shape::MedianSpacing(ls.nn), 1e-3f);
     out.spacing = sp;
     std::vector<float> hz(n);
