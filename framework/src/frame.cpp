@@ -393,10 +393,10 @@ void ToWorkingFrame(Scan& scan, const FrameOptions& o) {
       for (size_t i = 0; i < upright.size(); ++i) upright[i] = tf * scan.points[i];
       u = &upright;
     }
-    auto nb = std::make_shared<ScanNeighbours>();
+    auto nb = o.neighbours ? std::make_shared<ScanNeighbours>() : nullptr;
     scan.frame.canonical = EstimateCanonicalFrame(*u, nb.get());
     // The working frame is a turn and a shift of the z-up one: the same neighbours.
-    scan.neighbours = nb->k > 0 ? std::move(nb) : nullptr;
+    scan.neighbours = nb && nb->k > 0 ? std::move(nb) : nullptr;
     const Eigen::Isometry3d& c = scan.frame.canonical;
     spdlog::debug("{}: canonical frame: turned {:.3f} deg about z, shifted by ({:.3f}, {:.3f}, {:.3f}) m", scan.source,
                   std::atan2(c.linear()(1, 0), c.linear()(0, 0)) * 180.0 / M_PI, c.translation().x(),

@@ -387,6 +387,7 @@ Pipeline::Result Pipeline::Detect(const std::vector<SceneInput>& scenes, const T
     for (auto& s : got) {
       FrameOptions fo = sc.frame;
       fo.canonical = fo.canonical && graph_.canonical_frame;
+      fo.neighbours = !graph_.AllOfKind(StageKind::Proposer).empty();  // proposals.clusters takes them
       fo.level = fo.level || graph_.level_frame;
       ToWorkingFrame(s, fo);
       GroundOptions go = graph_.ground;

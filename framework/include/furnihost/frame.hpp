@@ -28,6 +28,10 @@ struct FrameOptions {
   // tilts are left to the ground model (a reconstruction's warped floor, a view a few degrees
   // off).
   bool level = false;
+  // With the canonical frame: keep the points' nearest neighbours its estimate searches, as
+  // Scan::neighbours (ScanNeighbours), for the stages that need them (the pipeline asks when
+  // its graph has a proposer). A few more neighbours per point to search (17 against 12).
+  bool neighbours = false;
 };
 constexpr double kLevelMinDeg = 8.0, kLevelMaxDeg = 35.0;
 

@@ -152,6 +152,18 @@ TEST(LocalShape, TheFramesNeighboursGiveTheTreesShape) {
     EXPECT_NEAR(shared.nn4[i], tree.nn4[i], 1e-6f) << i;
   }
   EXPECT_GT(double(exact), 0.98 * double(work.size()));  // measured 98.8 %: the grid's ties
+  // The pipeline keeps them with the scan only when asked (its graph has a proposer).
+  for (const bool asked : {false, true}) {
+    Scan scan;
+    scan.points = room;
+    FrameOptions fo;
+    fo.neighbours = asked;
+    ToWorkingFrame(scan, fo);
+    EXPECT_EQ(scan.neighbours != nullptr, asked);
+    if (asked) {
+      EXPECT_TRUE(CanUse(scan.neighbours.get(), scan.points, 16));
+    }
+  }
   // A cloud the frame samples (more than ~60k points) gets none.
   ScanNeighbours none;
   EstimateCanonicalFrame(RandomCloud(70000, 4), &none);
