@@ -43,6 +43,7 @@
 #include <spdlog/spdlog.h>
 
 #include "furnihost/geometry.hpp"
+#include "furnihost/hash.hpp"
 #include "furnihost/plugin.hpp"
 #include "shape/shape.hpp"
 
@@ -254,6 +255,29 @@ float Pen(float d, float small, float big) {
 float Hung(float B, const ClassParams& cp) {
   const float d = std::max(cp.mount_bottom - B, 0.f) / cp.bottom;
   return 0.5f * d * d;
+}
+
+// Per proposal: the first proposal with exactly its points (in order), box, ground and surround
+// (itself when none before it has them).
+std::vector<size_t> SameAsEarlier(const std::vector<Proposal>& items) {
+  std::vector<size_t> same(items.size());
+  std::unordered_map<uint64_t, std::vector<size_t>> by_hash;
+  for (size_t i = 0; i < items.size(); ++i) {
+    const Proposal& p = items[i];
+    const uint64_t h = Fnv1a(p.indices.data(), p.indices.size() * sizeof(int));
+    same[i] = i;
+    auto& list = by_hash[h];
+    for (size_t j : list) {
+      const Proposal& q = items[j];
+      if (q.indices == p.indices && q.box.min() == p.box.min() && q.box.max() == p.box.max() &&
+          q.ground_z == p.ground_z && q.surround == p.surround) {
+        same[i] = j;
+        break;
+      }
+    }
+    if (same[i] == i) list.push_back(i);
+  }
+  return same;
 }
 
 // Inner footprint cells (10 cm, the rectangle shrunk by 10 cm on every side) of a footprint.
@@ -691,7 +715,21 @@ class CatalogShapeVoter : public Voter {
       if (spdlog::should_log(spdlog::level::trace)) {
         for (size_t i = 0; i < n; ++i) score_one(i);
       } else {
-        tbb::parallel_for(size_t(0), n, score_one);
+        // A proposal of exactly the points, box, ground and surround of an earlier one (another
+        // radius or rule that found the same cluster: half the proposals of some rooms) scores
+        // as that one: scored once, copied. Its group, and so its competition, stays its own.
+        const std::vector<size_t> same = SameAsEarlier(items);
+        std::vector<size_t> first;
+        for (size_t i = 0; i < n; ++i)
+          if (same[i] == i) first.push_back(i);
+        tbb::parallel_for(size_t(0), first.size(), [&](size_t k) { score_one(first[k]); });
+        for (size_t i = 0; i < n; ++i) {
+          const size_t j = same[i];
+          if (j == i) continue;
+          foot[i] = foot[j];
+          for (size_t c = 0; c < C; ++c)
+            score[c][i] = score[c][j], best_model[c][i] = best_model[c][j], evidence[c][i] = evidence[c][j];
+        }
       }
       // Class competition within each group (the variants of one cluster are one object).
       std::map<int, float> group_best;

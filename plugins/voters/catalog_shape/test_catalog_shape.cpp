@@ -140,6 +140,58 @@ TEST(CatalogShape, FindsEachObjectAsItsClass) {
   EXPECT_GT(score_at("cabinet", {2.0f, 0.3f}), score_at("table", {2.0f, 0.3f}));
 }
 
+// A proposal with exactly the points, box, ground and surround of an earlier one is scored once
+// and copied: each copy (its own group) gets the original's score, evidence and box; a copy whose
+// surround differs is scored on its own.
+TEST(CatalogShape, CopiesOfAProposalScoreAsTheOriginal) {
+  const CatalogModel table = Table(), cabinet = Cabinet();
+  auto voter = Make<Voter>("voters.catalog_shape", {{"min_score", 1e-6}, {"nms_iou", 1.0}});
+  RunContext ctx;
+  voter->Load(voter->Train(Views({&table, &cabinet}), ctx));
+  Eigen::Isometry3f tp = Eigen::Isometry3f::Identity(), cp = Eigen::Isometry3f::Identity();
+  cp.translation() = Eigen::Vector3f(2.0f, 0.3f, 0.f);
+  const Scan scan = ScanRoom({{&table, tp}, {&cabinet, cp}}, 0.f, ctx);
+  const Proposals props = Make<Proposer>("proposals.clusters")->Propose(scan, nullptr, ctx);
+  const size_t n = props.items.size();
+  ASSERT_GT(n, 0u);
+  Proposals twice = props;
+  int groups = 0;
+  for (const auto& p : props.items) groups = std::max(groups, p.group + 1);
+  for (size_t i = 0; i < n; ++i) {
+    Proposal c = props.items[i];
+    c.group += groups;
+    if (i == 0) c.surround += 0.5f;  // not a copy any more
+    twice.items.push_back(c);
+  }
+  auto vote = [&](const Proposals& ps) {
+    SceneParts parts;
+    parts.scan = &scan;
+    parts.proposals = &ps;
+    std::map<std::pair<std::string, int>, Hypothesis> by;  // (class, proposal) -> hypothesis
+    for (const auto& h : voter->Vote({parts}, ctx).hypotheses) by[{h.cls, h.proposal}] = h;
+    return by;
+  };
+  const auto once = vote(props), both = vote(twice);
+  size_t compared = 0;
+  for (const auto& [key, h] : once) {
+    const auto copy = both.find({key.first, key.second + int(n)});
+    if (key.second == 0) {
+      if (copy != both.end()) {
+        EXPECT_LT(copy->second.score, h.score);  // its surround costs
+      }
+      continue;
+    }
+    ASSERT_NE(copy, both.end()) << key.first << " " << key.second;
+    EXPECT_EQ(copy->second.score, h.score);
+    EXPECT_EQ(copy->second.model, h.model);
+    EXPECT_EQ(copy->second.evidence, h.evidence);
+    ASSERT_TRUE(copy->second.box && h.box);
+    EXPECT_EQ(copy->second.box->center, h.box->center);
+    ++compared;
+  }
+  EXPECT_GT(compared, 0u);
+}
+
 // 'source' picks the proposer rules a class is scored on: one name, a comma-separated list
 // (whole names only), or "any".
 TEST(CatalogShape, SourceListsTheRulesAClassIsScoredOn) {
