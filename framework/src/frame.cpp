@@ -258,14 +258,8 @@ Eigen::Isometry3d EstimateCanonicalFrame(const Points& upright, ScanNeighbours* 
     });
     for (const auto& a : acc) C += a.x(), S += a.y(), W += a.z();
     if (keep) {  // each point's position, and each position's points
-      neighbours->points = upright.size();
+      GroupMembers(which, sample.size(), neighbours->start, neighbours->members);
       neighbours->position = std::move(which);
-      neighbours->start.assign(sample.size() + 1, 0);
-      for (uint32_t u : neighbours->position) ++neighbours->start[u + 1];
-      for (size_t u = 0; u < sample.size(); ++u) neighbours->start[u + 1] += neighbours->start[u];
-      neighbours->members.resize(upright.size());
-      std::vector<uint32_t> fill(neighbours->start.begin(), neighbours->start.end() - 1);
-      for (size_t i = 0; i < upright.size(); ++i) neighbours->members[fill[neighbours->position[i]]++] = uint32_t(i);
     }
   }
   double yaw = 0;  // of the dominant directions, in (-45, 45] degrees

@@ -120,6 +120,16 @@ Points VoxelDownsample(const Points& points, float voxel, std::vector<int>* kept
   return out;
 }
 
+void GroupMembers(const std::vector<uint32_t>& of, size_t groups, std::vector<uint32_t>& start,
+                  std::vector<uint32_t>& members) {
+  start.assign(groups + 1, 0);
+  for (uint32_t u : of) ++start[u + 1];
+  for (size_t u = 0; u < groups; ++u) start[u + 1] += start[u];
+  members.resize(of.size());
+  std::vector<uint32_t> fill(start.begin(), start.end() - 1);
+  for (size_t i = 0; i < of.size(); ++i) members[fill[of[i]]++] = uint32_t(i);
+}
+
 Points GroupEqualPoints(const Points& points, std::vector<uint32_t>* of) {
   auto bits = [](float v) {
     v += 0.f;  // -0 -> +0

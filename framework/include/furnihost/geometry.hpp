@@ -18,6 +18,10 @@ FURNIHOST_API Points VoxelDownsample(const Points& points, float voxel, std::vec
 // An open-addressing hash table over the bits: linear time whatever the copies (a driver's
 // (0, 0, 0) for every invalid return).
 FURNIHOST_API Points GroupEqualPoints(const Points& points, std::vector<uint32_t>* of = nullptr);
+// The points of each group from each point's group `of` (< groups): group u's are
+// members[start[u] .. start[u + 1]), ascending (a counting sort; linear time).
+FURNIHOST_API void GroupMembers(const std::vector<uint32_t>& of, size_t groups, std::vector<uint32_t>& start,
+                                std::vector<uint32_t>& members);
 
 // Coarse surface normals in linear time: the points' voxel-grid centroids (edge `voxel`), each
 // with the normal (PCA, sign arbitrary) of the centroids in its 3x3x3 voxel neighbourhood, and

@@ -95,11 +95,10 @@ struct ScanFrame {
 // nearest first (fewer when the scan has fewer positions). Distances are not kept: they are the
 // scan's own, recomputed in its working frame (the search ran in the z-up frame, a turn and a
 // shift away, so an order can differ from a search of the working points where two distances
-// are within rounding of each other). Describes `points` points: a stage that changes a scan's
-// points must drop it.
+// are within rounding of each other). Describes position.size() points: a stage that changes a
+// scan's points must drop it.
 struct ScanNeighbours {
   int k = 0;                       // positions listed per position
-  size_t points = 0;               // of the scan it was found for
   std::vector<uint32_t> position;  // per point: its position
   std::vector<uint32_t> start;     // per position u: its points are members[start[u] .. start[u + 1]), ascending
   std::vector<uint32_t> members;
@@ -107,7 +106,7 @@ struct ScanNeighbours {
   std::vector<uint8_t> count;
   size_t Positions() const { return count.size(); }
   // Whether it describes a scan of n points.
-  bool Describes(size_t n) const { return k > 0 && points == n && position.size() == n; }
+  bool Describes(size_t n) const { return k > 0 && position.size() == n; }
 };
 
 // A point cloud as acquired by a sensor, in the scan's working frame.

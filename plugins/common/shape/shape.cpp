@@ -32,13 +32,18 @@ Points GroupDuplicates(const Points& p, std::vector<uint32_t>& start, std::vecto
   std::vector<uint32_t> which;  // distinct index of each point
   Points distinct = GroupEqualPoints(p, &which);
   if (distinct.size() == p.size()) return {};
-  start.assign(distinct.size() + 1, 0);
-  for (uint32_t u : which) ++start[u + 1];
-  for (size_t u = 0; u < distinct.size(); ++u) start[u + 1] += start[u];
-  members.resize(p.size());
-  std::vector<uint32_t> fill(start.begin(), start.end() - 1);
-  for (size_t i = 0; i < p.size(); ++i) members[fill[which[i]]++] = uint32_t(i);
+  GroupMembers(which, distinct.size(), start, members);
   return distinct;
+}
+
+// The points at `positions` (nearest first, with their squared distances), each position's
+// points in index order, until `want` points: what a query of a cloud with copies answers.
+void ExpandPositions(const std::vector<uint32_t>& positions, const std::vector<float>& d2, const uint32_t* start,
+                     const uint32_t* members, size_t want, std::vector<uint32_t>& index, std::vector<float>& dist2) {
+  index.clear(), dist2.clear();
+  for (size_t j = 0; j < positions.size() && index.size() < want; ++j)
+    for (uint32_t m = start[positions[j]]; m < start[positions[j] + 1] && index.size() < want; ++m)
+      index.push_back(members[m]), dist2.push_back(d2[j]);
 }
 }  // namespace
 
@@ -77,11 +82,7 @@ void KnnIndex::Query(const Eigen::Vector3f& q, int k, std::vector<uint32_t>& ind
   if (impl_->distinct.empty()) return;
   std::vector<uint32_t> at;
   std::vector<float> d;
-  for (size_t j = 0; j < index.size() && at.size() < want; ++j)
-    for (uint32_t m = impl_->start[index[j]]; m < impl_->start[index[j] + 1] && at.size() < want; ++m) {
-      at.push_back(impl_->members[m]);
-      d.push_back(dist2[j]);
-    }
+  ExpandPositions(index, dist2, impl_->start.data(), impl_->members.data(), want, at, d);
   index.swap(at);
   dist2.swap(d);
 }
@@ -266,8 +267,8 @@ LocalShape EstimateLocalShape(const Points& pts, const ScanNeighbours& nb, int k
   // index order until `want` points.
   tbb::parallel_for(tbb::blocked_range<size_t>(0, positions, 512), [&](const tbb::blocked_range<size_t>& r) {
     std::vector<std::pair<float, uint32_t>> near;
-    std::vector<uint32_t> idx;
-    std::vector<float> d2, others;
+    std::vector<uint32_t> pos, idx;
+    std::vector<float> pos_d2, d2, others;
     for (size_t u = r.begin(); u != r.end(); ++u) {
       const Eigen::Vector3f& q = pts[nb.members[nb.start[u]]];
       near.clear();
@@ -284,10 +285,9 @@ LocalShape EstimateLocalShape(const Points& pts, const ScanNeighbours& nb, int k
         near.emplace_back(s, v);
       }
       std::stable_sort(near.begin(), near.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-      idx.clear(), d2.clear();
-      for (size_t j = 0; j < near.size() && idx.size() < want; ++j)
-        for (uint32_t m = nb.start[near[j].second]; m < nb.start[near[j].second + 1] && idx.size() < want; ++m)
-          idx.push_back(nb.members[m]), d2.push_back(near[j].first);
+      pos.clear(), pos_d2.clear();
+      for (const auto& [s, v] : near) pos.push_back(v), pos_d2.push_back(s);
+      ExpandPositions(pos, pos_d2, nb.start.data(), nb.members.data(), want, idx, d2);
       for (uint32_t m = nb.start[u]; m < nb.start[u + 1]; ++m) ShapeOf(pts, nb.members[m], idx, d2, others, out);
     }
   });
