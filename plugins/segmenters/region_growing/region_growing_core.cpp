@@ -5,6 +5,9 @@
 #include <tbb/parallel_reduce.h>
 
 #include <Eigen/Eigenvalues>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -82,9 +85,23 @@ inline F4 Load4(const float* p) {
 inline F4 Splat4(float a) { return F4{a, a, a, a}; }
 inline float Sum4(F4 v) { return (v[0] + v[1]) + (v[2] + v[3]); }
 
+// Two doubles as one vector value (SSE2 on x86-64, NEON on arm64).
+typedef double D2 __attribute__((vector_size(16)));
+inline D2 Sqrt2(D2 v) {
+#if defined(__SSE2__)
+  return (D2)_mm_sqrt_pd((__m128d)v);
+#else
+  return D2{std::sqrt(v[0]), std::sqrt(v[1])};
+#endif
+}
+
+}  // namespace
+
+namespace detail {
+
 // Solves the symmetric positive definite 6x6 system A c = y (upper triangle of A given) by
 // Cholesky. False when a pivot is not clearly positive (a degenerate neighbourhood).
-bool SolveSpd6(double A[6][6], double y[6], double c[6]) {
+bool SolveSpd6(const double A[6][6], const double y[6], double c[6]) {
   double L[6][6], inv[6];  // L lower triangular, inv[j] = 1 / L[j][j]
   const double scale = std::max({A[0][0], A[1][1], A[2][2], A[3][3], A[4][4], A[5][5]});
   for (int j = 0; j < 6; ++j) {
@@ -112,6 +129,51 @@ bool SolveSpd6(double A[6][6], double y[6], double c[6]) {
   return true;
 }
 
+// Two systems at once, system l in lane l: SolveSpd6's operations lane by lane. IEEE addition,
+// multiplication, division and square root are correctly rounded, so each lane's c is SolveSpd6's
+// bit for bit (RegionGrowing.PairedSolvesAreTheSingleSolves); the two dependency chains run side by side (one solve is a chain of 6
+// square roots and divisions: latency, not work). ok[l]: SolveSpd6's answer for system l; a
+// failed lane runs on with NaNs and its c is not to be read.
+void SolveSpd6Pair(const double (*A0)[6], const double* y0, const double (*A1)[6], const double* y1, double c0[6],
+                   double c1[6], bool ok[2]) {
+  D2 L[6][6], inv[6];
+  const double s0 = std::max({A0[0][0], A0[1][1], A0[2][2], A0[3][3], A0[4][4], A0[5][5]});
+  const double s1 = std::max({A1[0][0], A1[1][1], A1[2][2], A1[3][3], A1[4][4], A1[5][5]});
+  const double lim0 = 1e-10 * s0, lim1 = 1e-10 * s1;
+  ok[0] = ok[1] = true;
+  for (int j = 0; j < 6; ++j) {
+    D2 d = D2{A0[j][j], A1[j][j]};
+    for (int k = 0; k < j; ++k) d -= L[j][k] * L[j][k];
+    ok[0] = ok[0] && d[0] > lim0;
+    ok[1] = ok[1] && d[1] > lim1;
+    inv[j] = D2{1.0, 1.0} / Sqrt2(d);
+    for (int i = j + 1; i < 6; ++i) {
+      D2 v = D2{A0[j][i], A1[j][i]};
+      for (int k = 0; k < j; ++k) v -= L[i][k] * L[j][k];
+      L[i][j] = v * inv[j];
+    }
+  }
+  D2 t[6], c[6];
+  for (int i = 0; i < 6; ++i) {
+    D2 v = D2{y0[i], y1[i]};
+    for (int k = 0; k < i; ++k) v -= L[i][k] * t[k];
+    t[i] = v * inv[i];
+  }
+  for (int i = 5; i >= 0; --i) {
+    D2 v = t[i];
+    for (int k = i + 1; k < 6; ++k) v -= L[k][i] * c[k];
+    c[i] = v * inv[i];
+  }
+  for (int i = 0; i < 6; ++i) c0[i] = c[i][0], c1[i] = c[i][1];
+}
+
+}  // namespace detail
+
+namespace {
+
+using detail::SolveSpd6;
+using detail::SolveSpd6Pair;
+
 // The local surface of one query from its radius neighbourhood (the query's own point included
 // when it is one).
 // 1. PCA of the neighbourhood: tangent frame U (largest), V, N (smallest eigenvector) and the
@@ -134,13 +196,19 @@ struct LocalFit {
   float c[6] = {0, 0, 0, 0, 0, 0};
 };
 
+// The fit in two halves, so that several points' 6x6 systems can be solved together
+// (SolveSpd6Pair): FitSystem up to the normal equations (false: nothing to solve, the fit is
+// final), FitFinish from their solution.
+struct NormalEquations {
+  double A[6][6], y[6];
+};
 template <bool kCentroids>
-void FitPoint(Neighbours& nb, int min_fit, LocalFit& fit, float& curvature) {
+bool FitSystem(Neighbours& nb, int min_fit, LocalFit& fit, float& curvature, NormalEquations& eq) {
   fit = LocalFit();
   const int k = nb.size();
   if (k < 3) {
     curvature = kNaN;
-    return;
+    return false;
   }
   fit.valid = true;
   // Raw moments of the offsets, scaled to |d| < 1 so float sums lose nothing that matters
@@ -178,7 +246,7 @@ void FitPoint(Neighbours& nb, int min_fit, LocalFit& fit, float& curvature) {
   curvature = sum > 0 ? float(lambda[0] / sum) : 0.f;
   const Eigen::Vector3f N = es.eigenvectors().col(0).cast<float>().normalized();
   fit.N = N;
-  if (k < min_fit || !(lambda[1] > 1e-4 * lambda[2])) return;
+  if (k < min_fit || !(lambda[1] > 1e-4 * lambda[2])) return false;
   const Eigen::Vector3f U = es.eigenvectors().col(2).cast<float>().normalized();
   const Eigen::Vector3f V = N.cross(U);
   // Origin: the query (offset 0) projected on the plane through the mean.
@@ -218,14 +286,34 @@ void FitPoint(Neighbours& nb, int min_fit, LocalFit& fit, float& curvature) {
                M02 = Sum4(m02), M30 = Sum4(m30), M21 = Sum4(m21), M12 = Sum4(m12), M03 = Sum4(m03),
                M40 = Sum4(m40), M31 = Sum4(m31), M22 = Sum4(m22), M13 = Sum4(m13), M04 = Sum4(m04);
   // Rows and columns: 1, u, v, uv, u^2, v^2.
-  double A[6][6] = {{M00, M10, M01, M11, M20, M02}, {0, M20, M11, M21, M30, M12}, {0, 0, M02, M12, M21, M03},
-                    {0, 0, 0, M22, M31, M13}, {0, 0, 0, 0, M40, M22}, {0, 0, 0, 0, 0, M04}};
-  double y[6] = {Sum4(h00), Sum4(h10), Sum4(h01), Sum4(h11), Sum4(h20), Sum4(h02)}, c[6];
-  if (!SolveSpd6(A, y, c) || !std::isfinite(c[1]) || !std::isfinite(c[2])) return;
+  const double A[6][6] = {{M00, M10, M01, M11, M20, M02}, {0, M20, M11, M21, M30, M12}, {0, 0, M02, M12, M21, M03},
+                          {0, 0, 0, M22, M31, M13}, {0, 0, 0, 0, M40, M22}, {0, 0, 0, 0, 0, M04}};
+  const double y[6] = {Sum4(h00), Sum4(h10), Sum4(h01), Sum4(h11), Sum4(h20), Sum4(h02)};
+  std::memcpy(eq.A, A, sizeof A);
+  std::memcpy(eq.y, y, sizeof y);
+  // Kept aside until FitFinish: NormalAt reads them only when `poly`.
+  fit.U = U, fit.V = V, fit.o = o;
+  return true;
+}
+
+// The second half: `solved` and the coefficients c of FitSystem's equations.
+void FitFinish(bool solved, const double c[6], LocalFit& fit) {
+  if (!solved || !std::isfinite(c[1]) || !std::isfinite(c[2])) {
+    fit.U = fit.V = fit.o = Eigen::Vector3f::Zero();
+    return;
+  }
   for (int i = 0; i < 6; ++i) fit.c[i] = float(c[i]);
   if (!std::isfinite(fit.c[3]) || !std::isfinite(fit.c[4]) || !std::isfinite(fit.c[5])) fit.c[3] = fit.c[4] = fit.c[5] = 0.f;
   fit.poly = true;
-  fit.U = U, fit.V = V, fit.o = o;
+}
+
+template <bool kCentroids>
+void FitPoint(Neighbours& nb, int min_fit, LocalFit& fit, float& curvature) {
+  NormalEquations eq;
+  if (!FitSystem<kCentroids>(nb, min_fit, fit, curvature, eq)) return;
+  double c[6];
+  const bool solved = SolveSpd6(eq.A, eq.y, c);
+  FitFinish(solved, c, fit);
 }
 
 // The normal of a fit at a point of offset d (scaled by 1/r) from its query: the fitted surface's
@@ -413,6 +501,45 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
         curvature[i] = curv;
       }
     };
+    // Exact fits in pairs: a point's fit waits, half done (FitSystem), for the next point's,
+    // and the two systems are solved together (SolveSpd6Pair). The same normals as FitPoint.
+    struct Pending {
+      LocalFit f;
+      float curv;
+      NormalEquations eq;
+      int slot;
+    };
+    Pending pend[2];
+    int npend = 0;
+    auto write = [&](const LocalFit& f, float curv, int s) {
+      const Eigen::Vector3f p(grid.x[s], grid.y[s], grid.z[s]);
+      Eigen::Vector3f nrm = NormalAt(f, Eigen::Vector3f::Zero());  // at the query itself
+      if (nrm.dot(view_local - p) < 0) nrm = -nrm;
+      const uint32_t i = grid.order[s];
+      normals[i] = nrm;
+      curvature[i] = curv;
+    };
+    auto flush = [&] {
+      if (npend == 2) {
+        double c0[6], c1[6];
+        bool ok[2];
+        SolveSpd6Pair(pend[0].eq.A, pend[0].eq.y, pend[1].eq.A, pend[1].eq.y, c0, c1, ok);
+        FitFinish(ok[0], c0, pend[0].f);
+        FitFinish(ok[1], c1, pend[1].f);
+      } else if (npend == 1) {
+        double c[6];
+        const bool solved = SolveSpd6(pend[0].eq.A, pend[0].eq.y, c);
+        FitFinish(solved, c, pend[0].f);
+      }
+      for (int k = 0; k < npend; ++k) write(pend[k].f, pend[k].curv, pend[k].slot);
+      npend = 0;
+    };
+    auto fit_exact = [&](int s) {
+      Pending& P = pend[npend];
+      if (!FitSystem<false>(nb, o.min_fit_points, P.f, P.curv, P.eq)) return write(P.f, P.curv, s);  // final
+      P.slot = s;
+      if (++npend == 2) flush();
+    };
     // The exact normals of `slots` (points of cell c) from every point of their ball.
     auto exact = [&](int c) {
       // The 27 cells' points are read in place (a copy into one buffer cost more than it
@@ -447,6 +574,7 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
         if (copies && t > 0) {
           const int prev = slots[t - 1];
           if (grid.x[prev] == p.x() && grid.y[prev] == p.y() && grid.z[prev] == p.z()) {
+            flush();  // prev's normal
             normals[grid.order[s]] = normals[grid.order[prev]];
             curvature[grid.order[s]] = curvature[grid.order[prev]];
             continue;
@@ -468,8 +596,9 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
           }
         }
         nb.count = cnt;
-        fit(std::false_type(), p, &slots[t], &slots[t] + 1);
+        fit_exact(s);
       }
+      flush();
     };
     for (int c = range.begin(); c != range.end(); ++c) {
       if (!dense[c]) {

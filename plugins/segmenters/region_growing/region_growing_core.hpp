@@ -82,4 +82,13 @@ struct SegmentTimings {
 // are ascending.
 Segmentation Segment(const Scan& scan, const RegionGrowingOptions& o, SegmentTimings* timings = nullptr);
 
+namespace detail {
+// The normals' 6x6 solves, here for their tests. SolveSpd6: Cholesky solve of A c = y, A
+// symmetric positive definite (its upper triangle read); false when a pivot is not clearly
+// positive. SolveSpd6Pair: two systems at once, each lane's c and ok[l] bit for bit SolveSpd6's.
+bool SolveSpd6(const double A[6][6], const double y[6], double c[6]);
+void SolveSpd6Pair(const double (*A0)[6], const double* y0, const double (*A1)[6], const double* y1, double c0[6],
+                   double c1[6], bool ok[2]);
+}  // namespace detail
+
 }  // namespace furnihost::rg

@@ -719,3 +719,49 @@ TEST(RegionGrowing, NeighbourListsGiveThePartsOfTheCellScan) {
 }
 
 }  // namespace
+
+// The normals solve their 6x6 systems two at a time: each lane must give the single solve's
+// coefficients bit for bit, and its answer, also when the other lane's system is degenerate.
+TEST(RegionGrowing, PairedSolvesAreTheSingleSolves) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  // A = B^T B (+ a ridge), with B 8 x 6; rank-deficient when some columns of B repeat.
+  auto system = [&](int kind, double A[6][6], double y[6]) {
+    double B[8][6];
+    for (auto& row : B)
+      for (double& v : row) v = u(rng);
+    if (kind == 1)
+      for (auto& row : B) row[5] = row[4];  // singular
+    if (kind == 2)
+      for (auto& row : B) row[3] = 1e-7 * row[3];  // badly scaled
+    for (int i = 0; i < 6; ++i)
+      for (int j = 0; j < 6; ++j) {
+        double s = 0;
+        for (const auto& row : B) s += row[i] * row[j];
+        A[i][j] = i <= j ? s : 0.0;  // upper triangle only
+      }
+    for (int i = 0; i < 6; ++i) y[i] = u(rng);
+  };
+  int solved = 0, refused = 0;
+  for (int trial = 0; trial < 3000; ++trial) {
+    double A0[6][6], A1[6][6], y0[6], y1[6];
+    system(trial % 3, A0, y0);
+    system((trial / 3) % 3, A1, y1);
+    double s0[6], s1[6], p0[6], p1[6];
+    const bool ok0 = rg::detail::SolveSpd6(A0, y0, s0), ok1 = rg::detail::SolveSpd6(A1, y1, s1);
+    bool ok[2];
+    rg::detail::SolveSpd6Pair(A0, y0, A1, y1, p0, p1, ok);
+    ASSERT_EQ(ok[0], ok0) << trial;
+    ASSERT_EQ(ok[1], ok1) << trial;
+    if (ok0) {
+      ASSERT_EQ(std::memcmp(s0, p0, sizeof s0), 0) << trial;
+    }
+    if (ok1) {
+      ASSERT_EQ(std::memcmp(s1, p1, sizeof s1), 0) << trial;
+    }
+    solved += ok0 + ok1;
+    refused += !ok0 + !ok1;
+  }
+  EXPECT_GT(solved, 2000);
+  EXPECT_GT(refused, 1000);  // the singular systems
+}
