@@ -13,6 +13,7 @@
 
 #include "furnihost/voxel_index.hpp"
 #include "parallel/tbb_for.hpp"
+#include "simd/left_pack.hpp"
 
 namespace furnihost::parts {
 
@@ -119,6 +120,7 @@ float BoundaryRatio(const Points& q, const Points& normals, const Eigen::Vector3
     slot_normal[s] = n.normalized();
   }
   std::atomic<int> boundary{0};
+  const bool avx2 = simd::UseAvx2();
   tbb::parallel_for(tbb::blocked_range<int>(0, grid.NumCells(), 32), [&](const tbb::blocked_range<int>& range) {
     std::vector<Dir> dirs;
     std::vector<float> pa, pb, keys;
@@ -175,19 +177,15 @@ float BoundaryRatio(const Points& q, const Points& normals, const Eigen::Vector3
         const Eigen::Vector3f v = n.cross(u);
         const float px = grid.x[s], py = grid.y[s], pz = grid.z[s];
         const float min_len2 = 1e-10f * r2;
-        // Projections of the neighbours on the tangent plane, compacted without branches.
-        pa.resize(m), pb.resize(m);
+        // Projections of the neighbours on the tangent plane, compacted without branches:
+        // within r, and not the point itself nor straight above it.
+        if (pa.size() < size_t(m) + simd::kAppendSlack) pa.resize(size_t(m) + simd::kAppendSlack), pb.resize(pa.size());
         int cnt = 0;
         const float *gx = grid.x.data(), *gy = grid.y.data(), *gz = grid.z.data();
+        const float ua[3] = {u.x(), u.y(), u.z()}, va[3] = {v.x(), v.y(), v.z()};
         auto project = [&](int j_begin, int j_end) {
-          for (int j = j_begin; j < j_end; ++j) {
-            const float dx = gx[j] - px, dy = gy[j] - py, dz = gz[j] - pz;
-            const float a = u.x() * dx + u.y() * dy + u.z() * dz;
-            const float b = v.x() * dx + v.y() * dy + v.z() * dz;
-            pa[cnt] = a, pb[cnt] = b;
-            // Within r, and not the point itself nor straight above it.
-            cnt += (dx * dx + dy * dy + dz * dz < r2) & (a * a + b * b > min_len2);
-          }
+          cnt = simd::AppendTangentWithin(avx2, gx, gy, gz, j_begin, j_end, px, py, pz, ua, va, r2, min_len2, pa.data(),
+                                          pb.data(), cnt);
         };
         if (wide) {
           // Neighbours in all eight 45 deg sectors leave no gap above 90 deg whatever the

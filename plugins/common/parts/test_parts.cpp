@@ -6,10 +6,12 @@
 
 #include <gtest/gtest.h>
 
+#include <cstring>
 #include <random>
 
 #include "furnihost/error.hpp"
 #include "parts/part_features_schema.hpp"
+#include "simd/left_pack.hpp"
 
 namespace furnihost::parts {
 namespace {
@@ -66,6 +68,45 @@ TEST(PartFeatures, DeterministicAcrossRuns) {
   RandomParts(4, scan, seg);
   const PartFeatureOptions o;
   EXPECT_TRUE(ComputePaper24(scan, seg, o).values == ComputePaper24(scan, seg, o).values);
+}
+
+// The boundary test gathers its neighbours 8 at a time where the CPU has AVX2: the features
+// must be the scalar loop's bit for bit, for wide (>= 90 deg) and narrow gap thresholds. Flat
+// noisy discs of several densities and tilts, so the boundary ratio takes many values.
+TEST(PartFeatures, AvxBoundaryTestGivesTheScalarFeatures) {
+  if (!__builtin_cpu_supports("avx2")) GTEST_SKIP() << "no AVX2 on this CPU";
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<float> u(0.f, 1.f);
+  std::normal_distribution<float> g(0.f, 1.f);
+  Scan scan;
+  Segmentation seg;
+  for (int k = 0; k < 12; ++k) {
+    const Eigen::Vector3f n = Eigen::Vector3f(g(rng), g(rng), g(rng)).normalized();
+    const Eigen::Vector3f a = n.unitOrthogonal(), b = n.cross(a);
+    const float radius = 0.1f + 0.3f * u(rng), density = 500.f + 8000.f * u(rng);
+    const int m = int(3.14159f * radius * radius * density);
+    Part part;
+    for (int i = 0; i < m; ++i) {
+      const float r = radius * std::sqrt(u(rng)), t = 6.2831853f * u(rng);
+      part.indices.push_back(int(scan.points.size()));
+      scan.points.push_back(Eigen::Vector3f(3.f * k, 0, 0) + r * std::cos(t) * a + r * std::sin(t) * b + 0.002f * g(rng) * n);
+      seg.normals.push_back((n + 0.05f * Eigen::Vector3f(g(rng), g(rng), g(rng))).normalized());
+      seg.curvature.push_back(0.01f);
+    }
+    seg.parts.push_back(part);
+  }
+  for (double angle : {90.0, 60.0}) {
+    PartFeatureOptions o;
+    o.boundary_angle_deg = angle;
+    simd::SetAvx2(false);
+    const FeatureMatrix a = ComputePaper24(scan, seg, o);
+    simd::SetAvx2(true);
+    const FeatureMatrix b = ComputePaper24(scan, seg, o);
+    ASSERT_EQ(a.values.size(), b.values.size());
+    EXPECT_EQ(std::memcmp(a.values.data(), b.values.data(), sizeof(float) * size_t(a.values.size())), 0) << angle;
+    // The boundary ratios differ from part to part (the test is not of all-0 or all-1 ratios).
+    EXPECT_GT(a.values.col(0).maxCoeff() - a.values.col(0).minCoeff(), 0.1f) << angle;
+  }
 }
 
 TEST(PartFeatures, DeclaredParametersResolveToTheDefaults) {

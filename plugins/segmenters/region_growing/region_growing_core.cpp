@@ -20,6 +20,7 @@
 #include "furnihost/log.hpp"
 #include "furnihost/voxel_index.hpp"
 #include "parallel/tbb_for.hpp"
+#include "simd/left_pack.hpp"
 
 namespace furnihost::rg {
 
@@ -68,8 +69,11 @@ struct Neighbours {
   std::vector<float> scratch;  // FitPoint's work arrays
   int count = 0;
   void reserve(int m) {
-    // 3 more for FitPoint's padding to a multiple of 4.
-    if (int(x.size()) < m + 3) x.resize(m + 3), y.resize(m + 3), z.resize(m + 3), d2.resize(m + 3), mult.resize(m + 3);
+    // Room past the neighbours for FitPoint's padding to a multiple of 4 (3) and the appends'
+    // writes past the last kept candidate (simd::kAppendSlack).
+    constexpr int kMore = std::max(3, simd::kAppendSlack);
+    if (int(x.size()) < m + kMore)
+      x.resize(m + kMore), y.resize(m + kMore), z.resize(m + kMore), d2.resize(m + kMore), mult.resize(m + kMore);
   }
   int size() const { return count; }
 };
@@ -459,6 +463,7 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
 
   const std::vector<float> cell_box = CellBoxes(grid);
   const float r2 = r * r;
+  const bool avx2 = simd::UseAvx2();
   tbb::parallel_for(tbb::blocked_range<int>(0, cells, 16), [&](const tbb::blocked_range<int>& range) {
     Neighbours nb;
     std::vector<float> cx, cy, cz, cw;
@@ -588,12 +593,8 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
         const float *gx = grid.x.data(), *gy = grid.y.data(), *gz = grid.z.data();
         for (size_t k = 0; k < run_b.size(); ++k) {
           if (Far(run_box, int(k), p, r2)) continue;
-          for (int j = run_b[k]; j < run_e[k]; ++j) {
-            const float dx = (gx[j] - p.x()) * inv_r, dy = (gy[j] - p.y()) * inv_r, dz = (gz[j] - p.z()) * inv_r;
-            const float d2 = dx * dx + dy * dy + dz * dz;
-            nx[cnt] = dx, ny[cnt] = dy, nz[cnt] = dz, nd[cnt] = d2;
-            cnt += d2 < 1.f;
-          }
+          cnt = simd::AppendScaledWithin(avx2, gx, gy, gz, run_b[k], run_e[k], p.x(), p.y(), p.z(), inv_r, nx, ny, nz, nd,
+                                         cnt);
         }
         nb.count = cnt;
         fit_exact(s);
@@ -730,6 +731,7 @@ bool BuildNeighbourLists(const VoxelIndex& grid, float delta2, int max_per_point
   const int chunks = (cells + kChunk - 1) / kChunk;
   std::vector<std::vector<uint32_t>> lists(static_cast<size_t>(chunks));
   out.start.assign(n + 1, 0);
+  const bool avx2 = simd::UseAvx2();
   tbb::parallel_for(tbb::blocked_range<int>(0, chunks, 1), [&](const tbb::blocked_range<int>& range) {
     std::vector<int> run_b, run_e;
     for (int ch = range.begin(); ch != range.end(); ++ch) {
@@ -739,16 +741,14 @@ bool BuildNeighbourLists(const VoxelIndex& grid, float delta2, int max_per_point
         // The 27 cells as up to 9 runs of contiguous slots.
         const int cands = grid.NeighbourSlotRuns(c, run_b, run_e);
         for (int s = grid.cell_start[c]; s < grid.cell_start[c + 1]; ++s) {
-          if (list.size() < used + size_t(cands)) list.resize(std::max(2 * list.size(), used + size_t(cands)));
+          const size_t room = used + size_t(cands) + simd::kAppendSlack;
+          if (list.size() < room) list.resize(std::max(2 * list.size(), room));
           uint32_t* w = list.data() + used;
           int cnt = 0;
           const float px = grid.x[s], py = grid.y[s], pz = grid.z[s];
           for (size_t r = 0; r < run_b.size(); ++r)
-            for (int q = run_b[r]; q < run_e[r]; ++q) {
-              const float dx = grid.x[q] - px, dy = grid.y[q] - py, dz = grid.z[q] - pz;
-              w[cnt] = uint32_t(q);  // branch-free: written always, kept when near
-              cnt += int((dx * dx + dy * dy + dz * dz < delta2) & (q != s));
-            }
+            cnt = simd::AppendSlotsWithin(avx2, grid.x.data(), grid.y.data(), grid.z.data(), run_b[r], run_e[r], px, py,
+                                          pz, delta2, s, w, cnt);
           used += size_t(cnt);
           out.start[size_t(s) + 1] = uint32_t(cnt);
         }

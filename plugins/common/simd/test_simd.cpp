@@ -1,0 +1,118 @@
+// simd/left_pack.hpp: the AVX2 appends keep the scalar loops' values, order and count bit for
+// bit, on random clouds with copies, NaN coordinates and every tail length.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <random>
+#include <vector>
+
+#include "simd/left_pack.hpp"
+
+namespace {
+
+namespace simd = furnihost::simd;
+
+struct Cloud {
+  std::vector<float> x, y, z;
+};
+
+// n points in a 10 cm cube, a quarter of them copies of earlier ones, a few NaN.
+Cloud RandomCloud(int n, std::mt19937& rng) {
+  std::uniform_real_distribution<float> u(-0.05f, 0.05f);
+  Cloud c;
+  for (int i = 0; i < n; ++i) {
+    float px = u(rng), py = u(rng), pz = u(rng);
+    if (i > 0 && rng() % 4 == 0) {
+      const int k = int(rng() % unsigned(i));
+      px = c.x[k], py = c.y[k], pz = c.z[k];
+    }
+    if (rng() % 50 == 0) px = std::numeric_limits<float>::quiet_NaN();
+    c.x.push_back(px), c.y.push_back(py), c.z.push_back(pz);
+  }
+  return c;
+}
+
+bool SameBits(const float* a, const float* b, int n) { return std::memcmp(a, b, sizeof(float) * size_t(n)) == 0; }
+
+class LeftPack : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (!__builtin_cpu_supports("avx2")) GTEST_SKIP() << "no AVX2 on this CPU: only the scalar loops run";
+  }
+  void TearDown() override { simd::SetAvx2(true); }
+};
+
+TEST_F(LeftPack, ScaledOffsetsAreTheScalarLoops) {
+  std::mt19937 rng(1);
+  const Cloud c = RandomCloud(200, rng);
+  int kept = 0, calls = 0;
+  for (int b = 0; b < 60; b += 3)
+    for (int e = b; e <= b + 41; ++e) {
+      const int q = int(rng() % 200);
+      const float inv_r = 1.f / 0.03f;
+      std::vector<float> s[4], v[4];
+      for (auto& a : s) a.assign(64, -1.f);
+      for (auto& a : v) a.assign(64, -2.f);
+      const int ns = simd::AppendScaledWithin(false, c.x.data(), c.y.data(), c.z.data(), b, e, c.x[q], c.y[q], c.z[q],
+                                              inv_r, s[0].data(), s[1].data(), s[2].data(), s[3].data(), 3);
+      const int nv = simd::AppendScaledWithin(true, c.x.data(), c.y.data(), c.z.data(), b, e, c.x[q], c.y[q], c.z[q],
+                                              inv_r, v[0].data(), v[1].data(), v[2].data(), v[3].data(), 3);
+      ASSERT_EQ(ns, nv) << b << " " << e;
+      for (int a = 0; a < 4; ++a) ASSERT_TRUE(SameBits(s[a].data() + 3, v[a].data() + 3, ns - 3)) << b << " " << e;
+      kept += ns - 3, ++calls;
+    }
+  EXPECT_GT(kept, calls);  // neighbours were found, not only rejected
+}
+
+TEST_F(LeftPack, SlotListsAreTheScalarLoops) {
+  std::mt19937 rng(2);
+  const Cloud c = RandomCloud(200, rng);
+  int kept = 0;
+  for (int b = 0; b < 60; b += 3)
+    for (int e = b; e <= b + 41; ++e) {
+      const int self = b + int(rng() % unsigned(e - b + 1));  // inside the range or just past it
+      const float r2 = 0.04f * 0.04f;
+      std::vector<uint32_t> s(64, 7u), v(64, 9u);
+      const int ns = simd::AppendSlotsWithin(false, c.x.data(), c.y.data(), c.z.data(), b, e, c.x[self], c.y[self],
+                                             c.z[self], r2, self, s.data(), 0);
+      const int nv = simd::AppendSlotsWithin(true, c.x.data(), c.y.data(), c.z.data(), b, e, c.x[self], c.y[self],
+                                             c.z[self], r2, self, v.data(), 0);
+      ASSERT_EQ(ns, nv) << b << " " << e;
+      ASSERT_EQ(std::memcmp(s.data(), v.data(), sizeof(uint32_t) * size_t(ns)), 0) << b << " " << e;
+      for (int k = 0; k < ns; ++k) ASSERT_NE(int(s[k]), self);
+      kept += ns;
+    }
+  EXPECT_GT(kept, 1000);
+}
+
+TEST_F(LeftPack, TangentCoordinatesAreTheScalarLoops) {
+  std::mt19937 rng(3);
+  const Cloud c = RandomCloud(200, rng);
+  const float u[3] = {0.6f, 0.8f, 0.f}, v[3] = {0.f, 0.f, 1.f};
+  int kept = 0;
+  for (int b = 0; b < 60; b += 3)
+    for (int e = b; e <= b + 41; ++e) {
+      const int q = int(rng() % 200);
+      std::vector<float> sa(64, 1.f), sb(64, 1.f), va(64, 2.f), vb(64, 2.f);
+      const int ns = simd::AppendTangentWithin(false, c.x.data(), c.y.data(), c.z.data(), b, e, c.x[q], c.y[q], c.z[q],
+                                               u, v, 0.03f * 0.03f, 1e-10f, sa.data(), sb.data(), 0);
+      const int nv = simd::AppendTangentWithin(true, c.x.data(), c.y.data(), c.z.data(), b, e, c.x[q], c.y[q], c.z[q],
+                                               u, v, 0.03f * 0.03f, 1e-10f, va.data(), vb.data(), 0);
+      ASSERT_EQ(ns, nv) << b << " " << e;
+      ASSERT_TRUE(SameBits(sa.data(), va.data(), ns)) << b << " " << e;
+      ASSERT_TRUE(SameBits(sb.data(), vb.data(), ns)) << b << " " << e;
+      kept += ns;
+    }
+  EXPECT_GT(kept, 500);
+}
+
+TEST_F(LeftPack, SwitchedOffMeansScalar) {
+  simd::SetAvx2(false);
+  EXPECT_FALSE(simd::UseAvx2());
+  simd::SetAvx2(true);
+  EXPECT_TRUE(simd::UseAvx2());
+}
+
+}  // namespace
