@@ -204,7 +204,7 @@ struct LocalFit {
 // (SolveSpd6Pair): FitSystem up to the normal equations (false: nothing to solve, the fit is
 // final), FitFinish from their solution.
 struct NormalEquations {
-  double A[6][6], y[6];
+  double A[6][6], y[6];  // A: upper triangle only
 };
 template <bool kCentroids>
 bool FitSystem(Neighbours& nb, int min_fit, LocalFit& fit, float& curvature, NormalEquations& eq) {
@@ -289,12 +289,16 @@ bool FitSystem(Neighbours& nb, int min_fit, LocalFit& fit, float& curvature, Nor
   const double M00 = Sum4(m00), M10 = Sum4(m10), M01 = Sum4(m01), M20 = Sum4(m20), M11 = Sum4(m11),
                M02 = Sum4(m02), M30 = Sum4(m30), M21 = Sum4(m21), M12 = Sum4(m12), M03 = Sum4(m03),
                M40 = Sum4(m40), M31 = Sum4(m31), M22 = Sum4(m22), M13 = Sum4(m13), M04 = Sum4(m04);
-  // Rows and columns: 1, u, v, uv, u^2, v^2.
-  const double A[6][6] = {{M00, M10, M01, M11, M20, M02}, {0, M20, M11, M21, M30, M12}, {0, 0, M02, M12, M21, M03},
-                          {0, 0, 0, M22, M31, M13}, {0, 0, 0, 0, M40, M22}, {0, 0, 0, 0, 0, M04}};
-  const double y[6] = {Sum4(h00), Sum4(h10), Sum4(h01), Sum4(h11), Sum4(h20), Sum4(h02)};
-  std::memcpy(eq.A, A, sizeof A);
-  std::memcpy(eq.y, y, sizeof y);
+  // Rows and columns: 1, u, v, uv, u^2, v^2; the upper triangle (all the solves read).
+  double(*A)[6] = eq.A;
+  A[0][0] = M00, A[0][1] = M10, A[0][2] = M01, A[0][3] = M11, A[0][4] = M20, A[0][5] = M02;
+  A[1][1] = M20, A[1][2] = M11, A[1][3] = M21, A[1][4] = M30, A[1][5] = M12;
+  A[2][2] = M02, A[2][3] = M12, A[2][4] = M21, A[2][5] = M03;
+  A[3][3] = M22, A[3][4] = M31, A[3][5] = M13;
+  A[4][4] = M40, A[4][5] = M22;
+  A[5][5] = M04;
+  double* y = eq.y;
+  y[0] = Sum4(h00), y[1] = Sum4(h10), y[2] = Sum4(h01), y[3] = Sum4(h11), y[4] = Sum4(h20), y[5] = Sum4(h02);
   // Kept aside until FitFinish: NormalAt reads them only when `poly`.
   fit.U = U, fit.V = V, fit.o = o;
   return true;
@@ -506,8 +510,9 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
         curvature[i] = curv;
       }
     };
-    // Exact fits in pairs: a point's fit waits, half done (FitSystem), for the next point's,
-    // and the two systems are solved together (SolveSpd6Pair). The same normals as FitPoint.
+    // Exact fits in pairs: a point's fit waits, half done (FitSystem), for the next point's
+    // (in this cell or a later one of the range), and the two systems are solved together
+    // (SolveSpd6Pair). The same normals as FitPoint.
     struct Pending {
       LocalFit f;
       float curv;
@@ -599,7 +604,6 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
         nb.count = cnt;
         fit_exact(s);
       }
-      flush();
     };
     for (int c = range.begin(); c != range.end(); ++c) {
       if (!dense[c]) {
@@ -661,6 +665,7 @@ void NormalsLocal(const LocalCloud& lc, const Eigen::Vector3f& view_local, const
         fit(std::false_type(), query[size_t(v)], members.data() + start[v], members.data() + start[v + 1]);
       }
     }
+    flush();  // the last point's fit, if it waits for a pair
   });
 }
 
@@ -991,16 +996,19 @@ Segmentation Segment(const Scan& scan, const RegionGrowingOptions& o, SegmentTim
   std::vector<int> joined_in(by_sub ? subs : 0, -1);  // the region a sub-cell last joined
   // The same from the neighbour lists (sparse scans): a member's free neighbours are read
   // from its list. The same parts: a part is the seed's connected component of admitted points.
+  // (Raw pointers: through the vectors, each push_back would make the compiler reload them.)
   auto grow_listed = [&](uint32_t seed, int id, auto&& admit) {
+    int* const lab = label.data();
+    const uint32_t *const start = lists.start.data(), *const nbs = lists.nb.data();
     const size_t begin = members.size();
-    label[seed] = id;
+    lab[seed] = id;
     members.push_back(seed);
     for (size_t head = begin; head < members.size(); ++head) {
       const uint32_t p = members[head];
-      for (uint32_t j = lists.start[p]; j < lists.start[size_t(p) + 1]; ++j) {
-        const uint32_t q = lists.nb[j];
-        if (label[q] != -1 || !admit(q)) continue;
-        label[q] = id;
+      for (uint32_t j = start[p], e = start[size_t(p) + 1]; j < e; ++j) {
+        const uint32_t q = nbs[j];
+        if (lab[q] != -1 || !admit(q)) continue;
+        lab[q] = id;
         members.push_back(q);
       }
     }
@@ -1070,9 +1078,10 @@ Segmentation Segment(const Scan& scan, const RegionGrowingOptions& o, SegmentTim
     if (label[seed] != -1) continue;
     const float sx = nx[seed], sy = ny[seed], sz = nz[seed];
     const bool seed_ok = std::isfinite(sx);
-    grow(seed, parts, [&](int q) {
+    const float *const fx = nx.data(), *const fy = ny.data(), *const fz = nz.data();
+    grow(seed, parts, [=](int q) {  // by value: kept in registers
       if (!seed_ok) return false;
-      const float d = nx[q] * sx + ny[q] * sy + nz[q] * sz;  // NaN normals compare false
+      const float d = fx[q] * sx + fy[q] * sy + fz[q] * sz;  // NaN normals compare false
       return signed_normals ? d >= cos_a : std::fabs(d) >= cos_a;
     });
     part_begin.push_back(members.size());
