@@ -829,41 +829,48 @@ Segmentation Segment(const Scan& scan, const RegionGrowingOptions& o, SegmentTim
                          grid.Build(lc.pts, delta, VoxelIndex::Anchor::kBoundingBox, TbbFor());
                          by_sub = CountSubCells(grid, o.growth_by_sub_cells, half_of, sub_first);
                        });
-  if (!by_sub) listed = BuildNeighbourLists(grid, delta2, o.max_list_candidates, lists);
-  const double normals_ms = watch.Ms();
-
+  // The growth's neighbour lists need only its grid; the normals in scan order, the normals by
+  // slot and the seed order need only the normals: side by side.
   Segmentation seg;
-  seg.normals.assign(scan.points.size(), Eigen::Vector3f::Constant(kNaN));
-  seg.curvature.assign(scan.points.size(), kNaN);
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 16384), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t k = r.begin(); k != r.end(); ++k) {
-      seg.normals[lc.input[k]] = normals_local[k];
-      seg.curvature[lc.input[k]] = curv_local[k];
-    }
-  });
+  std::vector<float> nx, ny, nz;
+  std::vector<uint32_t> seeds;
+  tbb::parallel_invoke(
+      [&] {
+        if (!by_sub) listed = BuildNeighbourLists(grid, delta2, o.max_list_candidates, lists);
+      },
+      [&] {
+        seg.normals.assign(scan.points.size(), Eigen::Vector3f::Constant(kNaN));
+        seg.curvature.assign(scan.points.size(), kNaN);
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 16384), [&](const tbb::blocked_range<size_t>& r) {
+          for (size_t k = r.begin(); k != r.end(); ++k) {
+            seg.normals[lc.input[k]] = normals_local[k];
+            seg.curvature[lc.input[k]] = curv_local[k];
+          }
+        });
+        nx.resize(n), ny.resize(n), nz.resize(n);
+        std::vector<uint64_t> seed_key(n);
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 16384), [&](const tbb::blocked_range<size_t>& r) {
+          for (size_t s = r.begin(); s != r.end(); ++s) {
+            const uint32_t i = grid.order[s];
+            nx[s] = normals_local[i].x();
+            ny[s] = normals_local[i].y();
+            nz[s] = normals_local[i].z();
+            // Non-negative floats order like their bit patterns; NaN curvature seeds last.
+            const float c = curv_local[i];
+            uint32_t bits = 0xffffffffu;
+            if (std::isfinite(c)) {
+              const float cc = std::max(0.f, c);
+              std::memcpy(&bits, &cc, 4);
+            }
+            seed_key[s] = bits;
+          }
+        });
+        // Seeds by increasing curvature; ties keep slot order, so deterministic.
+        seeds = SortedByKey(seed_key, 32, TbbFor());
+      });
+  const double normals_ms = watch.Ms();
   seg.discarded_points = int(scan.points.size() - n);  // non-finite points never join a part
   if (n == 0) return seg;
-
-  std::vector<float> nx(n), ny(n), nz(n);
-  std::vector<uint64_t> seed_key(n);
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 16384), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t s = r.begin(); s != r.end(); ++s) {
-      const uint32_t i = grid.order[s];
-      nx[s] = normals_local[i].x();
-      ny[s] = normals_local[i].y();
-      nz[s] = normals_local[i].z();
-      // Non-negative floats order like their bit patterns; NaN curvature seeds last.
-      const float c = curv_local[i];
-      uint32_t bits = 0xffffffffu;
-      if (std::isfinite(c)) {
-        const float cc = std::max(0.f, c);
-        std::memcpy(&bits, &cc, 4);
-      }
-      seed_key[s] = bits;
-    }
-  });
-  // Seeds by increasing curvature; ties keep slot order, so deterministic.
-  const std::vector<uint32_t> seeds = SortedByKey(seed_key, 32, TbbFor());
 
   const float cos_a = float(std::cos(o.angle_deg * M_PI / 180.0));
   const bool signed_normals = o.signed_normals;

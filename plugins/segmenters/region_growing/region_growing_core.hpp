@@ -66,7 +66,8 @@ NormalResult EstimateNormals(const Points& points, const std::optional<Eigen::Ve
                              const RegionGrowingOptions& o);
 
 // Wall-clock timings of one Segment call [ms], for the benchmark and debug logs. normals_ms
-// includes the growing's grid, built concurrently with the normals, and the neighbour lists.
+// includes the growing's grid, built concurrently with the normals, and the neighbour lists,
+// built concurrently with the seed order; growing_ms is the growth itself.
 struct SegmentTimings {
   double normals_ms = 0, growing_ms = 0;
   const char* growth = "";  // how the parts grew: "sub-cells" (dense), "lists" or "cells" (sparse)
