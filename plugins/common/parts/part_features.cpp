@@ -226,8 +226,18 @@ double VoxelVolume(const Points& q, double voxel) {
     for (int a = 0; a < 3; ++a) k = (k << 21) | std::min<uint64_t>((1u << 21) - 1, uint64_t(double(q[i][a] - lo[a]) * inv));
     keys[i] = k;
   }
-  std::sort(keys.begin(), keys.end());
-  const size_t occupied = size_t(std::unique(keys.begin(), keys.end()) - keys.begin());
+  // Distinct keys counted in an open-addressing table of at least twice as many slots (keys
+  // are below 2^63, so all ones marks an empty slot): linear where a sort was n log n.
+  int bits = 4;
+  while ((size_t(1) << bits) < 2 * keys.size()) ++bits;
+  const size_t slots = size_t(1) << bits;
+  std::vector<uint64_t> table(slots, ~uint64_t(0));
+  size_t occupied = 0;
+  for (const uint64_t k : keys) {
+    size_t h = size_t((k * 0x9E3779B97F4A7C15ull) >> (64 - bits));  // Fibonacci hashing: the top bits
+    while (table[h] != ~uint64_t(0) && table[h] != k) h = (h + 1) & (slots - 1);
+    if (table[h] == ~uint64_t(0)) table[h] = k, ++occupied;
+  }
   return double(occupied) * voxel * voxel * voxel;
 }
 
