@@ -11,7 +11,8 @@
 # --quick: the 0.1M and 0.5M rooms and ScanNet only (~1 min once built). Full run: ~5 min on
 # 2 cores once built. Each measurement is one run (the 1.5M room costs about a minute per
 # pipeline); REPEATS=N makes it N detection runs per scan (the fastest is reported) and N
-# benchmark iterations (mean). The model is trained once and cached, not timed.
+# benchmark iterations (the fastest is reported; below 0.5M points at least 10 of ours and 3 of
+# each PCL peer, after one untimed run each). The model is trained once and cached, not timed.
 # MAX_NORMAL_POINTS=K sets segmenters.region_growing's max_normal_points (detection and
 # benchmark); the detection then retrains the model and overwrites the cached one (the next
 # run without it retrains again).
