@@ -172,7 +172,7 @@ def main():
         md += route_table(route)
     md += ["", "## Segmentation (+ features) against PCL on the same clouds, one process (2 threads)", ""]
     md += seg_table(seg) if seg["rows"] else ["(no segmentation rows)"]
-    md += ["", "× ours = PCL time / our time (higher: ours faster). PCL RegionGrowing is single-threaded;",
+    md += ["", "Each contender's fastest timed run. × ours = PCL time / our time (higher: ours faster). PCL RegionGrowing is single-threaded;",
            "its normals (MLS order 2 / NormalEstimationOMP) use 2 threads. Radii: configs/paper.json."]
     text = "\n".join(md) + "\n"
     print(text)
