@@ -77,6 +77,19 @@ inline constexpr PackTable kPack{};
 [[gnu::target("avx2")]] inline void Store8(float* out, __m256 v, __m256i perm) {
   _mm256_storeu_ps(out, _mm256_permutevar8x32_ps(v, perm));
 }
+// The offsets q - p of the slots j.. (up to `left` of them), per axis.
+struct Offsets8 {
+  __m256 x, y, z;
+};
+[[gnu::target("avx2")]] inline Offsets8 Offsets(const float* x, const float* y, const float* z, int j, int left,
+                                                __m256 px, __m256 py, __m256 pz) {
+  return {_mm256_sub_ps(Load8(x + j, left), px), _mm256_sub_ps(Load8(y + j, left), py),
+          _mm256_sub_ps(Load8(z + j, left), pz)};
+}
+// a.x b.x + a.y b.y + a.z b.z, summed left to right as the scalar loops do.
+[[gnu::target("avx2")]] inline __m256 Dot(__m256 ax, __m256 ay, __m256 az, __m256 bx, __m256 by, __m256 bz) {
+  return _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(ax, bx), _mm256_mul_ps(ay, by)), _mm256_mul_ps(az, bz));
+}
 
 [[gnu::target("avx2,popcnt")]] inline int AppendScaledWithinAvx2(const float* x, const float* y, const float* z, int b, int e,
                                                           float px, float py, float pz, float inv_r, float* ox,
@@ -85,11 +98,9 @@ inline constexpr PackTable kPack{};
   const __m256 IR = _mm256_set1_ps(inv_r), ONE = _mm256_set1_ps(1.f);
   for (int j = b; j < e; j += 8) {
     const int left = e - j;
-    const __m256 dx = _mm256_mul_ps(_mm256_sub_ps(Load8(x + j, left), PX), IR);
-    const __m256 dy = _mm256_mul_ps(_mm256_sub_ps(Load8(y + j, left), PY), IR);
-    const __m256 dz = _mm256_mul_ps(_mm256_sub_ps(Load8(z + j, left), PZ), IR);
-    const __m256 d2 =
-        _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy)), _mm256_mul_ps(dz, dz));
+    const Offsets8 d = Offsets(x, y, z, j, left, PX, PY, PZ);
+    const __m256 dx = _mm256_mul_ps(d.x, IR), dy = _mm256_mul_ps(d.y, IR), dz = _mm256_mul_ps(d.z, IR);
+    const __m256 d2 = Dot(dx, dy, dz, dx, dy, dz);
     const int m = _mm256_movemask_ps(_mm256_cmp_ps(d2, ONE, _CMP_LT_OQ)) & LaneBits(left);
     const __m256i perm = _mm256_load_si256(reinterpret_cast<const __m256i*>(kPack.row[m]));
     Store8(ox + cnt, dx, perm), Store8(oy + cnt, dy, perm), Store8(oz + cnt, dz, perm), Store8(od + cnt, d2, perm);
@@ -105,11 +116,8 @@ inline constexpr PackTable kPack{};
   const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
   for (int j = b; j < e; j += 8) {
     const int left = e - j;
-    const __m256 dx = _mm256_sub_ps(Load8(x + j, left), PX);
-    const __m256 dy = _mm256_sub_ps(Load8(y + j, left), PY);
-    const __m256 dz = _mm256_sub_ps(Load8(z + j, left), PZ);
-    const __m256 d2 =
-        _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy)), _mm256_mul_ps(dz, dz));
+    const Offsets8 d = Offsets(x, y, z, j, left, PX, PY, PZ);
+    const __m256 d2 = Dot(d.x, d.y, d.z, d.x, d.y, d.z);
     int m = _mm256_movemask_ps(_mm256_cmp_ps(d2, R2, _CMP_LT_OQ)) & LaneBits(left);
     if (unsigned(self - j) < 8u) m &= ~(1 << (self - j));
     const __m256i perm = _mm256_load_si256(reinterpret_cast<const __m256i*>(kPack.row[m]));
@@ -130,15 +138,9 @@ inline constexpr PackTable kPack{};
   const __m256 ML = _mm256_set1_ps(min_len2);
   for (int j = b; j < e; j += 8) {
     const int left = e - j;
-    const __m256 dx = _mm256_sub_ps(Load8(x + j, left), PX);
-    const __m256 dy = _mm256_sub_ps(Load8(y + j, left), PY);
-    const __m256 dz = _mm256_sub_ps(Load8(z + j, left), PZ);
-    const __m256 a =
-        _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(UX, dx), _mm256_mul_ps(UY, dy)), _mm256_mul_ps(UZ, dz));
-    const __m256 bb =
-        _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(VX, dx), _mm256_mul_ps(VY, dy)), _mm256_mul_ps(VZ, dz));
-    const __m256 d2 =
-        _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy)), _mm256_mul_ps(dz, dz));
+    const Offsets8 d = Offsets(x, y, z, j, left, PX, PY, PZ);
+    const __m256 a = Dot(UX, UY, UZ, d.x, d.y, d.z), bb = Dot(VX, VY, VZ, d.x, d.y, d.z);
+    const __m256 d2 = Dot(d.x, d.y, d.z, d.x, d.y, d.z);
     const __m256 l2 = _mm256_add_ps(_mm256_mul_ps(a, a), _mm256_mul_ps(bb, bb));
     const __m256 keep = _mm256_and_ps(_mm256_cmp_ps(d2, R2, _CMP_LT_OQ), _mm256_cmp_ps(l2, ML, _CMP_GT_OQ));
     const int m = _mm256_movemask_ps(keep) & LaneBits(left);
