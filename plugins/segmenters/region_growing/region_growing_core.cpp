@@ -134,10 +134,11 @@ bool SolveSpd6(const double A[6][6], const double y[6], double c[6]) {
 }
 
 // Two systems at once, system l in lane l: SolveSpd6's operations lane by lane. IEEE addition,
-// multiplication, division and square root are correctly rounded, so each lane's c is SolveSpd6's
-// bit for bit (RegionGrowing.PairedSolvesAreTheSingleSolves); the two dependency chains run side by side (one solve is a chain of 6
-// square roots and divisions: latency, not work). ok[l]: SolveSpd6's answer for system l; a
-// failed lane runs on with NaNs and its c is not to be read.
+// multiplication, division and square root are correctly rounded, so each lane's c is
+// SolveSpd6's bit for bit (RegionGrowing.PairedSolvesAreTheSingleSolves); the two dependency
+// chains run side by side (one solve is a chain of 6 square roots and divisions: latency, not
+// work). ok[l]: SolveSpd6's answer for system l; a failed lane runs on with NaNs and its c is
+// not to be read.
 void SolveSpd6Pair(const double (*A0)[6], const double* y0, const double (*A1)[6], const double* y1, double c0[6],
                    double c1[6], bool ok[2]) {
   D2 L[6][6], inv[6];
