@@ -104,6 +104,43 @@ const ParamSpec* ParamSchema::Find(const std::string& name) const {
   return nullptr;
 }
 
+// Presets: a schema declaring a String "preset" and an Object "presets" ({name: {param: value}})
+// takes the named preset's values for every parameter `given` does not set ("none": no preset);
+// a given "presets" adds presets or redefines declared ones.
+// The preset's entries are validated below as if given, so a bad one names its parameter.
+namespace {
+nlohmann::json WithPreset(const ParamSchema& schema, const nlohmann::json& given, const std::string& prefix) {
+  nlohmann::json merged = given.is_object() ? given : nlohmann::json::object();
+  const ParamSpec* preset = schema.Find("preset");
+  const ParamSpec* presets = schema.Find("presets");
+  if (!preset || !presets || preset->type != ParamType::String || presets->type != ParamType::Object ||
+      !merged.contains("preset"))
+    return merged;
+  const nlohmann::json& name = merged.at("preset");
+  if (!name.is_string()) throw InputError(prefix + "preset: expected a preset's name, got " + Shown(name));
+  const std::string n = name.get<std::string>();
+  if (n == "none") return merged;
+  // The declared presets, and those the config adds or redefines.
+  nlohmann::json table = presets->default_value.is_object() ? presets->default_value : nlohmann::json::object();
+  if (merged.contains("presets")) {
+    const nlohmann::json& own = merged.at("presets");
+    if (!own.is_object()) throw InputError(prefix + "presets: expected an object of name: {parameter: value}, got " + Shown(own));
+    for (auto it = own.begin(); it != own.end(); ++it) table[it.key()] = it.value();
+  }
+  if (!table.contains(n) || !table.at(n).is_object()) {
+    std::string valid = "none";
+    for (auto it = table.begin(); it != table.end(); ++it) valid += ", " + it.key();
+    throw InputError(prefix + "preset: unknown preset \"" + n + "\"; valid: " + valid);
+  }
+  for (auto it = table.at(n).begin(); it != table.at(n).end(); ++it) {
+    if (!schema.Find(it.key()) || it.key() == "preset" || it.key() == "presets")
+      throw InputError(prefix + "presets/" + n + "/" + it.key() + ": not a parameter a preset can set");
+    if (!merged.contains(it.key())) merged[it.key()] = it.value();
+  }
+  return merged;
+}
+}  // namespace
+
 nlohmann::json ParamSchema::Resolve(const nlohmann::json& given, const std::string& where) const {
   const std::string prefix = where.empty() ? "" : where + "/";
   if (!given.is_null() && !given.is_object())
@@ -118,13 +155,14 @@ nlohmann::json ParamSchema::Resolve(const nlohmann::json& given, const std::stri
                        (valid.empty() ? "(none)" : valid));
     }
   }
+  const nlohmann::json merged = WithPreset(*this, given, prefix);
   for (const auto& s : specs_) {
     const std::string at = prefix + s.name;
-    if (!given.is_object() || !given.contains(s.name)) {
+    if (!merged.contains(s.name)) {
       out[s.name] = s.default_value;
       continue;
     }
-    const nlohmann::json& v = given.at(s.name);
+    const nlohmann::json& v = merged.at(s.name);
     switch (s.type) {
       case ParamType::Bool:
         if (!v.is_boolean()) throw InputError(at + ": expected true or false, got " + Shown(v));

@@ -31,6 +31,44 @@ std::string ErrorOf(const json& given) {
 
 }  // namespace
 
+// A "preset" string and a "presets" table: the preset's values fill what is not given, are
+// validated as if given, and a config's own "presets" entries add to the declared ones.
+TEST(Params, PresetsFillWhatIsNotGiven) {
+  const ParamSchema s = ParamSchema()
+                            .Number("range_m", 4, 0, 10, "range")
+                            .Int("views", 16, 1, 100, "views")
+                            .String("preset", "none", "preset")
+                            .Object("presets", json{{"far", {{"range_m", 8}, {"views", 4}}}}, "presets");
+  json r = s.Resolve({{"preset", "far"}, {"views", 2}}, "w");
+  EXPECT_EQ(r["range_m"], 8);
+  EXPECT_EQ(r["views"], 2);
+  EXPECT_EQ(s.Resolve(r, "w"), r);  // resolving again changes nothing
+  r = s.Resolve(json::object(), "w");
+  EXPECT_EQ(r["range_m"], 4);
+  EXPECT_EQ(s.Resolve({{"preset", "none"}}, "w")["views"], 16);
+  r = s.Resolve({{"preset", "near"}, {"presets", {{"near", {{"range_m", 1}}}}}}, "w");
+  EXPECT_EQ(r["range_m"], 1);
+  EXPECT_EQ(s.Resolve({{"preset", "far"}, {"presets", {{"near", {{"range_m", 1}}}}}}, "w")["range_m"], 8);
+  auto error = [&](const json& given) {
+    try {
+      s.Resolve(given, "g.json:/stages/sim/params");
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_EQ(error({{"preset", "close"}}), "g.json:/stages/sim/params/preset: unknown preset \"close\"; valid: none, far");
+  EXPECT_NE(error({{"preset", "x"}, {"presets", {{"x", {{"range_m", 20}}}}}}).find("/range_m: expected a number in [0, 10]"),
+            std::string::npos);
+  EXPECT_NE(error({{"preset", "x"}, {"presets", {{"x", {{"rnage_m", 2}}}}}}).find("/presets/x/rnage_m: not a parameter"),
+            std::string::npos);
+  EXPECT_NE(error({{"preset", "far"}, {"presets", 3}}).find("/presets: expected an object"), std::string::npos);
+  EXPECT_NE(error({{"preset", true}}).find("/preset: expected a preset's name"), std::string::npos);
+  // Without a "presets" table a "preset" parameter is an ordinary string.
+  const ParamSchema plain = ParamSchema().String("preset", "none", "p").Int("views", 16, 1, 100, "v");
+  EXPECT_EQ(plain.Resolve({{"preset", "far"}}, "w")["views"], 16);
+}
+
 TEST(Params, DefaultsAreFilled) {
   json r = Schema().Resolve(json::object(), "w");
   EXPECT_EQ(r["angle_deg"], 40);

@@ -74,6 +74,8 @@ class FURNIHOST_API ParamSchema {
   // `where` is a "file:/json/pointer" prefix used in error messages.
   // Throws InputError such as "x.json:/stages/seg/params/angle_deg: expected a number in
   // [0, 180], got \"forty\"". An empty `where` names the bare parameter ("angle_deg: ...").
+  // A schema with a String parameter "preset" and an Object "presets" ({name: {parameter:
+  // value}}) fills the parameters `given` leaves out from the preset `given` names first.
   nlohmann::json Resolve(const nlohmann::json& given, const std::string& where) const;
 
   nlohmann::json ToJson() const;

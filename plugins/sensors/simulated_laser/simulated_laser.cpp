@@ -1,6 +1,9 @@
 // sensors.simulated_laser — simulated range sensor (paper Sect. IV): Embree 3 ray casting
 // against placed catalog models (and optional room geometry), range-dependent Gaussian depth
-// noise, optional dropout and voxel downsampling.
+// noise, optional dropout and voxel downsampling; for training views that look like the scans
+// they are compared with, a depth camera's disparity quantisation and flying pixels, and a
+// reconstruction's holes and missing floor contacts, bundled as presets ("preset":
+// "room_reconstruction" | "depth_camera"; the parameters a config sets override its values).
 //
 // Frames and units: metres; world z up, floor at z = 0. A sensor pose maps sensor -> world,
 // sensor x forward, y left, z up. Scans are returned in the WORLD frame (Scan::pose = identity)
@@ -62,7 +65,39 @@ struct SimulatedLaserOptions {
   double noise_b = 0.0005;
   double dropout = 0.0;          // probability that a return is lost
   double voxel_m = 0.0;          // voxel-grid downsampling edge [m], 0 = off
+  // A depth camera's artefacts (pattern depth_camera).
+  double disparity_quantum = 0.0;  // 1/depth is quantised in steps of this [1/m] (0 = off)
+  double flying_pixels = 0.0;      // probability that a pixel at a depth edge returns a depth between
+  double edge_jump_m = 0.05;       // a depth edge: neighbouring pixels' ranges differ by more [m]
+  // A reconstruction's gaps.
+  double floor_gap_m = 0.0;        // the objects' returns this close above the floor (z = 0) are lost [m]
+  double holes = 0.0;              // share of the surface lost in patches of hole_size_m
+  double hole_size_m = 0.1;        // edge of the world-anchored cells a hole takes out [m]
+  std::string preset = "none";     // the preset whose values fill the parameters not given (Resolve)
 };
+
+// The presets' values (ParamSchema::Resolve applies them to the parameters a config leaves out).
+// room_reconstruction: what a hand-held RGB-D reconstruction such as ScanNet's holds: a walk
+//   around the object at hand height (8 casts of a wide pitched camera fused per view, so no
+//   undersides), 2 cm voxels (the rooms' 1.4-3.3 cm spacing), a fused surface's ~4 mm noise,
+//   floor contacts missing (3 cm) and a tenth of the surface lost in 10 cm holes.
+// depth_camera: a raw Kinect-v1-class frame: range noise 1.5 mm + 1.9 mm/m^2 (Nguyen et al. 2012,
+//   ~1.3 cm at 3 m), 1/8-pixel disparity steps (f 580 px, baseline 7.5 cm: 2.9 mm/m^2, 1.1 cm at
+//   2 m), flying pixels at half the depth edges, 2 % dropout; 320 x 240 px at a Kinect's field of
+//   view, from 1.3 m.
+nlohmann::json Presets() {
+  return {{"room_reconstruction",
+           {{"pattern", "depth_camera"}, {"width", 160}, {"height", 120}, {"focal_px", 131.25},
+            {"camera_min_range_m", 0.3}, {"camera_max_range_m", 4.0}, {"sensor_height_m", 1.3},
+            {"distance_m", 1.6}, {"views", 4}, {"fuse", 8}, {"noise_a", 0.004}, {"noise_b", 0.0},
+            {"dropout", 0.0}, {"voxel_m", 0.02}, {"floor_gap_m", 0.03}, {"holes", 0.1}, {"hole_size_m", 0.1}}},
+          {"depth_camera",
+           {{"pattern", "depth_camera"}, {"width", 320}, {"height", 240}, {"focal_px", 262.5},
+            {"camera_min_range_m", 0.45}, {"camera_max_range_m", 4.5}, {"sensor_height_m", 1.3},
+            {"distance_m", 2.0}, {"views", 16}, {"fuse", 1}, {"noise_a", 0.0015}, {"noise_b", 0.0019},
+            {"dropout", 0.02}, {"voxel_m", 0.0}, {"disparity_quantum", 0.00285}, {"flying_pixels", 0.5},
+            {"edge_jump_m", 0.05}}}};
+}
 
 // Each parameter declared once; its default is SimulatedLaserOptions{}'s.
 const ParamBinding<SimulatedLaserOptions>& Binding() {
@@ -106,7 +141,34 @@ const ParamBinding<SimulatedLaserOptions>& Binding() {
           .Number("voxel_m", &O::voxel_m, 0.0, 1.0, "",
                   "voxel-grid downsampling edge [m], grid anchored at the world origin; 0 = off. "
                   "Use the same value for the scans you detect in (density matching)")
+          .Number("disparity_quantum", &O::disparity_quantum, 0.0, 1.0, "1/m",
+                  "depth_camera: 1/depth is quantised in steps of this, so the depth steps grow with its square "
+                  "(Kinect v1: 0.00285, 1.1 cm at 2 m); 0 = off")
+          .Number("flying_pixels", &O::flying_pixels, 0.0, 1.0, "",
+                  "depth_camera: probability that a pixel at a depth edge (its right or lower neighbour's range "
+                  "differs by more than edge_jump_m) returns a depth between the two (mixed pixels)")
+          .Number("edge_jump_m", &O::edge_jump_m, 0.001, 100.0, "m", "depth_camera: the range step of a depth edge")
+          .Number("floor_gap_m", &O::floor_gap_m, 0.0, 1.0, "m",
+                  "returns of the objects less than this above the floor (z = 0) are lost: the floor contacts a "
+                  "room reconstruction misses")
+          .Number("holes", &O::holes, 0.0, 0.999, "",
+                  "share of the surface lost in holes: world-anchored cells of hole_size_m are dropped at random "
+                  "(a reconstruction's unscanned patches)")
+          .Number("hole_size_m", &O::hole_size_m, 0.005, 10.0, "m", "holes: edge of the cells a hole takes out")
+          .String("preset", &O::preset,
+                  "a named set of values for the parameters the config does not give: 'room_reconstruction' (a "
+                  "hand-held reconstruction: walk around the object, fused, 2 cm voxels, holes, no floor contacts), "
+                  "'depth_camera' (a raw Kinect-class frame: range noise, disparity steps, flying pixels, dropout) "
+                  "or 'none'; see presets")
+          .Object("presets", Presets(),
+                  "the presets' values by name; a config's own entries add presets or redefine these",
+                  [](O&, const nlohmann::json&) {})
           // Rules between fields (single-field ranges are enforced by the schema).
+          .Rule([](const O& o) {
+            return o.pattern == "depth_camera" || (o.disparity_quantum == 0.0 && o.flying_pixels == 0.0)
+                       ? ""
+                       : "disparity_quantum and flying_pixels model a depth camera: set pattern to depth_camera";
+          })
           .Rule([](const O& o) {
             return o.tilt_min_deg <= o.tilt_max_deg ? std::string()
                                                     : "tilt_min_deg (" + std::to_string(o.tilt_min_deg) +
@@ -409,6 +471,7 @@ class SimulatedLaser : public Sensor {
     Buffers buf;
     buf.points.resize(pat.dirs.size());
     buf.instance.resize(pat.dirs.size());
+    if (opt_.flying_pixels > 0.0) buf.range.resize(pat.dirs.size());
     for (size_t v = 0; v < poses.size(); ++v) {
       std::vector<Eigen::Isometry3f> casts{poses[v]};
       if (v < fused.size()) casts.insert(casts.end(), fused[v].begin(), fused[v].end());
@@ -429,6 +492,7 @@ class SimulatedLaser : public Sensor {
   struct Buffers {
     std::vector<Eigen::Vector3f> points;
     std::vector<int32_t> instance;  // -1 = no return
+    std::vector<float> range;       // of each return (flying pixels)
   };
 
   // One scan from the casts' union (origin: the first cast's), voxelised once.
@@ -441,6 +505,7 @@ class SimulatedLaser : public Sensor {
     for (size_t j = 0; j < casts.size(); ++j)
       // The first cast keeps the single-view noise stream (view), the others get their own.
       CastRays(scene, pat, casts[j], n_obj, seed, j == 0 ? view : view + 1000003 * j, buf, compact, labels);
+    if (opt_.holes > 0.0) PunchHoles(seed, view, compact, labels);
     if (opt_.voxel_m > 0.0) {
       // The host's own downsampling (sensors.scan_file uses it too): a training view and a
       // scene scan with the same voxel_m see the same world-anchored voxels. Each voxel's
@@ -458,6 +523,23 @@ class SimulatedLaser : public Sensor {
     return s;
   }
 
+  // Holes: each world-anchored cell of hole_size_m is lost with probability `holes`, drawn per
+  // view (a reconstruction's unscanned patches differ from one walk to the next).
+  void PunchHoles(uint64_t seed, size_t view, Points& pts, std::vector<int32_t>& labels) const {
+    const double cell = opt_.hole_size_m;
+    const uint64_t key = SplitMix(SplitMix(seed ^ 0x486f6c6573ull) ^ view);
+    size_t kept = 0;
+    for (size_t i = 0; i < pts.size(); ++i) {
+      uint64_t h = key;
+      for (int a = 0; a < 3; ++a) h = SplitMix(h ^ uint64_t(int64_t(std::floor(double(pts[i][a]) / cell))));
+      if (Unit(h) < opt_.holes) continue;
+      pts[kept] = pts[i];
+      labels[kept++] = labels[i];
+    }
+    pts.resize(kept);
+    labels.resize(kept);
+  }
+
   // Casts the pattern from `pose` and appends the returns (ray order) to compact / labels.
   void CastRays(RTCScene scene, const Pattern& pat, const Eigen::Isometry3f& pose, unsigned n_obj,
                 uint64_t seed, size_t view, Buffers& buf, Points& compact, std::vector<int32_t>& labels) const {
@@ -473,6 +555,8 @@ class SimulatedLaser : public Sensor {
     const float a = static_cast<float>(opt_.noise_a), b = static_cast<float>(opt_.noise_b);
     const bool noisy = a > 0.f || b > 0.f;
     const double dropout = opt_.dropout;
+    const double quantum = opt_.disparity_quantum;
+    const bool flying = opt_.flying_pixels > 0.0 && opt_.pattern == "depth_camera";
 
     const auto intersect16 = Embree().Intersect16;
     tbb::parallel_for(tbb::blocked_range<size_t>(0, n_packets, 32), [&](const tbb::blocked_range<size_t>& r) {
@@ -516,7 +600,15 @@ class SimulatedLaser : public Sensor {
             if (dropout > 0.0 && rng.Uniform() < dropout) continue;
             if (noisy) range += static_cast<float>((a + b * range * range) * rng.Gauss());
           }
+          if (quantum > 0.0 && range > 0.f) {
+            // The depth along the optical axis (sensor +x) from 1/depth rounded to the quantum.
+            const double cosine = pat.dirs[i].x();
+            const double steps = std::round(1.0 / (double(range) * cosine * quantum));
+            if (!(steps > 0.0)) continue;
+            range = static_cast<float>(1.0 / (steps * quantum * cosine));
+          }
           if (!(range > 0.f)) continue;
+          if (flying) buf.range[i] = range;
           pts[i] = org + range * dirs[k];
           const unsigned g = rh.hit.geomID[k];
           inst[i] = g < n_obj ? static_cast<int32_t>(g + 1) : 0;
@@ -524,6 +616,11 @@ class SimulatedLaser : public Sensor {
       }
     });
 
+    if (flying) FlyingPixels(pat, rot, org, seed, view, buf);
+    // Floor contacts: the objects' returns just above the floor are lost.
+    if (opt_.floor_gap_m > 0.0)
+      for (size_t i = 0; i < n; ++i)
+        if (inst[i] > 0 && pts[i].z() < static_cast<float>(opt_.floor_gap_m)) inst[i] = -1;
     size_t hits = 0;
     for (size_t i = 0; i < n; ++i) hits += inst[i] >= 0;
     compact.reserve(compact.size() + hits);
@@ -533,6 +630,35 @@ class SimulatedLaser : public Sensor {
         compact.push_back(pts[i]);
         labels.push_back(inst[i]);
       }
+  }
+
+  // Flying pixels: a camera pixel straddling a depth edge mixes the two surfaces' returns. With
+  // probability flying_pixels, a pixel whose right or lower neighbour's range differs by more
+  // than edge_jump_m takes a range drawn uniformly between its own and that neighbour's, along
+  // its own ray. Decided on the ranges before any pixel moves (row-major image, ray order).
+  void FlyingPixels(const Pattern& pat, const Eigen::Matrix3f& rot, const Eigen::Vector3f& org, uint64_t seed,
+                    size_t view, Buffers& buf) const {
+    const size_t w = size_t(opt_.width), h = size_t(opt_.height);
+    if (pat.dirs.size() != w * h) return;
+    const float jump = static_cast<float>(opt_.edge_jump_m);
+    std::vector<float> moved(buf.range.size(), -1.f);
+    tbb::parallel_for(size_t(0), h, [&](size_t y) {
+      for (size_t x = 0; x < w; ++x) {
+        const size_t i = y * w + x;
+        if (buf.instance[i] < 0) continue;
+        float other = -1.f;
+        if (x + 1 < w && buf.instance[i + 1] >= 0 && std::abs(buf.range[i + 1] - buf.range[i]) > jump)
+          other = buf.range[i + 1];
+        else if (y + 1 < h && buf.instance[i + w] >= 0 && std::abs(buf.range[i + w] - buf.range[i]) > jump)
+          other = buf.range[i + w];
+        if (other < 0.f) continue;
+        RayRng rng(seed, view ^ 0x466c79ull << 40, i);
+        if (rng.Uniform() >= opt_.flying_pixels) continue;
+        moved[i] = buf.range[i] + static_cast<float>(rng.Uniform()) * (other - buf.range[i]);
+      }
+    });
+    for (size_t i = 0; i < moved.size(); ++i)
+      if (moved[i] > 0.f) buf.points[i] = org + moved[i] * (rot * pat.dirs[i]);
   }
 
   SimulatedLaserOptions opt_;
@@ -550,6 +676,6 @@ class SimulatedLaser : public Sensor {
 
 }  // namespace furnihost::sensors
 
-FURNIHOST_PLUGIN(furnihost::sensors::SimulatedLaser, "sensors.simulated_laser", "1.1.0",
+FURNIHOST_PLUGIN(furnihost::sensors::SimulatedLaser, "sensors.simulated_laser", "1.2.0",
                  "simulated pan-tilt laser / depth camera: Embree ray casting of catalog models "
                  "with range noise (paper Sect. IV)")

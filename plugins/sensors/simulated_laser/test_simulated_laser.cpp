@@ -1,5 +1,7 @@
 // Tests of sensors.simulated_laser, created by type name through the registry.
 #include <cmath>
+#include <array>
+#include <map>
 #include <set>
 
 #include "furnihost/stage.hpp"
@@ -321,6 +323,188 @@ TEST(SimulatedLaser, RefusesFilesAndInconsistentParameters) {
   // Nothing to scan.
   SensorRequest empty;
   EXPECT_THROW(MakeSensor(json::object())->Acquire(empty, ctx), StageError);
+}
+
+
+// ---- presets and the scans' artefacts --------------------------------------------------------
+
+const ParamSchema& Schema() {
+  static auto reg = testing::MakeRegistry();
+  return reg->Find("sensors.simulated_laser")->params;
+}
+
+TEST(SimulatedLaser, PresetFillsOnlyWhatTheConfigLeavesOut) {
+  const json r = Schema().Resolve({{"preset", "room_reconstruction"}, {"voxel_m", 0.03}}, "g.json:/stages/sim/params");
+  EXPECT_EQ(r.at("pattern"), "depth_camera");
+  EXPECT_EQ(r.at("fuse"), 8);
+  EXPECT_DOUBLE_EQ(r.at("floor_gap_m").get<double>(), 0.03);
+  EXPECT_DOUBLE_EQ(r.at("voxel_m").get<double>(), 0.03);  // given: the preset's 0.02 does not apply
+  const json cam = Schema().Resolve({{"preset", "depth_camera"}}, "");
+  EXPECT_GT(cam.at("disparity_quantum").get<double>(), 0.0);
+  EXPECT_GT(cam.at("flying_pixels").get<double>(), 0.0);
+  // No preset: the declared defaults (the paper's laser).
+  const json none = Schema().Resolve({{"preset", "none"}}, "");
+  EXPECT_EQ(none.at("pattern"), "pan_tilt");
+  EXPECT_EQ(none.at("fuse"), 1);
+  // A config's own preset, and one of its values out of range: named.
+  const json own = Schema().Resolve({{"preset", "mine"}, {"presets", {{"mine", {{"views", 3}}}}}}, "");
+  EXPECT_EQ(own.at("views"), 3);
+  try {
+    Schema().Resolve({{"preset", "kinect2"}}, "g.json:/stages/sim/params");
+    FAIL() << "an unknown preset was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("g.json:/stages/sim/params/preset: unknown preset \"kinect2\"; valid: none, "),
+              std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("room_reconstruction"), std::string::npos) << e.what();
+  }
+  try {
+    Schema().Resolve({{"preset", "mine"}, {"presets", {{"mine", {{"views", -3}}}}}}, "");
+    FAIL() << "a preset's bad value was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("views"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(Schema().Resolve({{"preset", "mine"}, {"presets", {{"mine", {{"colour", 3}}}}}}, ""), InputError);
+  EXPECT_THROW(Schema().Resolve({{"preset", 7}}, ""), InputError);
+  // The camera's artefacts need the camera.
+  EXPECT_ANY_THROW(MakeSensor({{"flying_pixels", 0.5}}));
+  EXPECT_ANY_THROW(MakeSensor({{"disparity_quantum", 0.003}}));
+}
+
+// A wall (2 x 4 m, 1 cm thick) with its front at x = 3, and optionally a panel in front of it
+// (x 2.00-2.02), seen by a level camera at (0, 0, 1.5) looking along +x.
+std::vector<Scan> ScanWall(json params, bool panel, uint64_t seed = 1) {
+  static CatalogModel wall, front;
+  wall.id = "wall";
+  wall.cls = "wall";
+  wall.mesh = Box({3.f, -2.f, 0.f}, {3.01f, 2.f, 3.f});
+  front.id = "panel";
+  front.cls = "panel";
+  front.mesh = Box({2.f, -0.4f, 1.f}, {2.02f, 0.4f, 2.f});
+  SensorRequest req;
+  req.objects.push_back({&wall, Eigen::Isometry3f::Identity()});
+  if (panel) req.objects.push_back({&front, Eigen::Isometry3f::Identity()});
+  req.poses.push_back(Pose(0.f, 0.f, 1.5f, 0.f));
+  params["pattern"] = "depth_camera";
+  params["width"] = 160;
+  params["height"] = 120;
+  params["focal_px"] = 100.0;
+  params["noise_a"] = 0.0;
+  params["noise_b"] = 0.0;
+  RunContext ctx;
+  ctx.seed = seed;
+  return MakeSensor(params)->Acquire(req, ctx);
+}
+
+TEST(SimulatedLaser, DisparityQuantisationPutsDepthsOnItsSteps) {
+  const double q = 0.01;  // 1/depth in steps of 0.01 /m: 9 cm apart at 3 m
+  const Scan exact = ScanWall(json::object(), false)[0];
+  const Scan s = ScanWall({{"disparity_quantum", q}}, false)[0];
+  ASSERT_GT(s.points.size(), 5000u);
+  ASSERT_EQ(s.points.size(), exact.points.size());
+  std::set<long> steps;
+  for (size_t i = 0; i < s.points.size(); ++i) {
+    const double depth = s.points[i].x();  // the optical axis is world +x
+    const double k = 1.0 / (depth * q);
+    EXPECT_NEAR(k, std::round(k), 1e-3) << depth;
+    steps.insert(std::lround(k));
+    // The nearest step to the true depth, along the same ray.
+    EXPECT_NEAR(depth, 1.0 / (std::round(1.0 / (exact.points[i].x() * q)) * q), 1e-4);
+    EXPECT_LT((s.points[i] - s.origin.value()).normalized().dot((exact.points[i] - s.origin.value()).normalized()), 1.0 + 1e-6);
+    EXPECT_GT((s.points[i] - s.origin.value()).normalized().dot((exact.points[i] - s.origin.value()).normalized()), 1.0 - 1e-6);
+  }
+  EXPECT_EQ(steps.size(), 1u);  // a flat wall facing the camera: one depth (3.0 m -> 1/(33 q) = 3.03 m)
+}
+
+TEST(SimulatedLaser, FlyingPixelsLieBetweenTheSurfacesOfAnEdge) {
+  auto between = [](const Scan& s) {
+    int n = 0;
+    for (const auto& p : s.points) n += p.x() > 2.05f && p.x() < 2.97f;
+    return n;
+  };
+  const Scan clean = ScanWall(json::object(), true)[0];
+  EXPECT_EQ(between(clean), 0);
+  const Scan half = ScanWall({{"flying_pixels", 0.5}}, true)[0];
+  const Scan all = ScanWall({{"flying_pixels", 1.0}}, true)[0];
+  ASSERT_EQ(all.points.size(), clean.points.size());  // pixels move, none are lost
+  // The panel's outline (0.8 x 1 m at 2 m, 100 px focal: ~40 + 50 px a side) gives ~180 edge
+  // pixels on each side of the edge; at 0.5 about half of them fly.
+  EXPECT_GT(between(all), 150);
+  EXPECT_GT(between(half), between(all) / 4);
+  EXPECT_LT(between(half), 3 * between(all) / 4);
+  // A flying pixel stays on its own ray.
+  for (size_t i = 0; i < all.points.size(); ++i) {
+    const Eigen::Vector3f a = (all.points[i] - *all.origin).normalized(), c = (clean.points[i] - *clean.origin).normalized();
+    ASSERT_GT(a.dot(c), 1.f - 1e-5f) << i;
+  }
+}
+
+TEST(SimulatedLaser, FloorGapAndHolesRemoveWhatAReconstructionMisses) {
+  json p = CubeParams();
+  p["noise_a"] = 0.0;
+  p["noise_b"] = 0.0;
+  const Scan full = ScanCube(p, 4)[0];
+  float lowest = 1e9f;
+  for (const auto& q : full.points) lowest = std::min(lowest, q.z());
+  ASSERT_LT(lowest, 0.05f);
+  p["floor_gap_m"] = 0.1;
+  const Scan gap = ScanCube(p, 4)[0];
+  ASSERT_GT(gap.points.size(), 1000u);
+  for (const auto& q : gap.points) ASSERT_GE(q.z(), 0.1f);
+  // Holes: whole 20 cm cells go, about the given share of them; the others keep every point.
+  p["floor_gap_m"] = 0.0;
+  p["holes"] = 0.3;
+  p["hole_size_m"] = 0.2;
+  const Scan holed = ScanCube(p, 4)[0];
+  using Cell = std::array<long, 3>;
+  auto cell = [](const Eigen::Vector3f& q) {
+    return Cell{long(std::floor(q.x() / 0.2)), long(std::floor(q.y() / 0.2)), long(std::floor(q.z() / 0.2))};
+  };
+  std::map<Cell, int> before, after;
+  for (const auto& q : full.points) ++before[cell(q)];
+  for (const auto& q : holed.points) ++after[cell(q)];
+  int lost = 0;
+  for (const auto& [c, n] : before) {
+    const auto it = after.find(c);
+    if (it == after.end()) ++lost;
+    else EXPECT_EQ(it->second, n);  // a cell is kept whole or lost whole
+  }
+  EXPECT_EQ(after.size() + size_t(lost), before.size());
+  ASSERT_GT(before.size(), 40u);
+  EXPECT_GT(lost, int(before.size()) / 10);
+  EXPECT_LT(lost, int(before.size()) / 2);
+  // Another view of the same walk loses other cells (holes are drawn per view).
+  EXPECT_NE(ScanCube(p, 5)[0].points.size(), holed.points.size());
+}
+
+TEST(SimulatedLaser, PresetsGiveTheirTrainingViews) {
+  static const CatalogModel cube = UnitCube();
+  SensorRequest req;
+  req.objects.push_back({&cube, Pose(0.f, 0.f, 0.f, 0.f)});
+  RunContext ctx;
+  ctx.seed = 7;
+  const json room = Schema().Resolve({{"preset", "room_reconstruction"}}, "");
+  const auto views = MakeSensor(room)->Acquire(req, ctx);
+  ASSERT_EQ(views.size(), 4u);
+  for (const Scan& s : views) {
+    ASSERT_GT(s.points.size(), 300u);
+    float lo = 1e9f, hi = -1e9f;
+    for (const auto& q : s.points) lo = std::min(lo, q.z()), hi = std::max(hi, q.z());
+    EXPECT_GE(lo, 0.03f);  // floor contacts missing
+    EXPECT_GT(hi, 0.95f);  // the top is seen
+    // Fused around the object: points on all four sides.
+    int sides[4] = {0, 0, 0, 0};
+    for (const auto& q : s.points) {
+      if (q.x() < -0.49f) ++sides[0];
+      if (q.x() > 0.49f) ++sides[1];
+      if (q.y() < -0.49f) ++sides[2];
+      if (q.y() > 0.49f) ++sides[3];
+    }
+    for (int k : sides) EXPECT_GT(k, 20);
+  }
+  const json cam = Schema().Resolve({{"preset", "depth_camera"}, {"views", 2}}, "");
+  const auto frames = MakeSensor(cam)->Acquire(req, ctx);
+  ASSERT_EQ(frames.size(), 2u);
+  EXPECT_GT(frames[0].points.size(), 2000u);
 }
 
 }  // namespace
