@@ -24,6 +24,8 @@ usage:
   furnihost eval --graph A.json [--graph B.json ...] --dataset D.json [--out DIR] [--seeds N]
                                                          A/B evaluation: PR curves, AP, timings, report
   furnihost compare RUN_A.json RUN_B.json                A | B | B - A table of two eval run records
+  furnihost gap --graph G.json --dataset D.json [--sensor NAME=PARAMS ...]
+                                                         training views against real scans: part feature gap
   furnihost plugins  [--json]                            list the plugins found
 
 Run `furnihost <command> --help` (or `furnihost detect --help`) for the options of each.
@@ -68,7 +70,7 @@ int main(int argc, char** argv) {
   const std::map<std::string, int (*)(const std::vector<std::string>&)> commands = {
       {"detect", app::RunDetect},     {"train", app::RunTrain},       {"simulate", app::RunSimulate},
       {"validate", app::RunValidate}, {"plugins", app::RunPlugins},   {"eval", app::RunEval},
-      {"compare", app::RunCompare}};
+      {"compare", app::RunCompare},   {"gap", app::RunGap}};
   try {
     if (args.empty() || args[0] == "-h" || args[0] == "--help" || args[0] == "help") {
       std::cout << kUsage;
@@ -82,7 +84,7 @@ int main(int argc, char** argv) {
     if (it != commands.end()) return it->second(std::vector<std::string>(args.begin() + 1, args.end()));
     if (args[0].rfind("-", 0) != 0 && args[0].find('.') == std::string::npos && args[0].find('/') == std::string::npos) {
       std::cerr << "furnihost: error: unknown command '" << args[0]
-                << "' (commands: detect, train, simulate, validate, eval, compare, plugins; see --help)\n";
+                << "' (commands: detect, train, simulate, validate, eval, compare, gap, plugins; see --help)\n";
       return 2;
     }
     return app::RunDetect(args);

@@ -35,8 +35,17 @@ constexpr double kPalette[][3] = {{0.000, 0.447, 0.698}, {0.835, 0.369, 0.000}, 
                                   {0.941, 0.894, 0.259}, {0.000, 0.000, 0.000}};
 constexpr int kPaletteSize = sizeof(kPalette) / sizeof(kPalette[0]);
 
+// Plot coordinates of [0, 1] on each axis.
 double X(double v) { return kLeft + v * (kWidth - kLeft - kRight); }
 double Y(double v) { return kPlotHeight - kBottom - v * (kPlotHeight - kTop - kBottom); }
+
+// A tick's text: few digits, scientific when tiny or huge.
+std::string Tick(double v, double span) {
+  char buf[16];
+  if (v != 0.0 && (std::abs(v) < 1e-3 || std::abs(v) >= 1e5)) std::snprintf(buf, sizeof(buf), "%.1e", v);
+  else std::snprintf(buf, sizeof(buf), span >= 5 ? "%.0f" : span >= 0.5 ? "%.1f" : span >= 0.05 ? "%.2f" : "%.3f", v);
+  return buf;
+}
 
 void Text(cairo_t* cr, double x, double y, const std::string& s, double size, double align_x, double align_y) {
   cairo_set_font_size(cr, size);
@@ -46,7 +55,10 @@ void Text(cairo_t* cr, double x, double y, const std::string& s, double size, do
   cairo_show_text(cr, s.c_str());
 }
 
-void Draw(cairo_t* cr, const std::string& title, const std::vector<PlotSeries>& series) {
+void Draw(cairo_t* cr, const std::string& title, const PlotAxes& ax, const std::vector<PlotSeries>& series) {
+  const double sx = ax.x1 > ax.x0 ? ax.x1 - ax.x0 : 1.0, sy = ax.y1 > ax.y0 ? ax.y1 - ax.y0 : 1.0;
+  auto px = [&](double v) { return X((v - ax.x0) / sx); };
+  auto py = [&](double v) { return Y((v - ax.y0) / sy); };
   cairo_set_source_rgb(cr, 1, 1, 1);
   cairo_paint(cr);
   cairo_select_font_face(cr, "sans-serif", CAIRO_FONT_SLANT_NORMAL, CAIRO_FONT_WEIGHT_NORMAL);
@@ -62,19 +74,17 @@ void Draw(cairo_t* cr, const std::string& title, const std::vector<PlotSeries>& 
     cairo_line_to(cr, X(1), Y(v));
     cairo_stroke(cr);
     cairo_set_source_rgb(cr, 0.1, 0.1, 0.1);
-    char buf[8];
-    std::snprintf(buf, sizeof(buf), "%.1f", v);
-    Text(cr, X(v), Y(0) + 8, buf, 12, 0.5, 0.0);
-    Text(cr, X(0) - 8, Y(v), buf, 12, 1.0, 0.5);
+    Text(cr, X(v), Y(0) + 8, Tick(ax.x0 + v * sx, sx), 12, 0.5, 0.0);
+    Text(cr, X(0) - 8, Y(v), Tick(ax.y0 + v * sy, sy), 12, 1.0, 0.5);
   }
   cairo_set_source_rgb(cr, 0.1, 0.1, 0.1);
   cairo_rectangle(cr, X(0), Y(1), X(1) - X(0), Y(0) - Y(1));
   cairo_stroke(cr);
-  Text(cr, (X(0) + X(1)) / 2, kPlotHeight - 18, "1 - precision", 14, 0.5, 0.5);
+  Text(cr, (X(0) + X(1)) / 2, kPlotHeight - 18, ax.x_label, 14, 0.5, 0.5);
   cairo_save(cr);
   cairo_translate(cr, 20, (Y(0) + Y(1)) / 2);
   cairo_rotate(cr, -M_PI / 2);
-  Text(cr, 0, 0, "recall", 14, 0.5, 0.5);
+  Text(cr, 0, 0, ax.y_label, 14, 0.5, 0.5);
   cairo_restore(cr);
   cairo_select_font_face(cr, "sans-serif", CAIRO_FONT_SLANT_NORMAL, CAIRO_FONT_WEIGHT_BOLD);
   Text(cr, (X(0) + X(1)) / 2, kTop / 2, title, 15, 0.5, 0.5);
@@ -91,14 +101,14 @@ void Draw(cairo_t* cr, const std::string& title, const std::vector<PlotSeries>& 
     bool first = true;
     for (const auto& p : s.points) {
       if (!std::isfinite(p[0]) || !std::isfinite(p[1])) continue;
-      if (first) cairo_move_to(cr, X(p[0]), Y(p[1]));
-      else cairo_line_to(cr, X(p[0]), Y(p[1]));
+      if (first) cairo_move_to(cr, px(p[0]), py(p[1]));
+      else cairo_line_to(cr, px(p[0]), py(p[1]));
       first = false;
     }
     cairo_stroke(cr);
     for (const auto& p : s.points) {
-      if (!std::isfinite(p[0]) || !std::isfinite(p[1])) continue;
-      cairo_arc(cr, X(p[0]), Y(p[1]), s.alpha < 1 ? 1.8 : 2.6, 0, 2 * M_PI);
+      if (!ax.markers || !std::isfinite(p[0]) || !std::isfinite(p[1])) continue;
+      cairo_arc(cr, px(p[0]), py(p[1]), s.alpha < 1 ? 1.8 : 2.6, 0, 2 * M_PI);
       cairo_fill(cr);
     }
   }
@@ -127,12 +137,20 @@ void Check(cairo_status_t st, const std::string& path) {
 }  // namespace
 
 void WritePrPlot(const std::string& stem, const std::string& title, const std::vector<PlotSeries>& series) {
+  PlotAxes pr;
+  pr.x_label = "1 - precision";
+  pr.y_label = "recall";
+  WriteLinePlot(stem, title, pr, series);
+}
+
+void WriteLinePlot(const std::string& stem, const std::string& title, const PlotAxes& axes,
+                   const std::vector<PlotSeries>& series) {
   const std::string svg = stem + ".svg", png = stem + ".png";
   AtomicWrite(svg, [&](const std::string& tmp) {
     std::unique_ptr<cairo_surface_t, void (*)(cairo_surface_t*)> s(cairo_svg_surface_create(tmp.c_str(), kWidth, TotalHeight(series)),
                                                                    cairo_surface_destroy);
     std::unique_ptr<cairo_t, void (*)(cairo_t*)> cr(cairo_create(s.get()), cairo_destroy);
-    Draw(cr.get(), title, series);
+    Draw(cr.get(), title, axes, series);
     Check(cairo_status(cr.get()), svg);
     cr.reset();
     cairo_surface_finish(s.get());  // flushes the SVG to the file
@@ -143,7 +161,7 @@ void WritePrPlot(const std::string& stem, const std::string& title, const std::v
         cairo_image_surface_create(CAIRO_FORMAT_ARGB32, static_cast<int>(kWidth), static_cast<int>(TotalHeight(series))),
         cairo_surface_destroy);
     std::unique_ptr<cairo_t, void (*)(cairo_t*)> cr(cairo_create(s.get()), cairo_destroy);
-    Draw(cr.get(), title, series);
+    Draw(cr.get(), title, axes, series);
     Check(cairo_status(cr.get()), png);
     cairo_surface_flush(s.get());
     Check(cairo_surface_write_to_png(s.get(), tmp.c_str()), png);

@@ -1,5 +1,6 @@
-// Precision-recall plots for `furnihost eval` (cairo): recall (y) against 1 - precision (x),
-// the axes of the paper's Fig. 5/6, both fixed to [0, 1] so plots of different runs compare.
+// Line plots (cairo): the precision-recall plots of `furnihost eval`, recall (y) against
+// 1 - precision (x), the axes of the paper's Fig. 5/6, both fixed to [0, 1] so plots of
+// different runs compare; and the distributions `furnihost gap` draws.
 #pragma once
 #include <array>
 #include <string>
@@ -18,5 +19,16 @@ struct PlotSeries {
 // series below the plot), each atomically. InputError when a file
 // cannot be written.
 void WritePrPlot(const std::string& stem, const std::string& title, const std::vector<PlotSeries>& series);
+
+// The axes of a line plot: labels and ranges (series points are in these units), and whether
+// the points are marked as well as joined.
+struct PlotAxes {
+  std::string x_label, y_label;
+  double x0 = 0, x1 = 1, y0 = 0, y1 = 1;
+  bool markers = true;
+};
+// As WritePrPlot, on the given axes (5 grid intervals each).
+void WriteLinePlot(const std::string& stem, const std::string& title, const PlotAxes& axes,
+                   const std::vector<PlotSeries>& series);
 
 }  // namespace furnihost::app

@@ -293,3 +293,58 @@ TEST(Cli, CatalogErrorsWhileTheScanLoadsExitTwoWithOneLine) {
     ASSERT_EQ(ErrorLines(r.err).size(), 1u) << r.err;
   }
 }
+
+// `furnihost gap`: the part features of the training views against those of the objects in a
+// dataset's scans. The "real" scan here is simulated by the same kind of laser as the graph's
+// training views, so those are nearer to it than views of a noisy, holed variant.
+TEST(Cli, GapPutsTheMatchingTrainingViewsNearest) {
+  const std::string dir = furnihost::testing::TempDir("cli_gap");
+  const std::string catalog = furnihost::testing::SourceDir() + "/tests/hostile/corpus/catalogs/tiny/catalog.json";
+  furnihost::AtomicWriteText(dir + "/scene.json", R"({"room": {"size_m": [4, 4], "height_m": 2.5},
+    "objects": [{"model": "cube", "x": 1.5, "y": 2}, {"model": "cube", "x": 2.6, "y": 1.2, "yaw_deg": 30}],
+    "sensors": [{"position": [3.5, 3.5, 1.5], "yaw_deg": -135}],
+    "sensor_params": {"angular_resolution_deg": 0.5, "tilt_resolution_deg": 0.5, "tilt_min_deg": -60, "noise_a": 0.003,
+                      "noise_b": 0}})");
+  ASSERT_EQ(Furnihost("simulate -q --catalog " + catalog + " --scene " + dir + "/scene.json --out " + dir + "/room.ply").code, 0);
+  furnihost::AtomicWriteText(dir + "/data.json", R"({"scenes": [{"scan": "room.ply", "gt": "room.gt.json"}], "classes": ["cube"]})");
+  const std::string stages = R"("input": {"type": "sensors.scan_file"},
+      "sim": {"type": "sensors.simulated_laser", "params": {"angular_resolution_deg": 0.5, "tilt_resolution_deg": 0.5,
+              "views": 4, "noise_a": 0.003, "noise_b": 0}},
+      "seg": {"type": "segmenters.region_growing", "inputs": ["input"]})";
+  furnihost::AtomicWriteText(dir + "/g.json", R"({"catalog": ")" + catalog + R"(", "training": {"sensor": "sim"}, "stages": {)" +
+                                                  stages + R"(, "feat": {"type": "features.paper24", "inputs": ["seg"]}}})");
+  const std::string gap = "gap -q --graph " + dir + "/g.json --dataset " + dir + "/data.json --out " + dir + "/out";
+  const auto r = Furnihost(gap + R"( --sensor 'rough={"views": 4, "noise_a": 0.03, "holes": 0.5, "hole_size_m": 0.05}')");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = furnihost::ReadJson(dir + "/out/gap.json");
+  EXPECT_EQ(j.at("real_objects"), 2);
+  EXPECT_GT(j.at("real_parts").get<int>(), 4);
+  ASSERT_EQ(j.at("variants").size(), 2u);
+  EXPECT_EQ(j.at("variants")[0].at("name"), "graph");
+  EXPECT_EQ(j.at("variants")[1].at("name"), "rough");
+  const double same = j.at("variants")[0].at("w1_over_sd_mean").get<double>();
+  const double rough = j.at("variants")[1].at("w1_over_sd_mean").get<double>();
+  EXPECT_GE(same, 0.0);
+  EXPECT_LT(same, rough);
+  EXPECT_LT(j.at("variants")[0].at("nearest_median").get<double>(), j.at("variants")[1].at("nearest_median").get<double>());
+  EXPECT_TRUE(fs::exists(dir + "/out/gap.md"));
+  EXPECT_TRUE(fs::exists(dir + "/out/hist/points.svg"));
+  EXPECT_TRUE(fs::exists(dir + "/out/hist/boundary_ratio.png"));
+  // Bad input: exit 2, one line naming what is wrong.
+  for (const auto& [args, says] : std::vector<std::pair<std::string, std::string>>{
+           {" --sensor nope", "--sensor nope: expected NAME=PARAMS"},
+           {" --sensor 'graph={}'", "'graph' is taken"},
+           {" --sensor 'x=[1]'", "--sensor x: PARAMS must be a JSON object"},
+           {R"( --sensor 'x={"holes": 2}')", "--sensor x/holes"}}) {
+    const auto bad = Furnihost(gap + args);
+    EXPECT_EQ(bad.code, 2) << args;
+    const auto lines = ErrorLines(bad.err);
+    ASSERT_EQ(lines.size(), 1u) << bad.err;
+    EXPECT_NE(lines[0].find(says), std::string::npos) << lines[0];
+  }
+  furnihost::AtomicWriteText(dir + "/nofeat.json", R"({"catalog": ")" + catalog + R"(", "training": {"sensor": "sim"}, "stages": {)" +
+                                                       stages + "}}");
+  const auto nofeat = Furnihost("gap -q --graph " + dir + "/nofeat.json --dataset " + dir + "/data.json --out " + dir + "/o2");
+  EXPECT_EQ(nofeat.code, 2);
+  EXPECT_NE(nofeat.err.find("a features stage fed by a segmenter"), std::string::npos) << nofeat.err;
+}

@@ -90,7 +90,7 @@ nlohmann::json Presets() {
            {{"pattern", "depth_camera"}, {"width", 160}, {"height", 120}, {"focal_px", 131.25},
             {"camera_min_range_m", 0.3}, {"camera_max_range_m", 4.0}, {"sensor_height_m", 1.3},
             {"distance_m", 1.6}, {"views", 4}, {"fuse", 8}, {"noise_a", 0.004}, {"noise_b", 0.0},
-            {"dropout", 0.0}, {"voxel_m", 0.02}, {"floor_gap_m", 0.03}, {"holes", 0.1}, {"hole_size_m", 0.1}}},
+            {"dropout", 0.0}, {"voxel_m", 0.02}, {"floor_gap_m", 0.03}, {"holes", 0.3}, {"hole_size_m", 0.1}}},
           {"depth_camera",
            {{"pattern", "depth_camera"}, {"width", 320}, {"height", 240}, {"focal_px", 262.5},
             {"camera_min_range_m", 0.45}, {"camera_max_range_m", 4.5}, {"sensor_height_m", 1.3},
