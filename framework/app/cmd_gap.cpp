@@ -174,6 +174,7 @@ int RunGap(const std::vector<std::string>& args) {
   if (!train || !feat || !seg)
     throw InputError(graph + ": gap needs a training sensor and a features stage fed by a segmenter (a part-based graph "
                              "such as scannet_hough.json)");
+  if (g.catalog.empty()) throw InputError(graph + ":/catalog: missing (gap scans the catalog's models)");
   if (fs::exists(out) && !fs::is_directory(out)) throw InputError("--out " + out + ": exists and is not a folder");
   RunContext ctx = common.Context(g.seed);
   // Sensor variants: the graph's own first, each resolved against the sensor's schema.
@@ -230,6 +231,8 @@ int RunGap(const std::vector<std::string>& args) {
 
   // Simulated parts: every catalog model of an evaluated class, through each sensor variant.
   const Catalog catalog = LoadCatalog(g.catalog);
+  if (std::none_of(catalog.models.begin(), catalog.models.end(), [&](const CatalogModel& m) { return dataset.classes.Map(m.cls); }))
+    throw InputError(g.catalog + ": no model of a class " + dataset_path + " evaluates");
   auto segmenter = reg->CreateAs<Segmenter>(seg->type, seg->params);
   auto features = reg->CreateAs<Features>(feat->type, feat->params);
   std::vector<PartSet> sims;
@@ -253,6 +256,7 @@ int RunGap(const std::vector<std::string>& args) {
       }
     }
     progress.Done();
+    if (set.rows.empty()) throw InputError("--sensor " + name + ": the training views gave no parts");
     sims.push_back(std::move(set));
   }
 

@@ -347,4 +347,9 @@ TEST(Cli, GapPutsTheMatchingTrainingViewsNearest) {
   const auto nofeat = Furnihost("gap -q --graph " + dir + "/nofeat.json --dataset " + dir + "/data.json --out " + dir + "/o2");
   EXPECT_EQ(nofeat.code, 2);
   EXPECT_NE(nofeat.err.find("a features stage fed by a segmenter"), std::string::npos) << nofeat.err;
+  furnihost::AtomicWriteText(dir + "/nocat.json", R"({"training": {"sensor": "sim"}, "stages": {)" + stages +
+                                                      R"(, "feat": {"type": "features.paper24", "inputs": ["seg"]}}})");
+  const auto nocat = Furnihost("gap -q --graph " + dir + "/nocat.json --dataset " + dir + "/data.json --out " + dir + "/o3");
+  EXPECT_EQ(nocat.code, 2);
+  EXPECT_NE(nocat.err.find("nocat.json:/catalog: missing"), std::string::npos) << nocat.err;
 }
