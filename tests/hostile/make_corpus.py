@@ -380,6 +380,12 @@ def main():
           '{"extends": "base2.json", "seed": 1, "stages": {"input": {"type": "sensors.scan_file"}}}\n---\n'
           '{"description": "x", "stages": {"f": {"type": "features.outside_example", "inputs": ["input"],'
           ' "params": {"scale": 2}}}}', SEEDS)
+    write("graph_config/presets",
+          '{"catalog": "c.json", "training": {"sensor": "sim"}, "stages": {"input": {"type": "sensors.scan_file"},\n'
+          ' "sim": {"type": "sensors.simulated_laser", "params": {"preset": "mine", "holes": 0.2,\n'
+          ' "presets": {"mine": {"pattern": "depth_camera", "flying_pixels": 0.5, "views": 2},\n'
+          ' "room_reconstruction": {"fuse": 2}}}},\n'
+          ' "feat": {"type": "features.centroid", "inputs": ["input"]}}}', SEEDS)
     write("catalog/all_formats",
           catalog([entry("a.obj", "a"), entry("b.off", "b", up="+y", height_m=0.7),
                    entry("c.ply", "c", scale=0.01), entry("d.stl", "d", up="-x")]) + "\n---\n" + CUBE_OBJ +
