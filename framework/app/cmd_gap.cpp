@@ -273,7 +273,9 @@ int RunGap(const std::vector<std::string>& args) {
   md << std::fixed << std::setprecision(3);
   md << "# Training views against real parts\n\n"
      << "`furnihost gap --graph " << graph << " --dataset " << dataset_path << "`: " << real.rows.size()
-     << " real parts of " << real.objects << " ground-truth objects.\n\n"
+     << " real parts of " << real.objects << " ground-truth objects. Training views: `graph`, the graph's own sensor";
+  for (const auto& [name, params] : variants) md << "; `" << name << "`, " << params.dump();
+  md << ".\n\n"
      << "W1/sd: the 1-D Wasserstein distance between the variant's and the real parts' values, in real standard "
         "deviations (mean over the " << d << " columns; 0 = the same distributions). NN: median over the real parts "
         "of the distance to the nearest of " << common_n << " simulated parts (every k-th part of each variant, so "
