@@ -36,18 +36,31 @@ namespace {
 struct PartSet {
   std::string name;
   std::vector<std::vector<double>> rows;
-  size_t objects = 0;  // real objects / simulated views the parts come from
+  size_t objects = 0;              // real objects / simulated views the parts come from
+  std::vector<std::string> cls;    // per row: the evaluated class of its object or model
 };
 
-void AddParts(const Segmentation& seg, const FeatureMatrix& f, const std::vector<size_t>& which, PartSet& out) {
-  for (size_t k : which) {
+void AddParts(const Segmentation& seg, const FeatureMatrix& f, const std::vector<size_t>& which,
+              const std::vector<std::string>& cls, PartSet& out) {
+  for (size_t n = 0; n < which.size(); ++n) {
+    const size_t k = which[n];
     std::vector<double> r(size_t(f.values.cols()) + 1);
     for (Eigen::Index c = 0; c < f.values.cols(); ++c) r[size_t(c)] = f.values(Eigen::Index(k), c);
     r.back() = double(seg.parts[k].indices.size());
     bool finite = true;
     for (double v : r) finite = finite && std::isfinite(v);
-    if (finite) out.rows.push_back(std::move(r));
+    if (!finite) continue;
+    out.rows.push_back(std::move(r));
+    out.cls.push_back(cls[n]);
   }
+}
+
+// The rows of one class.
+PartSet OfClass(const PartSet& s, const std::string& c) {
+  PartSet o{s.name, {}, 0, {}};
+  for (size_t i = 0; i < s.rows.size(); ++i)
+    if (s.cls[i] == c) o.rows.push_back(s.rows[i]), o.cls.push_back(c);
+  return o;
 }
 
 std::vector<double> Column(const PartSet& s, size_t c) {
@@ -185,7 +198,7 @@ int RunGap(const std::vector<std::string>& args) {
 
   // Real parts: each scan through the graph (no model: segmentation and features only).
   Pipeline pipeline(g, *reg);
-  PartSet real{"real", {}, 0};
+  PartSet real{"real", {}, 0, {}};
   std::vector<std::string> feature_names;
   {
     Progress progress("gap: real scans", dataset.scenes.size());
@@ -200,29 +213,31 @@ int RunGap(const std::vector<std::string>& args) {
       const FeatureMatrix& f = r.features[0];
       feature_names = f.names;
       const Eigen::Isometry3f to_user = r.world_to_user;
-      std::vector<Eigen::AlignedBox3f> boxes;
+      std::vector<std::pair<Eigen::AlignedBox3f, std::string>> boxes;
       for (const auto& gt : ReadGroundTruth(sc.gt))
-        if (dataset.classes.Map(gt.cls)) {
+        if (const auto c = dataset.classes.Map(gt.cls)) {
           Eigen::AlignedBox3f b = GroundTruthBox(gt);
           b.min().array() -= float(margin);
           b.max().array() += float(margin);
-          boxes.push_back(b);
+          boxes.emplace_back(b, *c);
         }
       real.objects += boxes.size();
       std::vector<size_t> ours;
+      std::vector<std::string> their;
       for (size_t k = 0; k < s.parts.size(); ++k) {
         const auto& idx = s.parts[k].indices;
         if (idx.empty()) continue;
-        for (const auto& b : boxes) {
+        for (const auto& [b, c] : boxes) {
           size_t in_box = 0;
           for (int i : idx) in_box += b.contains(to_user * r.scans[0].points[size_t(i)]);
           if (double(in_box) >= inside * double(idx.size())) {
             ours.push_back(k);
+            their.push_back(c);
             break;
           }
         }
       }
-      AddParts(s, f, ours, real);
+      AddParts(s, f, ours, their, real);
       progress.Tick();
     }
     progress.Done();
@@ -238,7 +253,7 @@ int RunGap(const std::vector<std::string>& args) {
   std::vector<PartSet> sims;
   for (const auto& [name, params] : sensors) {
     auto sensor = reg->CreateAs<Sensor>(train->type, params);
-    PartSet set{name, {}, 0};
+    PartSet set{name, {}, 0, {}};
     Progress progress("gap: training views '" + name + "'", catalog.models.size());
     for (const CatalogModel& m : catalog.models) {
       progress.Tick();
@@ -251,7 +266,7 @@ int RunGap(const std::vector<std::string>& args) {
         const FeatureMatrix f = features->Compute(view, s, ctx);
         std::vector<size_t> all(s.parts.size());
         for (size_t k = 0; k < all.size(); ++k) all[k] = k;
-        AddParts(s, f, all, set);
+        AddParts(s, f, all, std::vector<std::string>(all.size(), *dataset.classes.Map(m.cls)), set);
         ++set.objects;
       }
     }
@@ -314,6 +329,34 @@ int RunGap(const std::vector<std::string>& args) {
     md << "| " << feature_names[c] << " |";
     for (size_t v = 0; v < sims.size(); ++v) md << " " << std::setprecision(2) << w1[v][c] << " |";
     md << "\n";
+  }
+
+  // Per class: W1/sd (the real parts' overall deviations) between the class's real parts and the
+  // parts of its models' views.
+  std::vector<std::string> classes;
+  for (const auto& c : dataset.classes.classes)
+    if (!OfClass(real, c).rows.empty()) classes.push_back(c);
+  md << "\nW1/sd mean per class (the class's real parts against the views of its catalog models):\n\n| training views |";
+  for (const auto& c : classes) md << " " << c << " (" << OfClass(real, c).rows.size() << ") |";
+  md << "\n|---|";
+  for (size_t k = 0; k < classes.size(); ++k) md << "---:|";
+  md << "\n";
+  for (size_t v = 0; v < sims.size(); ++v) {
+    md << "| " << sims[v].name << " |";
+    nlohmann::json per = nlohmann::json::object();
+    for (const auto& c : classes) {
+      const PartSet rc = OfClass(real, c), sc = OfClass(sims[v], c);
+      double mean = NAN;
+      if (!sc.rows.empty()) {
+        mean = 0;
+        for (size_t col = 0; col < d; ++col) mean += Wasserstein1(Column(sc, col), Column(rc, col)) / z[col].sd;
+        mean /= double(d);
+        per[c] = mean;
+      }
+      md << " " << std::setprecision(3) << mean << " |";
+    }
+    md << "\n";
+    report["variants"][v]["w1_over_sd_mean_per_class"] = per;
   }
 
   // Histograms: each column over the real parts' 1st-99th percentiles, 30 bins, share of parts.

@@ -326,6 +326,8 @@ TEST(Cli, GapPutsTheMatchingTrainingViewsNearest) {
   const double rough = j.at("variants")[1].at("w1_over_sd_mean").get<double>();
   EXPECT_GE(same, 0.0);
   EXPECT_LT(same, rough);
+  // One class here: its mean is the whole set's.
+  EXPECT_DOUBLE_EQ(j.at("variants")[0].at("w1_over_sd_mean_per_class").at("cube").get<double>(), same);
   EXPECT_LT(j.at("variants")[0].at("nearest_median").get<double>(), j.at("variants")[1].at("nearest_median").get<double>());
   EXPECT_TRUE(fs::exists(dir + "/out/gap.md"));
   EXPECT_TRUE(fs::exists(dir + "/out/hist/points.svg"));
