@@ -87,23 +87,14 @@ double Wasserstein1(std::vector<double> a, std::vector<double> b) {
   return w;
 }
 
-double Median(std::vector<double> v) {
-  if (v.empty()) return NAN;
-  std::nth_element(v.begin(), v.begin() + long(v.size() / 2), v.end());
-  return v[v.size() / 2];
-}
+double Median(std::vector<double> v) { return Summarise(std::move(v)).median; }
 
-struct MeanStd {
-  double mean = 0, sd = 1;
-};
+// A column's scale for z-scores and W1/sd: the evaluation's mean and (sample) deviation, 1 for a
+// constant column.
 MeanStd Moments(const std::vector<double>& v) {
-  MeanStd m;
-  if (v.empty()) return m;
-  double s = 0, s2 = 0;
-  for (double x : v) s += x, s2 += x * x;
-  m.mean = s / double(v.size());
-  const double var = s2 / double(v.size()) - m.mean * m.mean;
-  m.sd = var > 1e-24 ? std::sqrt(var) : 1.0;
+  MeanStd m = MeanAndStd(v);
+  if (!(m.std > 1e-12)) m.std = 1.0;
+  if (!std::isfinite(m.mean)) m.mean = 0.0;
   return m;
 }
 
@@ -118,7 +109,7 @@ double MedianNearest(const PartSet& real, const PartSet& all, const std::vector<
   auto scaled = [&](const PartSet& s) {
     std::vector<float> m(s.rows.size() * d);
     for (size_t i = 0; i < s.rows.size(); ++i)
-      for (size_t c = 0; c < d; ++c) m[i * d + c] = float((s.rows[i][c] - z[c].mean) / z[c].sd);
+      for (size_t c = 0; c < d; ++c) m[i * d + c] = float((s.rows[i][c] - z[c].mean) / z[c].std);
     return m;
   };
   const std::vector<float> r = scaled(real), q = scaled(sim);
@@ -301,7 +292,7 @@ int RunGap(const std::vector<std::string>& args) {
   for (size_t v = 0; v < sims.size(); ++v) {
     const PartSet& s = sims[v];
     double mean = 0;
-    for (size_t c = 0; c < d; ++c) mean += (w1[v][c] = Wasserstein1(Column(s, c), Column(real, c)) / z[c].sd);
+    for (size_t c = 0; c < d; ++c) mean += (w1[v][c] = Wasserstein1(Column(s, c), Column(real, c)) / z[c].std);
     mean /= double(d);
     const double nn = MedianNearest(real, s, z, common_n);
     std::vector<size_t> order(d);
@@ -349,7 +340,7 @@ int RunGap(const std::vector<std::string>& args) {
       double mean = NAN;
       if (!sc.rows.empty()) {
         mean = 0;
-        for (size_t col = 0; col < d; ++col) mean += Wasserstein1(Column(sc, col), Column(rc, col)) / z[col].sd;
+        for (size_t col = 0; col < d; ++col) mean += Wasserstein1(Column(sc, col), Column(rc, col)) / z[col].std;
         mean /= double(d);
         per[c] = mean;
       }
