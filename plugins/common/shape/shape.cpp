@@ -495,13 +495,19 @@ float BoxIou(const Eigen::AlignedBox3f& a, const Eigen::AlignedBox3f& b) {
 }
 
 std::vector<size_t> SuppressOverlaps(std::vector<size_t> candidates, const std::vector<float>& score,
-                                     const std::vector<Proposal>& proposals, float max_iou) {
+                                     const std::vector<Proposal>& proposals, float max_iou, float whole_ratio) {
   std::stable_sort(candidates.begin(), candidates.end(), [&](size_t a, size_t b) { return score[a] > score[b]; });
+  // Whether box a is a whole of which the kept box b may be a fragment.
+  auto whole_of = [whole_ratio](const Eigen::AlignedBox3f& a, const Eigen::AlignedBox3f& b) {
+    if (!(whole_ratio > 0.f)) return false;
+    const Eigen::AlignedBox3f in = a.intersection(b);
+    return !in.isEmpty() && in.volume() >= 0.9f * b.volume() && a.volume() >= whole_ratio * b.volume();
+  };
   std::vector<size_t> kept;
   for (size_t i : candidates) {
     bool suppressed = false;
     for (size_t k : kept)
-      if (BoxIou(proposals[i].box, proposals[k].box) > max_iou) {
+      if (BoxIou(proposals[i].box, proposals[k].box) > max_iou && !whole_of(proposals[i].box, proposals[k].box)) {
         suppressed = true;
         break;
       }

@@ -103,9 +103,11 @@ float BoxIou(const Eigen::AlignedBox3f& a, const Eigen::AlignedBox3f& b);
 
 // Non-maximum suppression of one class: `candidates` (indices into `proposals` and `score`) by
 // descending score, ties in their given order; each is kept unless its box overlaps a kept one
-// by an IoU above `max_iou`. Returns the kept indices, best first.
+// by an IoU above `max_iou`. With `whole_ratio` > 0, a box that holds >= 90 % of a kept box and is
+// at least `whole_ratio` times its volume is not suppressed by it: the kept one may be a fragment
+// of the object the larger one covers. Returns the kept indices, best first.
 std::vector<size_t> SuppressOverlaps(std::vector<size_t> candidates, const std::vector<float>& score,
-                                     const std::vector<Proposal>& proposals, float max_iou);
+                                     const std::vector<Proposal>& proposals, float max_iou, float whole_ratio = 0.f);
 
 // The hypothesis that proposal `p` (number `index` of scene `scene`, footprint `f`) is of class
 // `cls` with `score`: the proposal's box (world frame through the scan's `pose`; upright poses

@@ -1,6 +1,7 @@
 // furnihost::shape: nearest neighbours against brute force, PCA normals of a plane, the
 // spacing of a grid, the footprint of a turned rectangle with outliers, profiles and their
-// distance, visibility behind an occluder; the neighbours the pipeline finds with the working
+// distance, visibility behind an occluder, suppression of overlapping proposals (and of a whole
+// by its better-scored fragment only when asked); the neighbours the pipeline finds with the working
 // frame give the shape a k-d tree of the working points gives.
 #include "shape/shape.hpp"
 
@@ -318,6 +319,30 @@ TEST(Visibility, EyesSurroundTheObjectAtTheirHeight) {
     mean += e.head<2>() / 8.f;
   }
   EXPECT_LT(mean.norm(), 1e-4f);
+}
+
+TEST(SuppressOverlaps, AWholeSurvivesItsFragmentOnlyWhenAsked) {
+  auto proposal = [](Eigen::Vector3f lo, Eigen::Vector3f hi) {
+    Proposal p;
+    p.box = Eigen::AlignedBox3f(lo, hi);
+    return p;
+  };
+  // 0: a wall cabinet's lower half, scoring best; 1: the whole cabinet (2.2x the half's volume,
+  // IoU 0.45 with it); 2: the half shifted by 2 cm, a true duplicate; 3: a box elsewhere.
+  const std::vector<Proposal> items = {proposal({0, 0, 1.3f}, {1, 0.5f, 1.8f}),
+                                       proposal({0, 0, 1.3f}, {1, 0.5f, 2.4f}),
+                                       proposal({0.02f, 0, 1.3f}, {1.02f, 0.5f, 1.8f}),
+                                       proposal({3, 0, 0}, {4, 1, 1})};
+  const std::vector<float> score = {0.9f, 0.5f, 0.8f, 0.1f};
+  EXPECT_EQ(SuppressOverlaps({0, 1, 2, 3}, score, items, 0.25f), (std::vector<size_t>{0, 3}));
+  // At a ratio the whole reaches, it stays; the duplicate goes whatever the ratio.
+  EXPECT_EQ(SuppressOverlaps({3, 2, 1, 0}, score, items, 0.25f, 2.f), (std::vector<size_t>{0, 1, 3}));
+  // A whole smaller than the ratio asks is still a duplicate.
+  EXPECT_EQ(SuppressOverlaps({0, 1, 2, 3}, score, items, 0.25f, 3.f), (std::vector<size_t>{0, 3}));
+  // A larger box that does not hold the better one is judged by IoU alone.
+  // (holds 80 % of it, IoU 0.33, 2.2x its volume)
+  const std::vector<Proposal> apart = {items[0], proposal({0.2f, 0, 1.3f}, {1.2f, 0.5f, 2.4f})};
+  EXPECT_EQ(SuppressOverlaps({0, 1}, {0.9f, 0.5f}, apart, 0.25f, 2.f), (std::vector<size_t>{0}));
 }
 
 }  // namespace

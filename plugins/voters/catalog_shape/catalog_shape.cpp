@@ -92,6 +92,7 @@ struct Options {
   float default_threshold = 0.f;
   float min_score = 1e-3f;
   float nms_iou = 0.25f;
+  float nms_whole = 0.f;  // a box this many times a better one's volume, holding it, is not its duplicate (0 = off)
   float cell = 0.05f;
   float tall_class = 1.2f;
   bool floor_term = true;
@@ -237,6 +238,11 @@ const ParamBinding<Options>& Binding() {
           .DetectionOnly()
           .Number("nms_iou", &O::nms_iou, 0, 1, "",
                   "a candidate overlapping a better one of its class by more box IoU is dropped")
+          .DetectionOnly()
+          .Number("nms_whole_ratio", &O::nms_whole, 0, 1000, "",
+                  "a candidate whose box holds >= 90 % of a better one's and is at least this many times its volume "
+                  "is kept beside it (0 = plain IoU suppression): a fragment of an object (the lower half of a wall "
+                  "cabinet, which fits a smaller catalog model) may score better than the whole")
           .DetectionOnly()
           .Number("profile_cell_m", &O::cell, 0.005, 1, "m", "column size of the top-view height profile")
           .Number("tall_class_m", &O::tall_class, 0, 10, "",
@@ -759,7 +765,7 @@ class CatalogShapeVoter : public Voter {
           if (score[c][i] >= o_.min_score && best_model[c][i] >= 0) order.push_back(i);
         const auto thr = o_.thresholds.find(classes_[c]);
         const float t = thr == o_.thresholds.end() ? o_.default_threshold : thr->second;
-        for (size_t i : shape::SuppressOverlaps(std::move(order), score[c], items, o_.nms_iou)) {
+        for (size_t i : shape::SuppressOverlaps(std::move(order), score[c], items, o_.nms_iou, o_.nms_whole)) {
           const Model& md = models_[size_t(best_model[c][i])];
           out.hypotheses.push_back(shape::ProposalHypothesis(classes_[c], score[c][i], t, items[i], int(i), int(s),
                                                              foot[i], md.id, md.wide, scan.pose));

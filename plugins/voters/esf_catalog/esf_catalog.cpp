@@ -144,6 +144,7 @@ struct Options {
   double default_threshold = 0.;
   double min_score = 1e-4;
   double nms_iou = 0.25;
+  double nms_whole = 0.;      // a box this many times a better one's volume, holding it, is kept beside it (0 = off)
 };
 
 class EsfCatalogVoter : public Voter {
@@ -181,6 +182,10 @@ class EsfCatalogVoter : public Voter {
         .Number("default_threshold", d.default_threshold, 0, 1, "operating score of classes not in thresholds").DetectionOnly()
         .Number("min_score", d.min_score, 0, 1, "candidates scoring lower are not reported").DetectionOnly()
         .Number("nms_iou", d.nms_iou, 0, 1, "a candidate overlapping a better one of its class by more box IoU is dropped")
+        .DetectionOnly()
+        .Number("nms_whole_ratio", d.nms_whole, 0, 1000,
+                "a candidate whose box holds >= 90 % of a better one's and is at least this many times its volume is "
+                "kept beside it (0 = plain IoU suppression; as voters.catalog_shape)")
         .DetectionOnly();
     return s;
   }
@@ -206,6 +211,7 @@ class EsfCatalogVoter : public Voter {
     o_.default_threshold = p.at("default_threshold").get<double>();
     o_.min_score = p.at("min_score").get<double>();
     o_.nms_iou = p.at("nms_iou").get<double>();
+    o_.nms_whole = p.at("nms_whole_ratio").get<double>();
   }
 
   nlohmann::json Train(const std::vector<TrainingView>& views, const RunContext& ctx) override {
@@ -426,7 +432,8 @@ class EsfCatalogVoter : public Voter {
           if (score[c][i] >= o_.min_score && best_model[c][i] >= 0) order.push_back(i);
         const auto thr = o_.thresholds.find(classes_[c]);
         const float t = thr == o_.thresholds.end() ? static_cast<float>(o_.default_threshold) : thr->second;
-        for (size_t i : shape::SuppressOverlaps(std::move(order), score[c], items, static_cast<float>(o_.nms_iou))) {
+        for (size_t i : shape::SuppressOverlaps(std::move(order), score[c], items, static_cast<float>(o_.nms_iou),
+                                                  static_cast<float>(o_.nms_whole))) {
           const Model& md = models_[size_t(best_model[c][i])];
           out.hypotheses.push_back(shape::ProposalHypothesis(classes_[c], score[c][i], t, items[i], int(i), int(s),
                                                              foot[i], md.id, md.wide, scan.pose));
