@@ -24,6 +24,9 @@
 //   when the left or right end of a single view cuts the proposal (ViewEdges), else 0,
 // then optionally class competition (score_c * (score_c / best class score of the proposal's
 // group)^compete): one object is one class, whatever variant of its cluster is looked at.
+// Per class, non-maximum suppression by box IoU; with nms_whole_ratio, a box that holds a better
+// one and is that many times its volume is kept beside it: a fragment (the lower half of a wall
+// cabinet, which fits a smaller catalog model) may score better than its whole.
 //
 // Training: the catalog models' sizes (TrainingView::object_size), and the profile and open
 // floor of each model's mesh as a sensor around it sees them (views without a mesh: of their
@@ -786,5 +789,5 @@ class CatalogShapeVoter : public Voter {
 }  // namespace
 }  // namespace furnihost
 
-FURNIHOST_PLUGIN(furnihost::CatalogShapeVoter, "voters.catalog_shape", "1.3.0",
+FURNIHOST_PLUGIN(furnihost::CatalogShapeVoter, "voters.catalog_shape", "1.4.0",
                  "recognises object proposals by the catalog models' metric sizes and top-view height profiles")

@@ -471,6 +471,6 @@ class EsfCatalogVoter : public Voter {
 }  // namespace
 }  // namespace furnihost
 
-FURNIHOST_PLUGIN(furnihost::EsfCatalogVoter, "voters.esf_catalog", "1.0.0",
+FURNIHOST_PLUGIN(furnihost::EsfCatalogVoter, "voters.esf_catalog", "1.1.0",
                  "recognises object proposals by k nearest ESF descriptors of the catalog's simulated views, times "
                  "their metric-size agreement with the class's catalog models")
