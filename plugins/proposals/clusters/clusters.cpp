@@ -35,6 +35,13 @@
 //   0.611 in-sample, held out 0.469 -> 0.517).
 // - Extend down: thin legs and floor contacts are often missing in reconstructions, and the
 //   objects' boxes include them.
+// - The spacing the radii scale with is not taken from duplicates or twins: exact duplicates are
+//   proposed on once, and the spacing is at least 0.45 x the median 4th-neighbour distance
+//   (what points strewn at random give; 0.48-0.55 on the dev rooms, which it leaves alone). Each
+//   point twice made every dev room propose nothing (AP 0); a second pass 2 mm off did too.
+//   `max_points` proposes a denser scan on a seeded random subset, as the 50k-point rooms the
+//   settings were chosen on were sampled (ScanNet dev with every point twice, 2 mm apart:
+//   chair / table AP25 0.195 / 0.261 -> 0.386 / 0.422 at 50000; docs/configs.md).
 //
 // Frames: the scan's working frame (z up); heights above Scan::ground. Points are referenced
 // by index into Scan::points.
@@ -63,10 +70,15 @@ namespace {
 
 // The "segs" rule's shortest wall segment [m].
 constexpr float kSegsLength = 0.6f;
+// Median nearest-neighbour over median 4th-nearest-neighbour distance of points strewn at random
+// (Poisson) over a surface: sqrt(ln 2) / sqrt(3.67) = 0.435, rounded up; the lowest spacing the
+// proposer takes per 4th-neighbour distance.
+constexpr float kSpacingPerNn4 = 0.45f;
 
 struct ClustersOptions {
   std::vector<double> radii{2.0, 2.5, 3.5};  // clustering radii [x spacing]
   int min_points = 40;
+  int max_points = 0;             // denser scans are proposed on a random subset of this many points (0 = all)
   float floor_cut = 0.04f;        // points this close to the ground are floor [m]
   float floor_flat_cut = 0.08f;   // horizontal points this close are floor too [m]
   float max_height = 2.6f;        // nothing above this is furniture [m] (capped under a ceiling)
@@ -99,6 +111,11 @@ const ParamBinding<ClustersOptions>& Binding() {
                       "Euclidean clustering radii in units of the scan's median point spacing; every radius gives "
                       "its own proposals (a small radius separates touching objects, a large one joins sparse ones)")
           .Int("min_points", &O::min_points, 3, 1e7, "", "clusters with fewer points are dropped")
+          .Int("max_points", &O::max_points, 0, 1e9, "",
+               "a scan with more points is proposed on a random subset of this many (seeded; the proposals hold "
+               "only those points): the radii scale with the point spacing, so a scan denser than the ones the "
+               "settings were chosen on (ScanNet's 50k-point rooms), or one holding each surface twice (two "
+               "passes, duplicated vertices), breaks into fragments; 0 = all points")
           .Number("floor_cut_m", &O::floor_cut, 0, 1, "m", "points less than this above the ground are floor")
           .Number("floor_flat_cut_m", &O::floor_flat_cut, 0, 1, "m",
                   "horizontal points (|n_z| > 0.9) less than this above the ground are floor")
@@ -236,7 +253,69 @@ class ClusterProposer : public Proposer {
   static ParamSchema Schema() { return Binding().Schema(); }
   explicit ClusterProposer(const nlohmann::json& p) : o_(Binding().Parse(p)) {}
 
-  Proposals Propose(const Scan& scan, const Segmentation*, const RunContext&) override {
+  Proposals Propose(const Scan& scan, const Segmentation*, const RunContext& ctx) override {
+    const size_t n = scan.points.size();
+    // The points proposed on: each distinct point once (a duplicate adds no surface, and the
+    // spacing the radii scale with would shrink), then, past max_points, a random subset of them.
+    std::vector<uint32_t> chosen;
+    chosen.reserve(n);
+    {
+      std::unordered_map<uint64_t, std::vector<uint32_t>> seen;
+      seen.reserve(n);
+      for (size_t i = 0; i < n; ++i) {
+        const Eigen::Vector3f& p = scan.points[i];
+        uint32_t bits[3];
+        std::memcpy(bits, p.data(), 12);
+        auto& same = seen[(uint64_t(bits[0]) * 0x9E3779B97F4A7C15ull) ^ (uint64_t(bits[1]) * 0xC2B2AE3D27D4EB4Full) ^
+                          (uint64_t(bits[2]) * 0x165667B19E3779F9ull)];
+        if (std::none_of(same.begin(), same.end(), [&](uint32_t j) { return scan.points[j] == p; })) {
+          same.push_back(uint32_t(i));
+          chosen.push_back(uint32_t(i));
+        }
+      }
+    }
+    const size_t distinct = chosen.size();
+    const size_t m = o_.max_points > 0 ? std::min(distinct, size_t(o_.max_points)) : distinct;
+    if (m < chosen.size()) {
+      // The points whose seeded hashes of their index are the smallest, in the scan's order (O(n);
+      // the same subset for the same scan and seed).
+      std::vector<std::pair<uint64_t, uint32_t>> key(chosen.size());
+      for (size_t k = 0; k < chosen.size(); ++k)
+        key[k] = {SplitMix64(ctx.seed ^ SplitMix64(uint64_t(chosen[k]) + 0x70726f70ull)), chosen[k]};
+      std::nth_element(key.begin(), key.begin() + long(m), key.end());
+      chosen.resize(m);
+      for (size_t k = 0; k < m; ++k) chosen[k] = key[k].second;
+      std::sort(chosen.begin(), chosen.end());
+    }
+    if (chosen.size() == n) return ProposeAll(scan);
+    Scan sub;  // what the proposals need of the scan; its own neighbours (the pipeline's are of all points)
+    sub.source = scan.source;
+    sub.origin = scan.origin;
+    sub.pose = scan.pose;
+    sub.frame = scan.frame;
+    sub.ground = scan.ground;
+    sub.points.reserve(chosen.size());
+    for (uint32_t i : chosen) sub.points.push_back(scan.points[i]);
+    spdlog::debug("proposals.clusters: {} points, {} distinct, proposing on {}", n, distinct, m);
+    Proposals out = ProposeAll(sub);
+    for (auto& q : out.items)
+      for (int& i : q.indices) i = int(chosen[size_t(i)]);
+    std::vector<uint8_t> removed(n, 0);  // the points left out: not reported
+    if (out.removed.size() == chosen.size())
+      for (size_t k = 0; k < chosen.size(); ++k) removed[chosen[k]] = out.removed[k];
+    if (n >= 10) out.removed = std::move(removed);
+    return out;
+  }
+
+ private:
+  static uint64_t SplitMix64(uint64_t x) {
+    x += 0x9E3779B97F4A7C15ull;
+    x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+    x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+    return x ^ (x >> 31);
+  }
+
+  Proposals ProposeAll(const Scan& scan) const {
     Proposals out;
     const size_t n = scan.points.size();
     if (n < 10) return out;
@@ -259,7 +338,12 @@ class ClusterProposer : public Proposer {
                            [&] { if (blocks || both) block_normals = shape::BlockNormals(P, o_.wall_voxel); });
       ls = shape::EstimateLocalShape(*knn_ptr, o_.neighbours);
     }
-    const float sp = std::max(shape::MedianSpacing(ls.nn), 1e-3f);
+    // The points' spacing: the median distance to the nearest other point, but not below what the
+    // 4th nearest gives for points strewn at random over the surfaces (0.45 x its median; 0.48-0.55
+    // on the ScanNet dev rooms, so their spacing is the nearest neighbours'). Duplicates, twin
+    // layers of two passes and clumps shorten the nearest distance without covering the surfaces
+    // more densely; taken at face value they shrink every radius and break objects into fragments.
+    const float sp = std::max({shape::MedianSpacing(ls.nn), kSpacingPerNn4 * shape::MedianSpacing(ls.nn4), 1e-3f});
     out.spacing = sp;
     std::vector<float> hz(n);
     for (size_t i = 0; i < n; ++i) hz[i] = scan.ground ? scan.ground->Above(P[i]) : P[i].z();
@@ -1020,6 +1104,6 @@ class ClusterProposer : public Proposer {
 }  // namespace
 }  // namespace furnihost
 
-FURNIHOST_PLUGIN(furnihost::ClusterProposer, "proposals.clusters", "1.4.0",
+FURNIHOST_PLUGIN(furnihost::ClusterProposer, "proposals.clusters", "1.5.0",
                  "object proposals: ground, walls and ceiling removed, Euclidean clusters at radii scaled to the scan's "
                  "point spacing, long clusters split, floating ones extended to the ground")

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <map>
+#include <random>
 #include <set>
 #include <tuple>
 
@@ -359,6 +360,65 @@ TEST(Clusters, DegenerateScans) {
   Scan none;
   for (int i = 0; i < 1000; ++i) none.points.emplace_back(0.01f * i, 0.f, 0.3f + 0.0001f * i);
   EXPECT_NO_THROW(proposer->Propose(none, nullptr, ctx));
+}
+
+// A scan holding each point twice (duplicated vertices) proposes as the scan itself; one of two
+// registered passes (a twin layer 2 mm off) still gives the objects whole (the spacing is not
+// taken from the twins' 2 mm); past max_points a seeded random subset is proposed on.
+TEST(Clusters, DuplicatesTwinLayersAndMaxPoints) {
+  const Room room = MakeRoom();
+  RunContext ctx;
+  auto proposer = Make<Proposer>("proposals.clusters");
+  const Proposals p0 = proposer->Propose(room.scan, nullptr, ctx);
+  const size_t n = room.scan.points.size();
+  Eigen::AlignedBox3f both = room.low;
+  both.extend(room.high);
+  ASSERT_GT(BestIou(p0, both, "all"), 0.7f);
+
+  Scan doubled = room.scan;
+  doubled.points.insert(doubled.points.end(), room.scan.points.begin(), room.scan.points.end());
+  const Proposals p1 = proposer->Propose(doubled, nullptr, ctx);
+  EXPECT_FLOAT_EQ(p1.spacing, p0.spacing);
+  ASSERT_EQ(p1.items.size(), p0.items.size());
+  for (size_t i = 0; i < p0.items.size(); ++i) {
+    EXPECT_EQ(p1.items[i].indices, p0.items[i].indices);  // the first copies
+    EXPECT_TRUE(p1.items[i].box.isApprox(p0.items[i].box));
+  }
+  EXPECT_EQ(p1.removed.size(), doubled.points.size());
+
+  Scan twins = room.scan;
+  std::mt19937 rng(5);
+  std::normal_distribution<float> jitter(0.f, 0.002f);
+  for (const auto& x : room.scan.points) twins.points.push_back(x + Eigen::Vector3f(jitter(rng), jitter(rng), jitter(rng)));
+  // The twins' nearest neighbours are 2-4 mm away; the spacing stays near the grid's 1.5 cm
+  // (0.45 x the 4th neighbour's distance: the twin of a grid neighbour).
+  const Proposals p2 = proposer->Propose(twins, nullptr, ctx);
+  EXPECT_GT(p2.spacing, 0.4f * p0.spacing);
+  // On as many points as one pass has, most twins are apart: the objects come whole.
+  const Proposals p2m = Make<Proposer>("proposals.clusters", {{"max_points", int(n)}})->Propose(twins, nullptr, ctx);
+  EXPECT_GT(BestIou(p2m, both, "all"), 0.7f);
+  EXPECT_GT(BestIou(p2m, room.legs_and_top, "all", "+ext"), 0.7f);
+
+  const json half = {{"max_points", int(n / 2)}};
+  const Proposals p3 = Make<Proposer>("proposals.clusters", half)->Propose(room.scan, nullptr, ctx);
+  std::vector<int> used;
+  for (const auto& q : p3.items) used.insert(used.end(), q.indices.begin(), q.indices.end());
+  std::sort(used.begin(), used.end());
+  used.erase(std::unique(used.begin(), used.end()), used.end());
+  EXPECT_LE(used.size(), n / 2);
+  EXPECT_GT(BestIou(p3, both, "all"), 0.6f);
+  EXPECT_EQ(p3.removed.size(), n);
+  const Proposals again = Make<Proposer>("proposals.clusters", half)->Propose(room.scan, nullptr, ctx);
+  ASSERT_EQ(again.items.size(), p3.items.size());
+  for (size_t i = 0; i < p3.items.size(); ++i) EXPECT_EQ(again.items[i].indices, p3.items[i].indices);
+  RunContext other;
+  other.seed = 7;
+  const Proposals reseeded = Make<Proposer>("proposals.clusters", half)->Propose(room.scan, nullptr, other);
+  std::vector<int> used7;
+  for (const auto& q : reseeded.items) used7.insert(used7.end(), q.indices.begin(), q.indices.end());
+  std::sort(used7.begin(), used7.end());
+  used7.erase(std::unique(used7.begin(), used7.end()), used7.end());
+  EXPECT_NE(used7, used);
 }
 
 }  // namespace
