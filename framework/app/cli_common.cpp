@@ -88,8 +88,8 @@ void FrameCli::Add(CLI::App& app) {
                  "scan -> z-up frame as 16 numbers (4x4, row-major) or x,y,z,roll,pitch,yaw (metres, radians; as a ROS "
                  "static transform); instead of --up");
   app.add_option("--shift", shift,
-                 "global shift x,y,z subtracted from the coordinates at read time (default: automatic for files 10 km "
-                 "or more from the origin); outputs are written back in the file's coordinates");
+                 "global shift x,y,z subtracted from the coordinates at read time (default: automatic for files whose "
+                 "first point lies 100 m or more from the origin); outputs are written back in the file's coordinates");
   app.add_option("--ground", ground,
                  "the floor: auto (default of the graph), level, plane, height_map, or a number: a fixed floor height "
                  "[m] in the z-up frame");

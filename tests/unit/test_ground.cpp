@@ -315,7 +315,7 @@ TEST(Frame, GlobalShiftKeepsMillimetres) {
     out << "691000.123 5335000.456 401.789\n691001.001 5335002.002 402.003\n691000.5 5335000.5 400.5\n";
   }
   const Scan s = ReadScan(ply);
-  EXPECT_TRUE(s.frame.shift.isApprox(Eigen::Vector3d(691000, 5335000, 0)));
+  EXPECT_TRUE(s.frame.shift.isApprox(Eigen::Vector3d(691000, 5335000, 400)));
   EXPECT_NEAR(s.points[0].x(), 0.123f, 1e-5f);
   EXPECT_NEAR(s.points[0].y(), 0.456f, 1e-5f);
   EXPECT_NEAR(s.frame.ToFile(s.points[1]).y(), 5335002.002, 1e-4);
@@ -329,6 +329,23 @@ TEST(Frame, GlobalShiftKeepsMillimetres) {
   WritePlyInFrame(back, s.points, s.frame);
   const Scan r = ReadScan(back, nullptr, 0, manual);
   EXPECT_NEAR(r.frame.ToFile(r.points[1]).x(), 691001.001, 1e-4);
+  // A room 100 m and more off the origin is shifted too; one that straddles that distance is
+  // shifted whole by its first point (a depth camera's (0, 0, 0) and garbage decide nothing),
+  // never torn in two.
+  auto read_xyz = [&](const std::string& name, const std::string& text) {
+    const std::string f = (dir / name).string();
+    std::ofstream(f) << text;
+    return ReadScan(f);
+  };
+  const Scan straddle = read_xyz("straddle.xyz", "0 0 0\n1e30 0 0\n100.25 -25 1\n99.75 -25 1\n100.5 -24 2\n");
+  EXPECT_TRUE(straddle.frame.shift.isApprox(Eigen::Vector3d(100, 0, 0)));
+  ASSERT_EQ(straddle.points.size(), 4u);  // the garbage point dropped as far
+  EXPECT_NEAR(straddle.points[2].x(), -0.25f, 1e-5f);
+  EXPECT_NEAR(straddle.points[3].x(), 0.5f, 1e-5f);
+  EXPECT_NEAR(straddle.frame.ToFile(straddle.points[2]).x(), 99.75, 1e-6);
+  const Scan below = read_xyz("below.xyz", "99.75 -25 1\n100.25 -25 1\n");
+  EXPECT_TRUE(below.frame.shift.isZero());
+  EXPECT_NEAR(below.points[1].x(), 100.25f, 1e-4f);
   fs::remove_all(dir);
 }
 

@@ -43,9 +43,10 @@ TEST(Io, PcdRoundTripKeepsViewpoint) {
   WritePcd(p, s);
   auto r = ReadScan(p);
   ASSERT_EQ(r.points.size(), s.points.size());
-  for (size_t i = 0; i < s.points.size(); ++i) EXPECT_EQ(r.points[i], s.points[i]);
+  // 1 km up: read shifted, compared in the file's frame (the viewpoint too).
+  for (size_t i = 0; i < s.points.size(); ++i) EXPECT_LT((r.frame.ToFile(r.points[i]) - s.points[i].cast<double>()).norm(), 1e-4);
   ASSERT_TRUE(r.origin.has_value());
-  EXPECT_TRUE(r.origin->isApprox(*s.origin));
+  EXPECT_TRUE(r.frame.ToFile(*r.origin).isApprox(s.origin->cast<double>()));
 }
 
 TEST(Io, PcdAsciiDropsNaNAndKnowsPclsDefaultViewpoint) {
@@ -99,9 +100,11 @@ TEST(Io, PlyAndXyzRoundTrip) {
   auto b = ReadScan(dir + "/c.xyz");
   ASSERT_EQ(a.points.size(), s.points.size());
   ASSERT_EQ(b.points.size(), s.points.size());
+  // 1 km up: read shifted (every point, by the first one's 100 m), compared in the file's frame.
+  EXPECT_TRUE(a.frame.shift.isApprox(Eigen::Vector3d(0, 0, 1000)));
   for (size_t i = 0; i < s.points.size(); ++i) {
-    EXPECT_EQ(a.points[i], s.points[i]);
-    EXPECT_LT((b.points[i] - s.points[i]).norm(), 1e-2f);  // %.6g text
+    EXPECT_LT((a.frame.ToFile(a.points[i]) - s.points[i].cast<double>()).norm(), 1e-4);
+    EXPECT_LT((b.frame.ToFile(b.points[i]) - s.points[i].cast<double>()).norm(), 1e-2);  // %.6g text
   }
   WriteText(dir + "/ascii.ply", "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
                                 "property float z\nend_header\n1 2 3\n4 5 inf\n");

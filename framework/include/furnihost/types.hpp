@@ -51,8 +51,9 @@ struct GroundTruthObject {
 
 // Global shift: coordinates are read in double and `shift` is subtracted before they are
 // rounded to float (Scan::frame.shift records it). Unset + `automatic`: a file whose first
-// finite point lies 10 km or more from the origin (georeferenced: UTM, national grids) is
-// shifted by that point rounded down to 100 m per far axis; the shift is logged.
+// finite point other than (0, 0, 0) lies 100 m or more from the origin (georeferenced: UTM,
+// national grids; a site's frame) is shifted, every point of it, by that point rounded down to
+// 100 m per far axis; the shift is logged.
 struct ShiftOption {
   std::optional<Eigen::Vector3d> shift;
   bool automatic = true;
