@@ -61,6 +61,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include "furnihost/geometry.hpp"
 #include "furnihost/plugin.hpp"
 #include "furnihost/voxel_index.hpp"
 #include "shape/shape.hpp"
@@ -257,23 +258,12 @@ class ClusterProposer : public Proposer {
     const size_t n = scan.points.size();
     // The points proposed on: each distinct point once (a duplicate adds no surface, and the
     // spacing the radii scale with would shrink), then, past max_points, a random subset of them.
-    std::vector<uint32_t> chosen;
-    chosen.reserve(n);
-    {
-      std::unordered_map<uint64_t, std::vector<uint32_t>> seen;
-      seen.reserve(n);
-      for (size_t i = 0; i < n; ++i) {
-        const Eigen::Vector3f& p = scan.points[i];
-        uint32_t bits[3];
-        std::memcpy(bits, p.data(), 12);
-        auto& same = seen[(uint64_t(bits[0]) * 0x9E3779B97F4A7C15ull) ^ (uint64_t(bits[1]) * 0xC2B2AE3D27D4EB4Full) ^
-                          (uint64_t(bits[2]) * 0x165667B19E3779F9ull)];
-        if (std::none_of(same.begin(), same.end(), [&](uint32_t j) { return scan.points[j] == p; })) {
-          same.push_back(uint32_t(i));
-          chosen.push_back(uint32_t(i));
-        }
-      }
-    }
+    std::vector<uint32_t> of;
+    const size_t groups = GroupEqualPoints(scan.points, &of).size();
+    std::vector<uint32_t> chosen;  // the first point of each distinct position (they come in that order)
+    chosen.reserve(groups);
+    for (size_t i = 0; i < n; ++i)
+      if (of[i] == chosen.size()) chosen.push_back(uint32_t(i));
     const size_t distinct = chosen.size();
     const size_t m = o_.max_points > 0 ? std::min(distinct, size_t(o_.max_points)) : distinct;
     if (m < chosen.size()) {
