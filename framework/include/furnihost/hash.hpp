@@ -1,6 +1,6 @@
 // Stable 64-bit FNV-1a hashing, the one hash of the host and the plugins (dataset hashes, model
-// and model-cloud cache keys, sampling and RANSAC seeds): unlike std::hash, its values do not
-// depend on the standard library, the build or the run.
+// and model-cloud cache keys, sampling and RANSAC seeds), and SplitMix64 to derive seeds from
+// it: unlike std::hash, their values do not depend on the standard library, the build or the run.
 #pragma once
 #include <cstddef>
 #include <cstdint>
@@ -22,6 +22,16 @@ constexpr uint64_t kFnvOffsetTruncated = 1469598103934665603ull;
 // 64-bit FNV-1a over `size` bytes, continuing from `h` (start with one of the offsets above).
 FURNIHOST_API uint64_t Fnv1a(const void* data, size_t size, uint64_t h = kFnvOffset);
 inline uint64_t Fnv1a(const std::string& s, uint64_t h = kFnvOffset) { return Fnv1a(s.data(), s.size(), h); }
+
+// SplitMix64's finaliser (Steele, Lea & Flood 2014): a bijection of 64-bit words whose outputs
+// for related inputs (x, x + 1, a seed xor an index) are independent for practical purposes.
+// Derives seeds and counter-based random numbers: the same value on every build and run.
+inline uint64_t SplitMix64(uint64_t x) {
+  x += 0x9E3779B97F4A7C15ull;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+  return x ^ (x >> 31);
+}
 
 // The folder where results keyed by such hashes are kept between runs: $FURNIHOST_CACHE_DIR,
 // else $XDG_CACHE_HOME/furnihost, else $HOME/.cache/furnihost, + "/" + `sub`; empty when none

@@ -27,13 +27,6 @@ void SamplingOptions::Check() const {
   if (!(inlier_distance > 0)) throw StageError("inlier_distance_m must be > 0");
 }
 
-uint64_t SplitMix(uint64_t x) {
-  x += 0x9e3779b97f4a7c15ull;
-  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
-  x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
-  return x ^ (x >> 31);
-}
-
 namespace {
 
 // nanoflann reads the points where they are (no copy).
@@ -237,7 +230,7 @@ ModelCloud::ModelCloud(const CatalogModel& model, const SamplingOptions& o, uint
   Points nrm;
   const Points pts = SampleSurface(mesh, static_cast<float>(n / area_), seed, &nrm);
   if (pts.empty()) throw StageError("catalog model " + model.id + ": surface sampling gave no points");
-  std::mt19937_64 rng(SplitMix(seed));  // a second stream for the budget subset, apart from SampleSurface's
+  std::mt19937_64 rng(SplitMix64(seed));  // a second stream for the budget subset, apart from SampleSurface's
   std::vector<int> keep = OuterPoints(pts, static_cast<float>(dense_spacing));
   if (keep.empty()) {  // degenerate (e.g. a single flat face seen edge-on): keep everything
     keep.resize(pts.size());

@@ -143,7 +143,5 @@ class ModelCloud {
                                       // RANSAC's look-ups on dense scans (3x faster than kd_)
 };
 
-// SplitMix64 finaliser: derives independent seeds from related ones (x, x + 1, a hash).
-uint64_t SplitMix(uint64_t x);
 
 }  // namespace furnihost::ransac_upright

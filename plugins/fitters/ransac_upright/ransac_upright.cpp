@@ -213,7 +213,7 @@ std::string Fixed2(double v) {
 // other classes' fits alone; with list-index seeds it re-drew all of them).
 uint64_t HypothesisSeed(uint64_t run_seed, const Detection& d) {
   const uint64_t cls = Fnv1a(d.cls, kFnvOffsetTruncated);
-  return SplitMix(run_seed ^ SplitMix(Fnv1a(d.center.data(), sizeof(float) * 3, cls)));
+  return SplitMix64(run_seed ^ SplitMix64(Fnv1a(d.center.data(), sizeof(float) * 3, cls)));
 }
 
 // Identifies a scan's grid in the cache: the pointer alone could be reused by a later scan.

@@ -62,6 +62,7 @@
 #include <spdlog/spdlog.h>
 
 #include "furnihost/geometry.hpp"
+#include "furnihost/hash.hpp"
 #include "furnihost/plugin.hpp"
 #include "furnihost/voxel_index.hpp"
 #include "shape/shape.hpp"
@@ -298,13 +299,6 @@ class ClusterProposer : public Proposer {
   }
 
  private:
-  static uint64_t SplitMix64(uint64_t x) {
-    x += 0x9E3779B97F4A7C15ull;
-    x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-    x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-    return x ^ (x >> 31);
-  }
-
   Proposals ProposeAll(const Scan& scan) const {
     Proposals out;
     const size_t n = scan.points.size();

@@ -29,6 +29,7 @@
 #include <type_traits>
 
 #include "furnihost/geometry.hpp"
+#include "furnihost/hash.hpp"
 #include "furnihost/plugin.hpp"
 
 namespace furnihost::sensors {
@@ -182,12 +183,6 @@ const ParamBinding<SimulatedLaserOptions>& Binding() {
 }
 
 // ---- counter-based random numbers --------------------------------------------------------
-inline uint64_t SplitMix(uint64_t x) {
-  x += 0x9E3779B97F4A7C15ull;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-  return x ^ (x >> 31);
-}
 // Uniform in (0, 1): 53 random bits, never exactly 0 (log-safe).
 inline double Unit(uint64_t bits) { return ((bits >> 11) + 0.5) * (1.0 / 9007199254740992.0); }
 
@@ -218,8 +213,8 @@ inline double NormalQuantile(double p) {
 struct RayRng {
   uint64_t state;
   RayRng(uint64_t seed, uint64_t view, uint64_t ray)
-      : state(SplitMix(SplitMix(SplitMix(seed) ^ view) ^ ray)) {}
-  double Uniform() { return Unit(state = SplitMix(state)); }
+      : state(SplitMix64(SplitMix64(SplitMix64(seed) ^ view) ^ ray)) {}
+  double Uniform() { return Unit(state = SplitMix64(state)); }
   double Gauss() { return NormalQuantile(Uniform()); }
 };
 
@@ -527,11 +522,11 @@ class SimulatedLaser : public Sensor {
   // view (a reconstruction's unscanned patches differ from one walk to the next).
   void PunchHoles(uint64_t seed, size_t view, Points& pts, std::vector<int32_t>& labels) const {
     const double cell = opt_.hole_size_m;
-    const uint64_t key = SplitMix(SplitMix(seed ^ 0x486f6c6573ull) ^ view);
+    const uint64_t key = SplitMix64(SplitMix64(seed ^ 0x486f6c6573ull) ^ view);
     size_t kept = 0;
     for (size_t i = 0; i < pts.size(); ++i) {
       uint64_t h = key;
-      for (int a = 0; a < 3; ++a) h = SplitMix(h ^ uint64_t(int64_t(std::floor(double(pts[i][a]) / cell))));
+      for (int a = 0; a < 3; ++a) h = SplitMix64(h ^ uint64_t(int64_t(std::floor(double(pts[i][a]) / cell))));
       if (Unit(h) < opt_.holes) continue;
       pts[kept] = pts[i];
       labels[kept++] = labels[i];
