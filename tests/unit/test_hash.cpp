@@ -26,3 +26,12 @@ TEST(Hash, ContinuesFromTheGivenState) {
   EXPECT_EQ(Fnv1a(std::string("b"), Fnv1a(std::string("a"), kFnvOffsetTruncated)),
             Fnv1a(ab, kFnvOffsetTruncated));
 }
+
+TEST(Hash, SplitMix64MatchesTheReferenceGenerator) {
+  // The reference SplitMix64 generator seeded with 0 outputs these; each step adds the golden
+  // gamma to its state and returns the finaliser of the new state, as SplitMix64(state) does.
+  EXPECT_EQ(SplitMix64(0), 0xe220a8397b1dcdafull);
+  EXPECT_EQ(SplitMix64(0x9e3779b97f4a7c15ull), 0x6e789e6aa1b965f4ull);
+  EXPECT_EQ(SplitMix64(2 * 0x9e3779b97f4a7c15ull), 0x06c45d188009454full);
+  EXPECT_NE(SplitMix64(1), SplitMix64(2));
+}
