@@ -29,6 +29,7 @@
 #include "commands.hpp"
 #include "furnihost/catalog.hpp"
 #include "furnihost/evaluation.hpp"
+#include "furnihost/hash.hpp"
 #include "furnihost/io.hpp"
 #include "furnihost/log.hpp"
 #include "furnihost/pipeline.hpp"
@@ -158,12 +159,20 @@ struct Loaded {
   std::optional<TrainedModel> model;
 };
 
+// A length in metres as millimetres, "0.50 mm".
+std::string Mm(double m) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.2f mm", m * 1000);
+  return b;
+}
+
 struct RunInput {
   const Dataset* dataset;
   const std::vector<std::vector<GroundTruthObject>>* truth;
   WidthConvention width;
   int jobs;  // 0 = auto
   std::string detections_dir;  // when set: each scene's detections as <dir>/<config>/<seed>/<scan stem>.json
+  double jitter_m = 0;  // --jitter: noise added to each scene's points, drawn from the seed and the scan's path
 };
 
 // Ground-truth boxes (file frame) in a scan's z-up frame: centres mapped, sizes the extents
@@ -203,6 +212,8 @@ RunFigures RunOne(Loaded& cfg, const Registry& reg, const RunContext& ctx, const
     si.path = scenes[i].scan;
     si.origin = scenes[i].origin;
     si.frame = scenes[i].frame;
+    si.jitter_m = float(in.jitter_m);
+    si.jitter_seed = SplitMix64(ctx.seed) ^ Fnv1a(scenes[i].scan);
     Stopwatch sw;
     Pipeline::Result r;
     // Name the scene: the stage's message alone does not say which of many scans failed.
@@ -394,6 +405,7 @@ int RunEval(const std::vector<std::string>& args) {
   std::vector<std::string> graphs, names;
   std::string dataset_path, out = "furnihost-out/eval", width_text = "max";
   int seeds = 1, jobs = 0;
+  double jitter = 0;
   bool retrain = false, strict = false, save_detections = false;
   common.Add(app);
   app.add_option("--graph,-g", graphs, "graph config (repeat: the first is the baseline A)")->required();
@@ -403,6 +415,11 @@ int RunEval(const std::vector<std::string>& args) {
   app.add_option("--seeds", seeds, "detection seeds per config: seed0 .. seed0+N-1 (seed0 = --seed or the graph's); "
                                    "the trained model is not retrained per seed")
       ->check(CLI::Range(1, 1000));
+  app.add_option("--jitter", jitter,
+                 "add Gaussian noise of this standard deviation [m] to every scan's points as read, drawn anew for "
+                 "each seed (with --seeds N: the spread of the figures under a perturbation far below the sensor's "
+                 "noise, e.g. 0.0005; the noise floor of an A/B comparison)")
+      ->check(CLI::Range(0.0, 0.05));
   app.add_option("--width", width_text, "ground-truth width for the match radius: max or min of the box's x/y size (default max)")
       ->check(CLI::IsMember({"max", "min"}));
   FrameCli ground_cli;
@@ -444,7 +461,8 @@ int RunEval(const std::vector<std::string>& args) {
                                 for (const auto& [k, v] : dataset.classes.map) m[k] = v ? json(*v) : json(nullptr);
                                 return m;
                               }()}};
-  const RunInput run_in{&dataset, &truth, width, jobs, save_detections ? (fs::path(out) / "detections").string() : ""};
+  const RunInput run_in{&dataset, &truth, width, jobs, save_detections ? (fs::path(out) / "detections").string() : "",
+                        jitter};
   std::vector<ConfigSummary> summaries;
   for (auto& cfg : configs) {
     ConfigSummary summary;
@@ -509,6 +527,7 @@ int RunEval(const std::vector<std::string>& args) {
                          {"seed", summary.runs.front().seed},
                          {"seeds", seeds_json},
                          {"model_seed", cfg.graph.seed},
+                         {"jitter_m", jitter},
                          {"width_convention", ToString(width)},
                          {"dataset", dataset_json},
                          {"machine", machine},
@@ -527,6 +546,9 @@ int RunEval(const std::vector<std::string>& args) {
   info.width = width;
   info.plots = plots;
   info.notes = IgnoredNotes(summaries);
+  if (jitter > 0)
+    info.notes.push_back("scans jittered: Gaussian noise of " + Mm(jitter) +
+                         " on every coordinate, drawn anew for each seed (--jitter)");
   info.notes.push_back("git " + git["revision"].get<std::string>() + (git["dirty"] == true ? " (uncommitted changes)" : "") +
                        "; machine: " + machine.value("cpu", std::string("?")) + ", " +
                        std::to_string(machine["nproc"].get<unsigned>()) + " threads");
@@ -583,6 +605,10 @@ int RunCompare(const std::vector<std::string>& args) {
   if (da.value("hash", "") != db.value("hash", ""))
     info.notes.push_back("WARNING: the runs used different datasets (B: `" + db.value("path", "?") + "`, hash `" +
                          db.value("hash", "?") + "`): the figures are not comparable");
+  if (records[0].value("jitter_m", 0.0) != records[1].value("jitter_m", 0.0))
+    info.notes.push_back("WARNING: the runs jittered their scans differently (A: " +
+                         Mm(records[0].value("jitter_m", 0.0)) + ", B: " +
+                         Mm(records[1].value("jitter_m", 0.0)) + "; --jitter)");
   if (records[0].value("width_convention", "") != records[1].value("width_convention", ""))
     info.notes.push_back("WARNING: the runs used different width conventions (B: " +
                          records[1].value("width_convention", "?") + ")");

@@ -9,6 +9,7 @@
 #include <set>
 #include <sstream>
 
+#include "furnihost/geometry.hpp"
 #include "furnihost/ground.hpp"
 #include "furnihost/io.hpp"
 #include "furnihost/log.hpp"
@@ -381,6 +382,8 @@ Pipeline::Result Pipeline::Detect(const std::vector<SceneInput>& scenes, const T
     req.shift = sc.frame.shift;
     Stopwatch sw;
     auto got = Call(*input_cfg_, [&] { return input_->Acquire(req, ctx); });
+    if (sc.jitter_m > 0.f)
+      for (size_t k = 0; k < got.size(); ++k) JitterPoints(got[k].points, sc.jitter_m, sc.jitter_seed + k);
     timed(input_cfg_->tag, sw.Ms());
     // The working frame (z up) and the ground, once per scan, before any stage sees it.
     Stopwatch sg;

@@ -562,6 +562,26 @@ TEST(EvalCommand, WritesEveryOutputAndComparesRunRecords) {
   std::string cmp;
   ASSERT_EQ(Furnihost("compare " + dir + "/out/run_a.json " + dir + "/out/run_b.json", &cmp), 0) << cmp;
   EXPECT_NE(cmp.find("| metric | A: a | B: b | B − A |"), std::string::npos) << cmp;
+  // --jitter: recorded, named in the report, and a comparison with an unjittered run warns.
+  std::string jit;
+  ASSERT_EQ(Furnihost("eval -q --graph " + dir + "/a.json --dataset " + dir + "/D.json --out " + dir +
+                          "/out_j --seeds 2 --jitter 0.0005",
+                      &jit),
+            0)
+      << jit;
+  EXPECT_DOUBLE_EQ(json::parse(ReadText(dir + "/out_j/run_a.json"))["jitter_m"].get<double>(), 0.0005);
+  EXPECT_EQ(json::parse(ReadText(dir + "/out/run_a.json"))["jitter_m"].get<double>(), 0.0);
+  EXPECT_NE(ReadText(dir + "/out_j/report.md").find("scans jittered: Gaussian noise of 0.50 mm"), std::string::npos);
+  std::string cmp_j;
+  ASSERT_EQ(Furnihost("compare " + dir + "/out/run_a.json " + dir + "/out_j/run_a.json", &cmp_j), 0) << cmp_j;
+  EXPECT_NE(cmp_j.find("WARNING: the runs jittered their scans differently (A: 0.00 mm, B: 0.50 mm"), std::string::npos)
+      << cmp_j;
+  std::string bad_jit;
+  EXPECT_EQ(Furnihost("eval --graph " + dir + "/a.json --dataset " + dir + "/D.json --out " + dir + "/out3 --jitter -1",
+                      &bad_jit),
+            2);
+  EXPECT_NE(bad_jit.find("--jitter"), std::string::npos) << bad_jit;
+
   std::string bad;
   EXPECT_EQ(Furnihost("compare " + dir + "/D.json " + dir + "/out/run_b.json", &bad), 2);
   EXPECT_NE(bad.find("not a furnihost run record"), std::string::npos) << bad;

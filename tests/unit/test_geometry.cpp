@@ -138,3 +138,45 @@ TEST(Geometry, GroupEqualPointsKeepsFirstAppearances) {
   EXPECT_EQ(furnihost::GroupEqualPoints(flood).size(), 1u);
   EXPECT_TRUE(furnihost::GroupEqualPoints(furnihost::Points()).empty());
 }
+
+// JitterPoints: Gaussian noise of the given spread on each coordinate, uncorrelated, the same
+// for a seed, other for another seed; NaN and a driver's (0, 0, 0) left as they are.
+TEST(JitterPoints, GaussianPerCoordinateDeterministicPerSeed) {
+  const size_t n = 20000;
+  furnihost::Points pts(n, Eigen::Vector3f(1.f, -2.f, 3.f));
+  pts[5] = Eigen::Vector3f::Zero();
+  pts[6] = Eigen::Vector3f(NAN, 0.f, 0.f);
+  const float sigma = 0.01f;
+  furnihost::Points a = pts, b = pts, c = pts, d = pts;
+  furnihost::JitterPoints(a, sigma, 42);
+  furnihost::JitterPoints(b, sigma, 42);
+  furnihost::JitterPoints(c, sigma, 43);
+  furnihost::JitterPoints(d, 0.f, 42);
+  EXPECT_TRUE(a[5].isZero());
+  EXPECT_TRUE(std::isnan(a[6].x()));
+  EXPECT_EQ(a[6].y(), 0.f);
+  size_t same_b = 0, same_c = 0, same_d = 0;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  size_t m = 0;
+  for (size_t i = 0; i < n; ++i) {
+    if (i == 5 || i == 6) continue;
+    same_b += a[i] == b[i];
+    same_c += a[i] == c[i];
+    same_d += d[i] == pts[i];
+    const Eigen::Vector3d e = (a[i] - pts[i]).cast<double>();
+    mean += e;
+    cov += e * e.transpose();
+    ++m;
+  }
+  EXPECT_EQ(same_b, m);  // the same seed: the same noise
+  EXPECT_LT(same_c, 10u);  // another seed: other noise
+  EXPECT_EQ(same_d, m);  // sigma 0: untouched
+  mean /= double(m);
+  cov /= double(m);
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_LT(std::abs(mean[k]), 4 * sigma / std::sqrt(double(m))) << k;
+    EXPECT_NEAR(std::sqrt(cov(k, k)), sigma, 0.03 * sigma) << k;
+    for (int l = 0; l < k; ++l) EXPECT_LT(std::abs(cov(k, l)) / (sigma * sigma), 0.05) << k << l;
+  }
+}

@@ -37,6 +37,13 @@ FURNIHOST_API VoxelNormals EstimateVoxelNormals(const Points& points, float voxe
 // The same, the per-voxel plane fits spread by `pfor`; bit-identical results.
 FURNIHOST_API VoxelNormals EstimateVoxelNormals(const Points& points, float voxel, const RangeFor& pfor);
 
+// Adds Gaussian noise of standard deviation `sigma` [m] to each coordinate of every finite
+// point other than (0, 0, 0) (a driver's invalid return stays invalid; NaN stays NaN). Each
+// point's noise comes from `seed` and its index alone (SplitMix64, Box-Muller): the same for a
+// seed whatever the threads. `furnihost eval --jitter`: how far the figures move when the scan
+// moves by far less than its sensor's noise.
+FURNIHOST_API void JitterPoints(Points& points, float sigma, uint64_t seed);
+
 // Isometry for an upright pose: translation (x, y, z), rotation yaw [rad] about +z.
 FURNIHOST_API Eigen::Isometry3f UprightPose(float x, float y, float z, float yaw);
 

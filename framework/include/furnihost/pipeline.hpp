@@ -75,6 +75,10 @@ class FURNIHOST_API Pipeline {
     std::optional<Eigen::Vector3f> origin;  // in the file's frame
     Eigen::Isometry3f pose = Eigen::Isometry3f::Identity();
     FrameOptions frame;                      // up axis / transform / global shift
+    // Gaussian noise [m] added to the points as read, before the frame and every stage
+    // (JitterPoints with jitter_seed; 0 = none): `furnihost eval --jitter`.
+    float jitter_m = 0.f;
+    uint64_t jitter_seed = 0;
   };
   // With several stages of a kind, the fields below hold the first one's output (execution
   // order); `detections` holds every sink's (GraphConfig::Sinks).
