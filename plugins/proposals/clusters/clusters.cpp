@@ -39,9 +39,11 @@
 //   proposed on once, and the spacing is at least 0.45 x the median 4th-neighbour distance
 //   (what points strewn at random give; 0.48-0.55 on the dev rooms, which it leaves alone). Each
 //   point twice made every dev room propose nothing (AP 0); a second pass 2 mm off did too.
-//   `max_points` proposes a denser scan on a seeded random subset, as the 50k-point rooms the
-//   settings were chosen on were sampled (ScanNet dev with every point twice, 2 mm apart:
-//   chair / table AP25 0.195 / 0.261 -> 0.386 / 0.422 at 50000; docs/configs.md).
+//   `thin_spacing_m` proposes a scan denser than that on a seeded random subset about that far
+//   apart (scannet.json: 1.3 cm, just under its densest dev room): a density, not a count, so a
+//   space four ScanNet rooms large at their density keeps every point (`max_points` 50000,
+//   stop 44's way, gave it chair / table AP25 0.272 / 0.303 against 0.553 / 0.464; a second
+//   pass 2 mm off: 0.196 / 0.262 unthinned, 0.315 / 0.295 thinned; docs/configs.md).
 //
 // Frames: the scan's working frame (z up); heights above Scan::ground. Points are referenced
 // by index into Scan::points.
@@ -76,11 +78,18 @@ constexpr float kSegsLength = 0.6f;
 // (Poisson) over a surface: sqrt(ln 2) / sqrt(3.67) = 0.435, rounded up; the lowest spacing the
 // proposer takes per 4th-neighbour distance.
 constexpr float kSpacingPerNn4 = 0.45f;
+// thin_spacing_m measures a large scan's spacing on every point of random cells of kSpacingCell
+// [m] holding about kSpacingSample of them: small cells, so that they come from all over the
+// scan (2 m cells: 7 % off on a test room), large enough that few points lose their nearest
+// neighbours across a cell's faces.
+constexpr size_t kSpacingSample = 100000;
+constexpr double kSpacingCell = 0.5;
 
 struct ClustersOptions {
   std::vector<double> radii{2.0, 2.5, 3.5};  // clustering radii [x spacing]
   int min_points = 40;
   int max_points = 0;             // denser scans are proposed on a random subset of this many points (0 = all)
+  float thin_spacing = 0.f;       // denser scans are proposed on a random subset this sparse [m] (0 = all points)
   float floor_cut = 0.04f;        // points this close to the ground are floor [m]
   float floor_flat_cut = 0.08f;   // horizontal points this close are floor too [m]
   float max_height = 2.6f;        // nothing above this is furniture [m] (capped under a ceiling)
@@ -118,6 +127,11 @@ const ParamBinding<ClustersOptions>& Binding() {
                "only those points): the radii scale with the point spacing, so a scan denser than the ones the "
                "settings were chosen on (ScanNet's 50k-point rooms), or one holding each surface twice (two "
                "passes, duplicated vertices), breaks into fragments; 0 = all points")
+          .Number("thin_spacing_m", &O::thin_spacing, 0, 1, "m",
+                  "a scan whose point spacing (measured on its distinct points in random 0.5 m cells holding about 100k) "
+                  "is below this is proposed on a random subset with about this spacing (seeded; the proposals hold "
+                  "only those points): a density, unlike max_points, so a large space scanned as densely as the "
+                  "rooms the settings were chosen on keeps all its points; 0 = all points")
           .Number("floor_cut_m", &O::floor_cut, 0, 1, "m", "points less than this above the ground are floor")
           .Number("floor_flat_cut_m", &O::floor_flat_cut, 0, 1, "m",
                   "horizontal points (|n_z| > 0.9) less than this above the ground are floor")
@@ -266,14 +280,73 @@ class ClusterProposer : public Proposer {
     for (size_t i = 0; i < n; ++i)
       if (of[i] == chosen.size()) chosen.push_back(uint32_t(i));
     const size_t distinct = chosen.size();
-    const size_t m = o_.max_points > 0 ? std::min(distinct, size_t(o_.max_points)) : distinct;
-    if (m < chosen.size()) {
-      // The points whose seeded hashes of their index are the smallest, in the scan's order (O(n);
-      // the same subset for the same scan and seed).
-      std::vector<std::pair<uint64_t, uint32_t>> key(chosen.size());
-      for (size_t k = 0; k < chosen.size(); ++k)
-        key[k] = {SplitMix64(ctx.seed ^ SplitMix64(uint64_t(chosen[k]) + 0x70726f70ull)), chosen[k]};
+    // A random subset is the points whose seeded hashes of their index are the smallest (O(n); the
+    // same for the same scan and seed; a smaller subset is part of a larger one).
+    std::vector<std::pair<uint64_t, uint32_t>> key;
+    auto smallest = [&](size_t m) {
+      if (key.empty()) {
+        key.resize(chosen.size());
+        for (size_t k = 0; k < chosen.size(); ++k) key[k] = {SubsetKey(ctx.seed, chosen[k]), chosen[k]};
+      }
       std::nth_element(key.begin(), key.begin() + long(m), key.end());
+    };
+    size_t m = distinct;
+    // A scan with nothing to leave out (no copies, no more points than max_points, at most
+    // kSpacingSample) is measured by the proposals' own spacing: one pass unless it is too dense.
+    float measured = 0.f;
+    if (o_.thin_spacing > 0.f && distinct == n && n <= kSpacingSample &&
+        (o_.max_points <= 0 || n <= size_t(o_.max_points))) {
+      Proposals out = ProposeAll(scan, &measured);
+      if (measured == 0.f) return out;
+    }
+    if (o_.thin_spacing > 0.f && distinct >= 10) {
+      // The spacing of a random subset of m points, measured on the subset's points in a random
+      // choice of 0.5 m cells that hold about kSpacingSample points of the scan (all of them when
+      // there are no more); m searched for where it reaches thin_spacing. No formula gives it:
+      // the spacing of a random share k of a sample grows as 1/sqrt(k) for points strewn at
+      // random, slower for a mesh's regular vertices, faster for clumped passes.
+      const std::vector<uint32_t> cells = CellSample(scan.points, chosen, ctx.seed);
+      std::vector<uint64_t> cell_key(cells.size());
+      for (size_t k = 0; k < cells.size(); ++k) cell_key[k] = SubsetKey(ctx.seed, chosen[cells[k]]);
+      auto spacing_of = [&](size_t count) {
+        uint64_t below = ~0ull;  // the subset: the keys below the count-th smallest
+        if (count < distinct) {
+          smallest(count);
+          below = key[count].first;
+        }
+        Points pts;
+        for (size_t k = 0; k < cells.size(); ++k)
+          if (count == distinct || cell_key[k] < below) pts.push_back(scan.points[chosen[cells[k]]]);
+        return SampleSpacing(pts);
+      };
+      const float sp_all = measured > 0.f ? measured : spacing_of(distinct);
+      float sp = sp_all;
+      if (sp_all > 0.f && sp_all < o_.thin_spacing) {
+        // The largest subset found at or above thin_spacing: bracketed by quarters, then 6
+        // geometric bisections (about 2 % of the count).
+        size_t hi = distinct, lo = distinct;
+        float sp_lo = sp_all;
+        while (lo > 10 && sp_lo < o_.thin_spacing) {
+          hi = lo;
+          lo = std::max<size_t>(10, lo / 4);
+          sp_lo = spacing_of(lo);
+        }
+        for (int it = 0; it < 6 && hi > lo + 1; ++it) {
+          const size_t mid = std::clamp<size_t>(size_t(std::sqrt(double(lo) * double(hi))), lo + 1, hi - 1);
+          const float s_mid = spacing_of(mid);
+          if (s_mid >= o_.thin_spacing) lo = mid, sp_lo = s_mid;
+          else hi = mid;
+        }
+        m = lo;
+        sp = sp_lo;
+      }
+      spdlog::debug("proposals.clusters: {} distinct points, spacing {:.4f} m (on {} of them in 0.5 m cells){}", distinct,
+                    sp_all, cells.size(),
+                    m < distinct ? fmt::format(": thinned to {} points, spacing {:.4f} m", m, sp) : std::string());
+    }
+    if (o_.max_points > 0) m = std::min(m, size_t(o_.max_points));
+    if (m < chosen.size()) {
+      smallest(m);
       chosen.resize(m);
       for (size_t k = 0; k < m; ++k) chosen[k] = key[k].second;
       std::sort(chosen.begin(), chosen.end());
@@ -299,7 +372,64 @@ class ClusterProposer : public Proposer {
   }
 
  private:
-  Proposals ProposeAll(const Scan& scan) const {
+  // The positions in `chosen` of the points that lie in a seeded random choice of kSpacingCell cells
+  // holding at least kSpacingSample of them together (every position when there are no more).
+  static std::vector<uint32_t> CellSample(const Points& points, const std::vector<uint32_t>& chosen, uint64_t seed) {
+    std::vector<uint32_t> out;
+    if (chosen.size() <= kSpacingSample) {
+      out.resize(chosen.size());
+      std::iota(out.begin(), out.end(), 0u);
+      return out;
+    }
+    auto cell = [&](uint32_t i) {
+      const Eigen::Vector3f& p = points[i];
+      uint64_t h = SplitMix64(seed ^ 0x63656c6cull);  // "cell"
+      for (int a = 0; a < 3; ++a) h = SplitMix64(h ^ uint64_t(int64_t(std::floor(double(p[a]) / kSpacingCell))));
+      return h;
+    };
+    std::unordered_map<uint64_t, size_t> count;
+    for (uint32_t i : chosen) ++count[cell(i)];
+    std::vector<std::pair<uint64_t, size_t>> cells(count.begin(), count.end());
+    std::sort(cells.begin(), cells.end());  // by the cells' hashes: a random order
+    std::unordered_map<uint64_t, size_t> take;
+    size_t total = 0;
+    for (const auto& [h, c] : cells) {
+      if (total >= kSpacingSample) break;
+      take.emplace(h, c);
+      total += c;
+    }
+    out.reserve(total);
+    for (size_t k = 0; k < chosen.size(); ++k)
+      if (take.count(cell(chosen[k]))) out.push_back(uint32_t(k));
+    return out;
+  }
+
+  // The key that orders a scan's points for its random subsets: a seeded hash of the index.
+  static uint64_t SubsetKey(uint64_t seed, uint32_t i) { return SplitMix64(seed ^ SplitMix64(uint64_t(i) + 0x70726f70ull)); }
+
+  // The spacing of `points` as ProposeAll measures it (the nearest other point, at least 0.45 x
+  // the 4th nearest; medians over every 10th point).
+  static float SampleSpacing(const Points& points) {
+    if (points.size() < 10) return 0.f;
+    shape::KnnIndex index(points);
+    const size_t q = (points.size() + 9) / 10;
+    std::vector<float> nn(q), nn4(q);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, q, 256), [&](const tbb::blocked_range<size_t>& r) {
+      std::vector<uint32_t> idx;
+      std::vector<float> d2;
+      for (size_t k = r.begin(); k != r.end(); ++k) {
+        index.Query(points[k * 10], 5, idx, d2);
+        // Copies of the query point (distance 0) are not its neighbours: distinct points here.
+        nn[k] = d2.size() > 1 ? std::sqrt(d2[1]) : 0.f;
+        nn4[k] = d2.size() > 4 ? std::sqrt(d2[4]) : 0.f;
+      }
+    });
+    return std::max(shape::MedianSpacing(nn, 1), kSpacingPerNn4 * shape::MedianSpacing(nn4, 1));
+  }
+
+  // With `too_dense`: a scan whose spacing is below thin_spacing_m is not proposed on; its
+  // spacing goes to *too_dense (left alone otherwise).
+  Proposals ProposeAll(const Scan& scan, float* too_dense = nullptr) const {
     Proposals out;
     const size_t n = scan.points.size();
     if (n < 10) return out;
@@ -329,6 +459,10 @@ class ClusterProposer : public Proposer {
     // more densely; taken at face value they shrink every radius and break objects into fragments.
     const float sp = std::max({shape::MedianSpacing(ls.nn), kSpacingPerNn4 * shape::MedianSpacing(ls.nn4), 1e-3f});
     out.spacing = sp;
+    if (too_dense && sp < o_.thin_spacing) {
+      *too_dense = sp;
+      return out;
+    }
     std::vector<float> hz(n);
     for (size_t i = 0; i < n; ++i) hz[i] = scan.ground ? scan.ground->Above(P[i]) : P[i].z();
     std::vector<float> area(n);  // the surface each point stands for
@@ -577,13 +711,16 @@ class ClusterProposer : public Proposer {
       const double w = a[b] + (b + 1 < a.size() ? a[b + 1] : 0.0);
       if (w > best) best = w, k = b;
     }
+    spdlog::debug("proposals.clusters: largest level above 1.9 m: {:.2f} m2 at {:.2f} m{}", best, float(k) * 0.04f,
+                  best < 1.5 ? "" : ": ceiling");
     if (best < 1.5) return o_.max_height;
     return std::min(o_.max_height, float(k) * 0.04f - 0.08f);
   }
 
   // Iterative (theta, rho) Hough over the vertical-normal points: 2 deg x 4 cm bins, 3x3
   // smoothed; each peak's bin members give a line (PCA), its inliers (within 5 cm, normal
-  // within 25 deg) leave the pool. Up to 40 planes of >= 100 inliers.
+  // within 25 deg) leave the pool. Up to 400 peaks (40 until stop 45: a space of several rooms
+  // has more walls than one room), planes of >= 100 inliers.
   std::vector<VPlane> VerticalPlanes(const Points& P, const Points& normals, const std::vector<float>& hz,
                                      float) const {
     const size_t n = P.size();
@@ -614,7 +751,7 @@ class ClusterProposer : public Proposer {
         tb_of[i] = std::min(TB - 1, int(th / kPi * TB));
       }
     });
-    for (int it = 0; it < 40; ++it) {
+    for (int it = 0; it < 400; ++it) {
       idx.clear();
       for (size_t i = 0; i < n; ++i)
         if (avail[i]) idx.push_back(uint32_t(i));
@@ -1088,6 +1225,6 @@ class ClusterProposer : public Proposer {
 }  // namespace
 }  // namespace furnihost
 
-FURNIHOST_PLUGIN(furnihost::ClusterProposer, "proposals.clusters", "1.5.0",
+FURNIHOST_PLUGIN(furnihost::ClusterProposer, "proposals.clusters", "1.6.0",
                  "object proposals: ground, walls and ceiling removed, Euclidean clusters at radii scaled to the scan's "
                  "point spacing, long clusters split, floating ones extended to the ground")

@@ -421,5 +421,79 @@ TEST(Clusters, DuplicatesTwinLayersAndMaxPoints) {
   EXPECT_NE(used7, used);
 }
 
+// A space of many rooms has more walls than one room: 48 wall segments (2.4 m long, 2 m high,
+// each on a line of its own) over a 24 x 18 m floor are all found and removed, as the first 40
+// were before the wall search ran past 40 planes.
+TEST(Clusters, EveryWallOfALargeSpaceIsFound) {
+  Scan scan;
+  for (float x = -12.f; x < 12.f; x += 0.1f)
+    for (float y = -9.f; y < 9.f; y += 0.1f) scan.points.emplace_back(x, y, 0.f);
+  std::vector<std::pair<size_t, size_t>> walls;  // each wall's points [first, last)
+  for (int i = 0; i < 8; ++i)
+    for (int j = 0; j < 6; ++j) {
+      const float a = float(i * 6 + j) * 7.5f * 3.14159265f / 180.f;  // 48 directions 7.5 deg apart
+      const Eigen::Vector3f c(-10.5f + 3.f * float(i), -7.5f + 3.f * float(j), 0.f), d(std::cos(a), std::sin(a), 0.f);
+      const size_t first = scan.points.size();
+      for (float t = -1.2f; t <= 1.2f; t += 0.03f)
+        for (float h = 0.05f; h <= 2.05f; h += 0.03f) scan.points.push_back(c + t * d + Eigen::Vector3f(0.f, 0.f, h));
+      walls.emplace_back(first, scan.points.size());
+    }
+  scan.ground = EstimateGround(scan.points, GroundOptions{});
+  RunContext ctx;
+  const Proposals p = Make<Proposer>("proposals.clusters")->Propose(scan, nullptr, ctx);
+  ASSERT_EQ(p.removed.size(), scan.points.size());
+  int found = 0;
+  for (const auto& [first, last] : walls) {
+    size_t removed = 0;
+    for (size_t i = first; i < last; ++i) removed += p.removed[i] == 1;
+    found += removed > 9 * (last - first) / 10;
+  }
+  EXPECT_EQ(found, 48);
+}
+
+// thin_spacing_m thins by density, not by count: a room sampled four times as densely is
+// proposed on a subset about as sparse as the threshold, while two rooms side by side at the
+// same density (twice the points) keep every point, where max_points would halve them.
+TEST(Clusters, ThinSpacingThinsDenserScansNotLargerOnes) {
+  const Room room = MakeRoom();
+  RunContext ctx;
+  const size_t n = room.scan.points.size();
+  Eigen::AlignedBox3f both = room.low;
+  both.extend(room.high);
+  const Proposals p0 = Make<Proposer>("proposals.clusters")->Propose(room.scan, nullptr, ctx);
+  ASSERT_GT(p0.spacing, 0.01f);
+  auto used = [](const Proposals& p) {
+    std::vector<int> u;
+    for (const auto& q : p.items) u.insert(u.end(), q.indices.begin(), q.indices.end());
+    std::sort(u.begin(), u.end());
+    u.erase(std::unique(u.begin(), u.end()), u.end());
+    return u.size();
+  };
+  const json thin = {{"thin_spacing_m", 0.9 * p0.spacing}};
+
+  // Four passes, each point moved at random by 4 mm: four times the points on the same surfaces.
+  Scan dense = room.scan;
+  std::mt19937 rng(11);
+  std::normal_distribution<float> noise(0.f, 0.004f);
+  for (int pass = 0; pass < 3; ++pass)
+    for (const auto& x : room.scan.points) dense.points.push_back(x + Eigen::Vector3f(noise(rng), noise(rng), noise(rng)));
+  const Proposals all = Make<Proposer>("proposals.clusters")->Propose(dense, nullptr, ctx);
+  const Proposals thinned = Make<Proposer>("proposals.clusters", thin)->Propose(dense, nullptr, ctx);
+  EXPECT_LT(all.spacing, 0.7f * p0.spacing);
+  EXPECT_GT(thinned.spacing, 0.7f * p0.spacing);
+  EXPECT_LT(used(thinned), 2 * n);
+  EXPECT_EQ(thinned.removed.size(), dense.points.size());
+  EXPECT_GT(BestIou(thinned, both, "all"), 0.6f);
+
+  // The room and a copy of it 6 m away: the same density, twice the points.
+  Scan two = room.scan;
+  for (const auto& x : room.scan.points) two.points.push_back(x + Eigen::Vector3f(6.f, 0.f, 0.f));
+  const Proposals kept = Make<Proposer>("proposals.clusters", thin)->Propose(two, nullptr, ctx);
+  EXPECT_NEAR(kept.spacing, p0.spacing, 0.03f * p0.spacing);
+  EXPECT_GT(used(kept), used(p0) + used(p0) / 2);  // both rooms' objects, all their points
+  const Proposals counted = Make<Proposer>("proposals.clusters", {{"max_points", int(n)}})->Propose(two, nullptr, ctx);
+  EXPECT_GT(counted.spacing, 1.2f * p0.spacing);  // max_points thins it to half
+}
+
 }  // namespace
 }  // namespace furnihost
