@@ -6,8 +6,10 @@
 // Why each step (measured on the ScanNet dev rooms; figures in docs/configs.md):
 // - Radii in units of the scan's median point spacing: ScanNet's 50k-point rooms range from
 //   1.4 to 3.3 cm spacing; a fixed 5 cm radius shatters the sparse ones.
-// - Walls: every large vertical plane ("all" rule: > 1 m tall and > 0.8 m long, or > 1.5 m2)
-//   is removed for chairs, tables and sofas, which otherwise merge with the wall they touch;
+// - Walls: every large vertical plane ("all" rule: > 1 m tall and > 0.8 m long, or > 1.5 m2;
+//   each stretch of its inliers along its line, split where 1 m holds none, on its own: one
+//   room's wall line runs on through the others of a larger space) is removed for chairs,
+//   tables and sofas, which otherwise merge with the wall they touch;
 //   classes made of large vertical faces (cabinets, wardrobes: their catalog models are mostly
 //   taller than 1.2 m) use the "segs" rule, which removes only connected plane segments of wall
 //   size (top >= 1.5 m, >= 1.2 m tall, >= 0.6 m long) so a low cabinet's front survives. An
@@ -78,6 +80,10 @@ constexpr float kSegsLength = 0.6f;
 // (Poisson) over a surface: sqrt(ln 2) / sqrt(3.67) = 0.435, rounded up; the lowest spacing the
 // proposer takes per 4th-neighbour distance.
 constexpr float kSpacingPerNn4 = 0.45f;
+// The "all" rule's walls: a plane's inliers more than this apart along its line [m] are separate
+// stretches, each a wall only if large enough itself. A doorway leaves its lintel; two rooms of a
+// space on one line are metres apart.
+constexpr float kWallRunGap = 1.0f;
 // thin_spacing_m measures a large scan's spacing on every point of random cells of kSpacingCell
 // [m] holding about kSpacingSample of them: small cells, so that they come from all over the
 // scan (2 m cells: 7 % off on a test room), large enough that few points lose their nearest
@@ -491,7 +497,7 @@ class ClusterProposer : public Proposer {
     auto wall_set = [&](const Points& normals) {
       WallSet w;
       const std::vector<VPlane> planes = VerticalPlanes(P, normals, hz, sp);
-      w.all = WallsAll(P, planes, sp);
+      w.all = WallsAll(P, hz, planes, sp);
       w.keep[0] = keep_of(w.all);
       w.keep[1] = keep_of(WallSegments(P, hz, planes, kSegsLength));
       if (fronts) w.keep[2] = keep_of(WallSegments(P, hz, planes, o_.fronts_length));
@@ -843,17 +849,35 @@ class ClusterProposer : public Proposer {
 
   // "all": every plane taller than 1 m and longer than 0.8 m, or with 1.5 m2 of inliers: the
   // points within 6 cm of it along its length (+- 5 cm), at any height.
-  std::vector<uint8_t> WallsAll(const Points& P, const std::vector<VPlane>& planes, float sp) const {
+  // A plane's inliers are taken in runs along its line, split where kWallRunGap holds none: the
+  // line of one room's wall crosses the other rooms of a larger space, where what lies on it is
+  // furniture.
+  std::vector<uint8_t> WallsAll(const Points& P, const std::vector<float>& hz, const std::vector<VPlane>& planes,
+                                float sp) const {
     std::vector<uint8_t> wall(P.size(), 0);
     for (const VPlane& w : planes) {
-      const bool big = (w.h1 - w.h0 > 1.0f && w.a1 - w.a0 > 0.8f) || float(w.inliers.size()) * sp * sp > 1.5f;
-      spdlog::debug("proposals.clusters: vertical plane n ({:.2f} {:.2f}) r {:.2f}: {:.2f} m long, {:.2f}-{:.2f} m high, "
-                    "{} inliers{}", w.nv.x(), w.nv.y(), w.r, w.a1 - w.a0, w.h0, w.h1, w.inliers.size(), big ? ": wall" : "");
-      if (!big) continue;
-      for (size_t i = 0; i < P.size(); ++i) {
-        const Eigen::Vector2f q = P[i].head<2>();
-        const float along = q.dot(w.d);
-        if (std::abs(q.dot(w.nv) - w.r) < 0.06f && along > w.a0 - 0.05f && along < w.a1 + 0.05f) wall[i] = 1;
+      std::vector<std::pair<float, uint32_t>> along;
+      along.reserve(w.inliers.size());
+      for (uint32_t i : w.inliers) along.emplace_back(P[i].head<2>().dot(w.d), i);
+      std::sort(along.begin(), along.end());
+      std::vector<size_t> cuts{0};  // runs [cuts[r], cuts[r + 1])
+      for (size_t k = 1; k < along.size(); ++k)
+        if (along[k].first - along[k - 1].first > kWallRunGap) cuts.push_back(k);
+      cuts.push_back(along.size());
+      for (size_t r = 0; r + 1 < cuts.size(); ++r) {
+        const size_t b = cuts[r], e = cuts[r + 1];
+        std::vector<float> al(e - b), hh(e - b);
+        for (size_t k = b; k < e; ++k) al[k - b] = along[k].first, hh[k - b] = hz[along[k].second];
+        const float a0 = Quantile(al, 0.01), a1 = Quantile(al, 0.99), h0 = Quantile(hh, 0.02), h1 = Quantile(hh, 0.98);
+        const bool big = (h1 - h0 > 1.0f && a1 - a0 > 0.8f) || float(e - b) * sp * sp > 1.5f;
+        spdlog::debug("proposals.clusters: vertical plane n ({:.2f} {:.2f}) r {:.2f}: {:.2f} m long, {:.2f}-{:.2f} m high, "
+                      "{} inliers{}", w.nv.x(), w.nv.y(), w.r, a1 - a0, h0, h1, e - b, big ? ": wall" : "");
+        if (!big) continue;
+        for (size_t i = 0; i < P.size(); ++i) {
+          const Eigen::Vector2f q = P[i].head<2>();
+          const float a = q.dot(w.d);
+          if (std::abs(q.dot(w.nv) - w.r) < 0.06f && a > a0 - 0.05f && a < a1 + 0.05f) wall[i] = 1;
+        }
       }
     }
     return wall;

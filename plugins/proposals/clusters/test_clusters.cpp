@@ -451,6 +451,39 @@ TEST(Clusters, EveryWallOfALargeSpaceIsFound) {
   EXPECT_EQ(found, 48);
 }
 
+// A wall's line runs on through the rest of a space: a sideboard 3 m further along it, its back
+// on that line, is not wall (the "all" rule takes a plane's inliers in runs along the line, each
+// a wall only if it is large itself).
+TEST(Clusters, FurnitureOnAWallsLineFarAlongItIsNotWall) {
+  Scan scan;
+  const float g = 0.03f;
+  for (float x = -1.f; x < 8.f; x += g)
+    for (float y = -3.f; y < 1.f; y += g) scan.points.emplace_back(x, y, 0.f);
+  for (float x = 0.f; x <= 2.f; x += g)  // a wall 2 m long, 2.5 m high, on y = 0
+    for (float z = 0.05f; z <= 2.5f; z += g) scan.points.emplace_back(x, 0.f, z);
+  const size_t first = scan.points.size();
+  const Eigen::Vector3f lo(5.f, -0.5f, 0.f), hi(6.2f, 0.f, 0.8f);  // the sideboard, its back on y = 0
+  for (float a = lo.x(); a <= hi.x(); a += g)
+    for (float z = 0.05f; z <= hi.z(); z += g) scan.points.emplace_back(a, lo.y(), z), scan.points.emplace_back(a, hi.y(), z);
+  for (float b = lo.y() + g; b < hi.y(); b += g)
+    for (float z = 0.05f; z <= hi.z(); z += g) scan.points.emplace_back(lo.x(), b, z), scan.points.emplace_back(hi.x(), b, z);
+  for (float a = lo.x(); a <= hi.x(); a += g)
+    for (float b = lo.y(); b <= hi.y(); b += g) scan.points.emplace_back(a, b, hi.z());
+  const size_t last = scan.points.size();
+  scan.ground = EstimateGround(scan.points, GroundOptions{});
+  RunContext ctx;
+  const Proposals p = Make<Proposer>("proposals.clusters")->Propose(scan, nullptr, ctx);
+  ASSERT_EQ(p.removed.size(), scan.points.size());
+  size_t wall = 0, back = 0, back_wall = 0;
+  for (size_t i = 0; i < first; ++i) wall += scan.points[i].y() == 0.f && p.removed[i] == 1;
+  for (size_t i = first; i < last; ++i)
+    if (std::abs(scan.points[i].y()) < 1e-4f) ++back, back_wall += p.removed[i] == 1;
+  EXPECT_GT(wall, 3000u);  // the wall is removed
+  ASSERT_GT(back, 500u);
+  EXPECT_LT(back_wall, back / 10);  // the sideboard's back is not
+  EXPECT_GT(BestIou(p, Eigen::AlignedBox3f(lo, hi), "all"), 0.8f);
+}
+
 // thin_spacing_m thins by density, not by count: a room sampled four times as densely is
 // proposed on a subset about as sparse as the threshold, while two rooms side by side at the
 // same density (twice the points) keep every point, where max_points would halve them.
