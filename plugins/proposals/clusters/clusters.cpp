@@ -7,7 +7,7 @@
 // - Radii in units of the scan's median point spacing: ScanNet's 50k-point rooms range from
 //   1.4 to 3.3 cm spacing; a fixed 5 cm radius shatters the sparse ones.
 // - Walls: every large vertical plane ("all" rule: > 1 m tall and > 0.8 m long, or > 1.5 m2;
-//   each stretch of its inliers along its line, split where 1 m holds none, on its own: one
+//   each stretch of its inliers along its line, split where 2 m holds none, on its own: one
 //   room's wall line runs on through the others of a larger space) is removed for chairs,
 //   tables and sofas, which otherwise merge with the wall they touch;
 //   classes made of large vertical faces (cabinets, wardrobes: their catalog models are mostly
@@ -82,8 +82,9 @@ constexpr float kSegsLength = 0.6f;
 constexpr float kSpacingPerNn4 = 0.45f;
 // The "all" rule's walls: a plane's inliers more than this apart along its line [m] are separate
 // stretches, each a wall only if large enough itself. A doorway leaves its lintel; two rooms of a
-// space on one line are metres apart.
-constexpr float kWallRunGap = 1.0f;
+// space on one line are metres apart. 1 m scored a little higher on ScanNet dev (jittered) but
+// raised a candidate whose cut depends on rounding (docs/configs.md, "Wall stretches").
+constexpr float kWallRunGap = 2.0f;
 // thin_spacing_m measures a large scan's spacing on every point of random cells of kSpacingCell
 // [m] holding about kSpacingSample of them: small cells, so that they come from all over the
 // scan (2 m cells: 7 % off on a test room), large enough that few points lose their nearest
