@@ -143,5 +143,4 @@ class ModelCloud {
                                       // RANSAC's look-ups on dense scans (3x faster than kd_)
 };
 
-
 }  // namespace furnihost::ransac_upright

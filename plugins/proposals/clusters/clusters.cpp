@@ -56,12 +56,14 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <memory>
 #include <numeric>
 #include <optional>
 #include <unordered_map>
+#include <unordered_set>
 
 #include <spdlog/spdlog.h>
 
@@ -388,26 +390,29 @@ class ClusterProposer : public Proposer {
       std::iota(out.begin(), out.end(), 0u);
       return out;
     }
-    auto cell = [&](uint32_t i) {
-      const Eigen::Vector3f& p = points[i];
-      uint64_t h = SplitMix64(seed ^ 0x63656c6cull);  // "cell"
-      for (int a = 0; a < 3; ++a) h = SplitMix64(h ^ uint64_t(int64_t(std::floor(double(p[a]) / kSpacingCell))));
-      return h;
-    };
+    // Each point's cell, hashed once: the key both counts and picks by.
+    const uint64_t base = SplitMix64(seed ^ 0x63656c6cull);  // "cell"
+    std::vector<uint64_t> cell_of(chosen.size());
     std::unordered_map<uint64_t, size_t> count;
-    for (uint32_t i : chosen) ++count[cell(i)];
+    for (size_t k = 0; k < chosen.size(); ++k) {
+      const Eigen::Vector3f& p = points[chosen[k]];
+      uint64_t h = base;
+      for (int a = 0; a < 3; ++a) h = SplitMix64(h ^ uint64_t(int64_t(std::floor(double(p[a]) / kSpacingCell))));
+      cell_of[k] = h;
+      ++count[h];
+    }
     std::vector<std::pair<uint64_t, size_t>> cells(count.begin(), count.end());
     std::sort(cells.begin(), cells.end());  // by the cells' hashes: a random order
-    std::unordered_map<uint64_t, size_t> take;
+    std::unordered_set<uint64_t> take;
     size_t total = 0;
     for (const auto& [h, c] : cells) {
       if (total >= kSpacingSample) break;
-      take.emplace(h, c);
+      take.insert(h);
       total += c;
     }
     out.reserve(total);
     for (size_t k = 0; k < chosen.size(); ++k)
-      if (take.count(cell(chosen[k]))) out.push_back(uint32_t(k));
+      if (take.count(cell_of[k])) out.push_back(uint32_t(k));
     return out;
   }
 
@@ -850,6 +855,15 @@ class ClusterProposer : public Proposer {
 
   // "all": every plane taller than 1 m and longer than 0.8 m, or with 1.5 m2 of inliers: the
   // points within 6 cm of it along its length (+- 5 cm), at any height.
+  // A stretch [b, e) of a plane's inliers sorted along its line: its extents along it (1st and
+  // 99th percentiles) and in height (2nd and 98th).
+  static std::array<float, 4> StretchExtent(const std::vector<std::pair<float, uint32_t>>& along,
+                                            const std::vector<float>& hz, size_t b, size_t e) {
+    std::vector<float> al(e - b), hh(e - b);
+    for (size_t k = b; k < e; ++k) al[k - b] = along[k].first, hh[k - b] = hz[along[k].second];
+    return {Quantile(al, 0.01), Quantile(al, 0.99), Quantile(hh, 0.02), Quantile(hh, 0.98)};
+  }
+
   // A plane's inliers are taken in runs along its line, split where kWallRunGap holds none: the
   // line of one room's wall crosses the other rooms of a larger space, where what lies on it is
   // furniture.
@@ -865,20 +879,26 @@ class ClusterProposer : public Proposer {
       for (size_t k = 1; k < along.size(); ++k)
         if (along[k].first - along[k - 1].first > kWallRunGap) cuts.push_back(k);
       cuts.push_back(along.size());
+      std::vector<std::pair<float, float>> spans;  // the wall stretches' extents along the line
       for (size_t r = 0; r + 1 < cuts.size(); ++r) {
         const size_t b = cuts[r], e = cuts[r + 1];
-        std::vector<float> al(e - b), hh(e - b);
-        for (size_t k = b; k < e; ++k) al[k - b] = along[k].first, hh[k - b] = hz[along[k].second];
-        const float a0 = Quantile(al, 0.01), a1 = Quantile(al, 0.99), h0 = Quantile(hh, 0.02), h1 = Quantile(hh, 0.98);
+        const auto [a0, a1, h0, h1] = StretchExtent(along, hz, b, e);
         const bool big = (h1 - h0 > 1.0f && a1 - a0 > 0.8f) || float(e - b) * sp * sp > 1.5f;
         spdlog::debug("proposals.clusters: vertical plane n ({:.2f} {:.2f}) r {:.2f}: {:.2f} m long, {:.2f}-{:.2f} m high, "
                       "{} inliers{}", w.nv.x(), w.nv.y(), w.r, a1 - a0, h0, h1, e - b, big ? ": wall" : "");
-        if (!big) continue;
-        for (size_t i = 0; i < P.size(); ++i) {
-          const Eigen::Vector2f q = P[i].head<2>();
-          const float a = q.dot(w.d);
-          if (std::abs(q.dot(w.nv) - w.r) < 0.06f && a > a0 - 0.05f && a < a1 + 0.05f) wall[i] = 1;
-        }
+        if (big) spans.emplace_back(a0 - 0.05f, a1 + 0.05f);
+      }
+      if (spans.empty()) continue;
+      // One pass over the points per plane, whatever the number of its stretches.
+      for (size_t i = 0; i < P.size(); ++i) {
+        const Eigen::Vector2f q = P[i].head<2>();
+        if (!(std::abs(q.dot(w.nv) - w.r) < 0.06f)) continue;
+        const float a = q.dot(w.d);
+        for (const auto& [lo, hi] : spans)
+          if (a > lo && a < hi) {
+            wall[i] = 1;
+            break;
+          }
       }
     }
     return wall;
