@@ -220,7 +220,7 @@ VoxelNormals EstimateVoxelNormals(const Points& points, float voxel, const Range
   return out;
 }
 
-void JitterPoints(Points& points, float sigma, uint64_t seed) {
+void JitterPoints(Points& points, float sigma, uint64_t seed, const Eigen::Matrix3f& axes) {
   if (!(sigma > 0.f)) return;
   // 53 random bits in (0, 1), never 0 (log-safe).
   auto unit = [](uint64_t b) { return (double(b >> 11) + 0.5) * (1.0 / 9007199254740992.0); };
@@ -235,7 +235,7 @@ void JitterPoints(Points& points, float sigma, uint64_t seed) {
       const double r = std::sqrt(-2.0 * std::log(u1)), a = 2.0 * M_PI * u2;
       g[k] = r * std::cos(a), g[k + 1] = r * std::sin(a);
     }
-    p += sigma * Eigen::Vector3d(g[0], g[1], g[2]).cast<float>();
+    p += sigma * (axes * Eigen::Vector3d(g[0], g[1], g[2]).cast<float>());
   }
 }
 

@@ -180,3 +180,26 @@ TEST(JitterPoints, GaussianPerCoordinateDeterministicPerSeed) {
     for (int l = 0; l < k; ++l) EXPECT_LT(std::abs(cov(k, l)) / (sigma * sigma), 0.05) << k << l;
   }
 }
+
+// With `axes`, the noise is drawn along them: a cloud turned by R and jittered along R's columns
+// gets the turned noise, point by point (an ensemble's runs jitter a scan the same way in the
+// scene whatever frame its file is in).
+TEST(JitterPoints, NoiseAlongGivenAxesTurnsWithTheCloud) {
+  const Eigen::Matrix3f r = (Eigen::AngleAxisf(0.6f, Eigen::Vector3f::UnitZ()) *
+                             Eigen::AngleAxisf(float(M_PI / 2), Eigen::Vector3f::UnitX())).toRotationMatrix();
+  furnihost::Points a, b;
+  for (int i = 0; i < 500; ++i) {
+    a.emplace_back(0.002f * float(i), 1.f, -0.5f);
+    b.push_back(r * a.back());
+  }
+  const furnihost::Points a0 = a, b0 = b;
+  furnihost::JitterPoints(a, 0.002f, 7);
+  furnihost::JitterPoints(b, 0.002f, 7, r);
+  double moved = 0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    const Eigen::Vector3f na = a[i] - a0[i], nb = b[i] - b0[i];
+    EXPECT_LT((r * na - nb).norm(), 1e-6f) << i;
+    moved += na.norm();
+  }
+  EXPECT_GT(moved / double(a.size()), 0.002);  // it did move them (mean |n| = 1.6 sigma)
+}

@@ -42,7 +42,10 @@ FURNIHOST_API VoxelNormals EstimateVoxelNormals(const Points& points, float voxe
 // point's noise comes from `seed` and its index alone (SplitMix64, Box-Muller): the same for a
 // seed whatever the threads. `furnihost eval --jitter`: how far the figures move when the scan
 // moves by far less than its sensor's noise.
-FURNIHOST_API void JitterPoints(Points& points, float sigma, uint64_t seed);
+// `axes`: the noise is drawn along its columns (noise n is added as axes * n), so a cloud given
+// in another frame gets the same noise in the scene when `axes` maps that frame's axes there.
+FURNIHOST_API void JitterPoints(Points& points, float sigma, uint64_t seed,
+                                const Eigen::Matrix3f& axes = Eigen::Matrix3f::Identity());
 
 // Isometry for an upright pose: translation (x, y, z), rotation yaw [rad] about +z.
 FURNIHOST_API Eigen::Isometry3f UprightPose(float x, float y, float z, float yaw);
