@@ -20,7 +20,7 @@ namespace {
 
 const std::vector<std::string> kTopKeys = {"extends", "description", "comment", "seed", "threads",
                                            "catalog", "model_cache", "training", "stages", "limits",
-                                           "ground", "frame"};
+                                           "ground", "frame", "ensemble"};
 const std::vector<std::string> kStageKeys = {"type", "inputs", "params", "comment"};
 const std::vector<std::string> kTrainingKeys = {"sensor", "comment"};
 const std::vector<std::string> kLimitKeys = {"max_points", "max_grid_cells", "comment"};
@@ -191,6 +191,31 @@ GraphConfig ValidateGraph(const std::string& path, const nlohmann::json& config,
     }
   }
   resolved["frame"] = {{"canonical", g.canonical_frame}, {"level", g.level_frame}};
+  if (config.contains("ensemble")) {
+    const auto& e = config["ensemble"];
+    const std::string at = w + "/ensemble";
+    if (!e.is_object()) throw InputError(at + ": expected an object such as {\"runs\": 5}, got " + Shown(e));
+    for (auto it = e.begin(); it != e.end(); ++it) {
+      const std::string& k = it.key();
+      if (k == "comment") continue;
+      if (k == "runs") {
+        if (!(it->is_number_unsigned() && it->get<uint64_t>() >= 1 && it->get<uint64_t>() <= 64))
+          throw InputError(at + "/runs: expected an integer in [1, 64], got " + Shown(*it));
+        g.ensemble.runs = it->get<int>();
+      } else if (k == "jitter_m") {
+        if (!(it->is_number() && it->get<double>() > 0 && it->get<double>() <= 0.1))
+          throw InputError(at + "/jitter_m: expected a number in (0, 0.1] (metres), got " + Shown(*it));
+        g.ensemble.jitter_m = it->get<double>();
+      } else if (k == "join_iou") {
+        if (!(it->is_number() && it->get<double>() > 0 && it->get<double>() <= 1))
+          throw InputError(at + "/join_iou: expected a number in (0, 1], got " + Shown(*it));
+        g.ensemble.join_iou = it->get<double>();
+      } else {
+        throw InputError(at + "/" + Clipped(k) + ": unknown key (ensemble takes runs, jitter_m and join_iou)");
+      }
+    }
+  }
+  resolved["ensemble"] = {{"runs", g.ensemble.runs}, {"jitter_m", g.ensemble.jitter_m}, {"join_iou", g.ensemble.join_iou}};
   if (config.contains("catalog")) g.catalog = config["catalog"].get<std::string>();
   if (config.contains("model_cache")) g.model_cache = config["model_cache"].get<std::string>();
   if (config.contains("limits")) {
@@ -444,7 +469,7 @@ GraphConfig LoadGraph(const std::string& path, const Registry& registry, const s
     const std::string tag = s.substr(0, dot), key = s.substr(dot + 1, eq - dot - 1), text = s.substr(eq + 1);
     nlohmann::json value = nlohmann::json::parse(text, nullptr, false);
     if (value.is_discarded()) value = text;  // a bare word: a string
-    if (tag == "ground" || tag == "frame") {
+    if (tag == "ground" || tag == "frame" || tag == "ensemble") {
       if (!config.contains(tag) || !config[tag].is_object()) config[tag] = nlohmann::json::object();
       config[tag][key] = value;
       applied.push_back({s.substr(0, eq), "/" + tag + "/" + key});
@@ -454,7 +479,7 @@ GraphConfig LoadGraph(const std::string& path, const Registry& registry, const s
       std::string tags;
       if (config.contains("stages") && config["stages"].is_object())
         for (auto it = config["stages"].begin(); it != config["stages"].end(); ++it) tags += (tags.empty() ? "" : ", ") + it.key();
-      throw InputError(where + ": no stage '" + tag + "' in " + path + " (stages: " + tags + "; or ground, frame)");
+      throw InputError(where + ": no stage '" + tag + "' in " + path + " (stages: " + tags + "; or ground, frame, ensemble)");
     }
     auto& st = config["stages"][tag];
     if (!st.is_object()) throw InputError(where + ": stage '" + tag + "' is not an object");

@@ -11,6 +11,7 @@
 
 #include "furnihost/geometry.hpp"
 #include "furnihost/ground.hpp"
+#include "furnihost/hash.hpp"
 #include "furnihost/io.hpp"
 #include "furnihost/log.hpp"
 
@@ -367,6 +368,35 @@ TrainedModel Pipeline::Train(const Catalog& catalog, const RunContext& ctx) {
 Pipeline::Result Pipeline::Detect(const std::vector<SceneInput>& scenes, const TrainedModel* model,
                                   const Catalog* catalog, const RunContext& ctx,
                                   const std::function<void()>& before_stages) {
+  const EnsembleOptions& e = graph_.ensemble;
+  Result first = DetectOnce(scenes, model, catalog, ctx, before_stages, {});
+  if (e.runs <= 1) return first;
+  std::vector<std::vector<Detection>> runs;
+  runs.push_back(std::move(first.detections));
+  for (int k = 1; k < e.runs; ++k) {
+    Result rk = DetectOnce(scenes, model, catalog, ctx, {},
+                           {float(e.jitter_m), SplitMix64(ctx.seed ^ 0x656e73656d626c65ull) + uint64_t(k), &first.scans});
+    // Each run's world is its first scan's working frame, estimated anew on its jittered points:
+    // its detections are moved into the first run's (both frames are z up: an upright move).
+    const Eigen::Isometry3f to_first = first.world_to_user.inverse() * rk.world_to_user;
+    if (!to_first.isApprox(Eigen::Isometry3f::Identity()))
+      for (auto& d : rk.detections) d = TransformDetection(std::move(d), to_first);
+    for (const auto& [tag, ms] : rk.timings_ms)
+      for (auto& t : first.timings_ms)
+        if (t.first == tag) t.second += ms;
+    runs.push_back(std::move(rk.detections));
+    spdlog::info("ensemble: run {} of {} (jitter {:.2f} mm): {} detections", k + 1, e.runs, e.jitter_m * 1000.0,
+                 runs.back().size());
+  }
+  Stopwatch sf;
+  first.detections = FuseDetections(runs, e.join_iou);
+  first.timings_ms.emplace_back("ensemble", sf.Ms());
+  return first;
+}
+
+Pipeline::Result Pipeline::DetectOnce(const std::vector<SceneInput>& scenes, const TrainedModel* model,
+                                      const Catalog* catalog, const RunContext& ctx,
+                                      const std::function<void()>& before_stages, const RunJitter& run_jitter) {
   if (!input_) throw InputError(graph_.path + ": the graph has no input sensor stage (e.g. sensors.scan_file)");
   Result r;
   auto timed = [&](const std::string& tag, double ms) {
@@ -375,6 +405,7 @@ Pipeline::Result Pipeline::Detect(const std::vector<SceneInput>& scenes, const T
     r.timings_ms.emplace_back(tag, ms);
   };
   Eigen::Isometry3d world_to_user = Eigen::Isometry3d::Identity();
+  uint64_t jittered_scans = 0;
   for (const auto& sc : scenes) {
     SensorRequest req;
     req.path = sc.path;
@@ -384,6 +415,16 @@ Pipeline::Result Pipeline::Detect(const std::vector<SceneInput>& scenes, const T
     auto got = Call(*input_cfg_, [&] { return input_->Acquire(req, ctx); });
     if (sc.jitter_m > 0.f)
       for (size_t k = 0; k < got.size(); ++k) JitterPoints(got[k].points, sc.jitter_m, sc.jitter_seed + k);
+    // An ensemble run's noise, drawn by point index along the first run's working axes: the same
+    // noise in the scene whatever frame the file gives the points in. The run then frames its
+    // jittered scan anew (the frame's estimate is among the decisions the runs average).
+    if (run_jitter.sigma_m > 0.f)
+      for (auto& s : got) {
+        const size_t j = jittered_scans++;
+        if (j >= run_jitter.reference->size()) throw std::logic_error("ensemble: a run read more scans than the first");
+        const Eigen::Matrix3f axes = (*run_jitter.reference)[j].frame.ToWorking().linear().transpose().cast<float>();
+        JitterPoints(s.points, run_jitter.sigma_m, SplitMix64(run_jitter.seed) + j, axes);
+      }
     timed(input_cfg_->tag, sw.Ms());
     // The working frame (z up) and the ground, once per scan, before any stage sees it.
     Stopwatch sg;

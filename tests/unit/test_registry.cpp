@@ -202,6 +202,31 @@ TEST(Config, EachErrorNamesFileAndPointer) {
             std::string::npos);
 }
 
+// The "ensemble" key: its values checked before anything runs, each error naming the key; a graph
+// without it runs once.
+TEST(Config, EnsembleIsValidatedAndDefaultsToOneRun) {
+  Registry reg({furnihost::testing::PluginDir(), TestPluginDir("bad")});
+  auto dir = furnihost::testing::TempDir("cfg_ens");
+  AtomicWriteText(dir + "/g.json", kGood);
+  EXPECT_EQ(LoadGraph(dir + "/g.json", reg).ensemble.runs, 1);
+  AtomicWriteText(dir + "/e.json", With({{"ensemble", {{"runs", 3}, {"jitter_m", 0.001}, {"join_iou", 0.5}}}}));
+  const auto g = LoadGraph(dir + "/e.json", reg);
+  EXPECT_EQ(g.ensemble.runs, 3);
+  EXPECT_DOUBLE_EQ(g.ensemble.jitter_m, 0.001);
+  EXPECT_DOUBLE_EQ(g.ensemble.join_iou, 0.5);
+  EXPECT_EQ(g.resolved["ensemble"]["runs"], 3);
+  EXPECT_EQ(LoadGraph(dir + "/e.json", reg, {"ensemble.runs=1"}).ensemble.runs, 1);  // --set
+  EXPECT_EQ(ConfigError(With({{"ensemble", {{"runs", 0}}}})), "g.json:/ensemble/runs: expected an integer in [1, 64], got 0");
+  EXPECT_EQ(ConfigError(With({{"ensemble", {{"runs", 2.5}}}})), "g.json:/ensemble/runs: expected an integer in [1, 64], got 2.5");
+  EXPECT_EQ(ConfigError(With({{"ensemble", {{"jitter_m", -1}}}})),
+            "g.json:/ensemble/jitter_m: expected a number in (0, 0.1] (metres), got -1");
+  EXPECT_EQ(ConfigError(With({{"ensemble", {{"join_iou", "x"}}}})),
+            "g.json:/ensemble/join_iou: expected a number in (0, 1], got \"x\"");
+  EXPECT_EQ(ConfigError(With({{"ensemble", {{"run", 2}}}})),
+            "g.json:/ensemble/run: unknown key (ensemble takes runs, jitter_m and join_iou)");
+  EXPECT_NE(ConfigError(With({{"ensemble", 5}})).find("g.json:/ensemble: expected an object"), std::string::npos);
+}
+
 TEST(Config, ExtendsMergePatchLoopsAndMissingBases) {
   Registry reg({furnihost::testing::PluginDir(), TestPluginDir("bad")});
   auto dir = furnihost::testing::TempDir("cfg_ext");

@@ -12,6 +12,9 @@
 //                                               //   fixed (+ "z_m"); "cell_m", "step_m", "min_area_m2"
 //     "frame": {"canonical": true, "level": false},  // canonical: stages see scans in their canonical frame;
 //                                                  // level: a tilted up axis levelled on the floor (frame.hpp)
+//     "ensemble": {"runs": 5, "jitter_m": 0.0005, "join_iou": 0.3},  // detection run on the scan and on
+//                                                  // runs - 1 jittered copies, the runs' detections fused
+//                                                  // (FuseDetections); runs 1 (the default): once
 //     "stages": {                               // an object keyed by tag (not an array) so a
 //       "input":   {"type": "sensors.scan_file"},//   merge patch can change one stage's params
 //       "segment": {"type": "segmenters.region_growing", "inputs": ["input"], "params": {...}},
@@ -43,6 +46,17 @@
 
 namespace furnihost {
 
+// Test-time ensembling ("ensemble" key): Pipeline::Detect runs the chain on the scan as read and
+// on `runs` - 1 copies jittered by `jitter_m` (Gaussian, JitterPoints), and fuses the runs'
+// detections (FuseDetections, boxes joined at AABB IoU >= `join_iou`). A real scan's decisions
+// flip under noise far below its sensor's; a detection found in every run keeps its score and
+// one found in a single run keeps 1/runs of it.
+struct EnsembleOptions {
+  int runs = 1;
+  double jitter_m = 0.0005;
+  double join_iou = 0.3;
+};
+
 struct StageConfig {
   std::string tag;
   std::string type;
@@ -67,6 +81,7 @@ struct FURNIHOST_API GraphConfig {
   bool canonical_frame = true;
   // Level a tilted up axis on the floor ("frame": {"level": true}; FrameOptions::level).
   bool level_frame = false;
+  EnsembleOptions ensemble;  // "ensemble" key
   std::vector<StageConfig> stages;  // in execution (topological) order
 
   const StageConfig* Find(const std::string& tag) const;
@@ -101,7 +116,8 @@ FURNIHOST_API GraphConfig ValidateGraph(const std::string& path, const nlohmann:
 
 // `sets`: command-line overrides "TAG.PARAM=VALUE" (VALUE is JSON: 0.2, true, "text" or an
 // object; anything that is not JSON is taken as a string), applied to the stage TAG's params
-// after `extends` and before validation; "ground.KEY=VALUE" sets the ground options. A bad
+// after `extends` and before validation; "ground.KEY=VALUE" sets the ground options (and
+// "frame.KEY=VALUE", "ensemble.KEY=VALUE" theirs). A bad
 // override is an InputError naming it ("--set vote.nope=1: ...").
 FURNIHOST_API GraphConfig LoadGraph(const std::string& path, const Registry& registry,
                                     const std::vector<std::string>& sets = {});

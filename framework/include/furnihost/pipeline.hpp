@@ -103,6 +103,9 @@ class FURNIHOST_API Pipeline {
   // `model` may be null when the graph has no voter. `before_stages`, when given, is called
   // once the scans are read, framed and grounded, before the first stage reads `model` or
   // `catalog`: a caller may fill those meanwhile on another thread and wait for it there.
+  // With the graph's ensemble (EnsembleOptions) the chain runs ensemble.runs times: first on
+  // the scans as read, then on jittered copies; the detections are the runs' fused
+  // (FuseDetections), every other field is the first run's (the timings summed).
   Result Detect(const std::vector<SceneInput>& scenes, const TrainedModel* model,
                 const Catalog* catalog, const RunContext& ctx, const std::function<void()>& before_stages = {});
 
@@ -111,6 +114,16 @@ class FURNIHOST_API Pipeline {
   auto Call(const StageConfig& s, F&& f) -> decltype(f());
 
  private:
+  // An ensemble's run after the first: each scan jittered as read, the noise drawn along the
+  // axes of the first run's working frame of that scan (`reference`: the first run's scans).
+  struct RunJitter {
+    float sigma_m = 0.f;
+    uint64_t seed = 0;
+    const std::vector<Scan>* reference = nullptr;
+  };
+  // One run of the chain.
+  Result DetectOnce(const std::vector<SceneInput>& scenes, const TrainedModel* model, const Catalog* catalog,
+                    const RunContext& ctx, const std::function<void()>& before_stages, const RunJitter& run_jitter);
   // One trained voter's plugin and the model id it has loaded.
   struct VoterSlot {
     std::shared_ptr<Voter> voter;
@@ -130,6 +143,19 @@ class FURNIHOST_API Pipeline {
   std::map<std::string, Eigen::Vector3f> class_size_;
   const Catalog* sized_catalog_ = nullptr;
 };
+
+// Fuses the detections of several runs of one chain on (jittered copies of) one scan: per
+// class and chain, greedily from the highest score, a detection takes from each other run the
+// best-scored one not yet taken whose box (AABB) overlaps its own at IoU >= join_iou. The
+// fused detection is the top one's (model, pose, checks) with
+//   score = the sum of the members' scores / runs.size() (a run without one adds 0),
+//   box = the members' mean centre and size (sizes swapped into the top box's yaw), its centre
+//         and model pose moved with the box;
+// a "score" check is decided again on the fused score (an accepted detection whose fused score
+// falls below its threshold is rejected; a rejected one whose fused score reaches it is accepted
+// when no other check failed), evidence "ensemble_runs" counts the members. A
+// detection without a box joins none. Sorted by fused score (descending); deterministic.
+FURNIHOST_API std::vector<Detection> FuseDetections(const std::vector<std::vector<Detection>>& runs, double join_iou);
 
 // The median extents of each class's models in the catalog.
 FURNIHOST_API std::map<std::string, Eigen::Vector3f> TypicalClassSizes(const Catalog& catalog);
