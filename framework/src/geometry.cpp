@@ -222,8 +222,6 @@ VoxelNormals EstimateVoxelNormals(const Points& points, float voxel, const Range
 
 void JitterPoints(Points& points, float sigma, uint64_t seed, const Eigen::Matrix3f& axes) {
   if (!(sigma > 0.f)) return;
-  // 53 random bits in (0, 1), never 0 (log-safe).
-  auto unit = [](uint64_t b) { return (double(b >> 11) + 0.5) * (1.0 / 9007199254740992.0); };
   const uint64_t base = SplitMix64(seed ^ 0x6a6974746572ull);  // "jitter"
   for (size_t i = 0; i < points.size(); ++i) {
     Eigen::Vector3f& p = points[i];
@@ -231,7 +229,7 @@ void JitterPoints(Points& points, float sigma, uint64_t seed, const Eigen::Matri
     uint64_t h = SplitMix64(base ^ SplitMix64(uint64_t(i)));
     double g[4];
     for (int k = 0; k < 4; k += 2) {
-      const double u1 = unit(h = SplitMix64(h)), u2 = unit(h = SplitMix64(h));
+      const double u1 = UnitOpen(h = SplitMix64(h)), u2 = UnitOpen(h = SplitMix64(h));
       const double r = std::sqrt(-2.0 * std::log(u1)), a = 2.0 * M_PI * u2;
       g[k] = r * std::cos(a), g[k + 1] = r * std::sin(a);
     }

@@ -35,3 +35,13 @@ TEST(Hash, SplitMix64MatchesTheReferenceGenerator) {
   EXPECT_EQ(SplitMix64(2 * 0x9e3779b97f4a7c15ull), 0x06c45d188009454full);
   EXPECT_NE(SplitMix64(1), SplitMix64(2));
 }
+
+// UnitOpen: the top 53 bits as a double in (0, 1], never 0, the same value on every build.
+TEST(Hash, UnitOpenIsNeverZero) {
+  const double step = 1.0 / 9007199254740992.0;  // 2^-53
+  EXPECT_EQ(furnihost::UnitOpen(0), 0.5 * step);
+  EXPECT_EQ(furnihost::UnitOpen(1ull << 11), 1.5 * step);
+  EXPECT_EQ(furnihost::UnitOpen(2047), furnihost::UnitOpen(0));  // the low 11 bits are not used
+  EXPECT_LE(furnihost::UnitOpen(~0ull), 1.0);
+  EXPECT_GT(furnihost::UnitOpen(~0ull), 1.0 - 2 * step);
+}

@@ -33,6 +33,10 @@ inline uint64_t SplitMix64(uint64_t x) {
   return x ^ (x >> 31);
 }
 
+// The top 53 bits of `bits` as a uniform double in (0, 1], never 0 (log-safe; 1 only where the
+// half-step rounds up): a draw from a SplitMix64 output (JitterPoints, sensors.simulated_laser).
+inline double UnitOpen(uint64_t bits) { return (double(bits >> 11) + 0.5) * (1.0 / 9007199254740992.0); }
+
 // The folder where results keyed by such hashes are kept between runs: $FURNIHOST_CACHE_DIR,
 // else $XDG_CACHE_HOME/furnihost, else $HOME/.cache/furnihost, + "/" + `sub`; empty when none
 // of the three is set (then nothing is cached). Used by the catalog's parsed meshes ("meshes")

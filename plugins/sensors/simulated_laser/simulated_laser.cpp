@@ -183,8 +183,7 @@ const ParamBinding<SimulatedLaserOptions>& Binding() {
 }
 
 // ---- counter-based random numbers --------------------------------------------------------
-// Uniform in (0, 1): 53 random bits, never exactly 0 (log-safe).
-inline double Unit(uint64_t bits) { return ((bits >> 11) + 0.5) * (1.0 / 9007199254740992.0); }
+// Uniform in (0, 1]: UnitOpen (furnihost/hash.hpp), 53 random bits, never exactly 0 (log-safe).
 
 // Standard normal quantile (P. J. Acklam's rational approximation, relative error < 1.2e-9):
 // one uniform per sample and no log/cos in the central 95 %, the costliest part of a
@@ -214,7 +213,7 @@ struct RayRng {
   uint64_t state;
   RayRng(uint64_t seed, uint64_t view, uint64_t ray)
       : state(SplitMix64(SplitMix64(SplitMix64(seed) ^ view) ^ ray)) {}
-  double Uniform() { return Unit(state = SplitMix64(state)); }
+  double Uniform() { return UnitOpen(state = SplitMix64(state)); }
   double Gauss() { return NormalQuantile(Uniform()); }
 };
 
@@ -527,7 +526,7 @@ class SimulatedLaser : public Sensor {
     for (size_t i = 0; i < pts.size(); ++i) {
       uint64_t h = key;
       for (int a = 0; a < 3; ++a) h = SplitMix64(h ^ uint64_t(int64_t(std::floor(double(pts[i][a]) / cell))));
-      if (Unit(h) < opt_.holes) continue;
+      if (UnitOpen(h) < opt_.holes) continue;
       pts[kept] = pts[i];
       labels[kept++] = labels[i];
     }
