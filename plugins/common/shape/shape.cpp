@@ -12,6 +12,7 @@
 #include <unordered_map>
 
 #include "furnihost/geometry.hpp"
+#include "furnihost/hash.hpp"
 
 namespace furnihost::shape {
 
@@ -338,6 +339,9 @@ class ExtremeBuffer {
 };
 }  // namespace
 
+// Points the footprint's direction is chosen on (OrientedFootprint).
+constexpr size_t kFootprintSample = 256;
+
 Footprint OrientedFootprint(const std::vector<Eigen::Vector2f>& xy, float axis_margin) {
   Footprint f;
   if (xy.empty()) return f;
@@ -363,11 +367,28 @@ Footprint OrientedFootprint(const std::vector<Eigen::Vector2f>& xy, float axis_m
   if (angles.empty()) angles.push_back(0.f);
   std::sort(angles.begin(), angles.end());
   angles.erase(std::unique(angles.begin(), angles.end()), angles.end());
-  // The direction is chosen on an even subsample (at most 256 points: the trimmed extents of a
-  // few hundred points rank the directions as all of them do), the extents then taken over all.
-  const size_t stride = std::max<size_t>(1, xy.size() / 256);
+  // The direction is chosen on a subsample of about kFootprintSample points (the trimmed extents
+  // of a few hundred points rank the directions as all of them do), the extents then taken over
+  // all. A point is in it when the hash of its 1 cm cell falls under a share that varies
+  // smoothly with the count; the cell's hash is of its indices' magnitudes, unordered, so a
+  // quarter turn or mirror of the frame about its origin keeps it (a canonical frame's axes
+  // come out in any of those). The same points whatever order they come in, and when a point or
+  // two join or leave the cluster (a radius's rounding in a turned scan), the others stay. Every
+  // k-th point of the list instead shifted all later picks by one more point before them; of two
+  // rectangles 5 % apart in area the subsample then took either (FramesOnRealScans.ScanNetRoom).
   std::vector<Eigen::Vector2f> sub;
-  for (size_t i = 0; i < xy.size(); i += stride) sub.push_back(xy[i]);
+  if (xy.size() <= kFootprintSample) {
+    sub = xy;
+  } else {
+    const double share = double(kFootprintSample) / double(xy.size());
+    const uint64_t under = share >= 1.0 ? UINT64_MAX : uint64_t(share * 18446744073709551616.0);
+    for (const auto& p : xy) {
+      const int64_t cx = std::llabs(std::llround(p.x() * 100.f)), cy = std::llabs(std::llround(p.y() * 100.f));
+      if (SplitMix64(uint64_t(std::min(cx, cy)) * 0x9E3779B97F4A7C15ull ^ uint64_t(std::max(cx, cy))) < under)
+        sub.push_back(p);
+    }
+    if (sub.size() < 5) sub = xy;
+  }
   auto extents = [](const std::vector<Eigen::Vector2f>& pts, float a, std::vector<float>& u, std::vector<float>& v) {
     const float c = std::cos(a), s = std::sin(a);
     const size_t n = pts.size();
