@@ -84,9 +84,9 @@ constexpr float kSegsLength = 0.6f;
 constexpr float kSpacingPerNn4 = 0.45f;
 // The "all" rule's walls: a plane's inliers more than this apart along its line [m] are separate
 // stretches, each a wall only if large enough itself. A doorway leaves its lintel; two rooms of a
-// space on one line are metres apart. 1 m scored a little higher on ScanNet dev (jittered) but
-// raised a candidate whose cut depends on rounding (docs/configs.md, "Wall stretches").
-constexpr float kWallRunGap = 2.0f;
+// space on one line are metres apart; furniture on a wall's line a metre past the room's corner
+// keeps its back (1 m against 2 m: ScanNet dev held out, docs/configs.md "Wall stretches").
+constexpr float kWallRunGap = 1.0f;
 // thin_spacing_m measures a large scan's spacing on every point of random cells of kSpacingCell
 // [m] holding about kSpacingSample of them: small cells, so that they come from all over the
 // scan (2 m cells: 7 % off on a test room), large enough that few points lose their nearest
