@@ -7,7 +7,7 @@
 // - Radii in units of the scan's median point spacing: ScanNet's 50k-point rooms range from
 //   1.4 to 3.3 cm spacing; a fixed 5 cm radius shatters the sparse ones.
 // - Walls: every large vertical plane ("all" rule: > 1 m tall and > 0.8 m long, or > 1.5 m2;
-//   each stretch of its inliers along its line, split where 2 m holds none, on its own: one
+//   each stretch of its inliers along its line, split where 1 m holds none, on its own: one
 //   room's wall line runs on through the others of a larger space) is removed for chairs,
 //   tables and sofas, which otherwise merge with the wall they touch;
 //   classes made of large vertical faces (cabinets, wardrobes: their catalog models are mostly
