@@ -380,8 +380,7 @@ Footprint OrientedFootprint(const std::vector<Eigen::Vector2f>& xy, float axis_m
   if (xy.size() <= kFootprintSample) {
     sub = xy;
   } else {
-    const double share = double(kFootprintSample) / double(xy.size());
-    const uint64_t under = share >= 1.0 ? UINT64_MAX : uint64_t(share * 18446744073709551616.0);
+    const uint64_t under = uint64_t(double(kFootprintSample) / double(xy.size()) * 18446744073709551616.0);
     for (const auto& p : xy) {
       const int64_t cx = std::llabs(std::llround(p.x() * 100.f)), cy = std::llabs(std::llround(p.y() * 100.f));
       if (SplitMix64(uint64_t(std::min(cx, cy)) * 0x9E3779B97F4A7C15ull ^ uint64_t(std::max(cx, cy))) < under)
