@@ -183,7 +183,6 @@ const ParamBinding<SimulatedLaserOptions>& Binding() {
 }
 
 // ---- counter-based random numbers --------------------------------------------------------
-// Uniform in (0, 1]: UnitOpen (furnihost/hash.hpp), 53 random bits, never exactly 0 (log-safe).
 
 // Standard normal quantile (P. J. Acklam's rational approximation, relative error < 1.2e-9):
 // one uniform per sample and no log/cos in the central 95 %, the costliest part of a
@@ -213,7 +212,7 @@ struct RayRng {
   uint64_t state;
   RayRng(uint64_t seed, uint64_t view, uint64_t ray)
       : state(SplitMix64(SplitMix64(SplitMix64(seed) ^ view) ^ ray)) {}
-  double Uniform() { return UnitOpen(state = SplitMix64(state)); }
+  double Uniform() { return UnitOpen(state = SplitMix64(state)); }  // (0, 1], never 0 (log-safe)
   double Gauss() { return NormalQuantile(Uniform()); }
 };
 
