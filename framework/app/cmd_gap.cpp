@@ -394,7 +394,7 @@ int RunGap(const std::vector<std::string>& args) {
   }
   AtomicWriteText((fs::path(out) / "gap.md").string(), md.str());
   AtomicWriteText((fs::path(out) / "gap.json").string(), report.dump(2) + "\n");
-  std::cout << md.str() << "-> " << out << "/gap.md, gap.json, hist/<column>.svg/.png\n";
+  if (!common.quiet) std::cout << md.str() << "-> " << out << "/gap.md, gap.json, hist/<column>.svg/.png\n";
   return 0;
 }
 
