@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <cstring>
@@ -144,15 +145,9 @@ void WriteScan(const std::string& path, const Scan& scan) {
   else throw InputError(path + ": unknown output format '" + ext + "' (use .pcd, .ply or .xyz)");
 }
 
-nlohmann::json ReadJson(const std::string& path) {
-  RequireRegularFile(path, "JSON file");
-  std::ifstream in(path);
-  if (!in) throw InputError(path + ": cannot be opened");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  const std::string text = ss.str();
-  // Refuse absurd nesting before parsing (the parser and destructor would recurse deeply).
-  int depth = 0, max_depth = 0;
+size_t JsonDepth(const std::string& text) {
+  // Brackets outside strings; enough to refuse absurd nesting before any parser recurses.
+  size_t depth = 0, max_depth = 0;
   bool in_str = false, esc = false;
   for (char c : text) {
     if (in_str) {
@@ -163,17 +158,43 @@ nlohmann::json ReadJson(const std::string& path) {
     }
     if (c == '"') in_str = true;
     else if (c == '[' || c == '{') max_depth = std::max(max_depth, ++depth);
-    else if (c == ']' || c == '}') --depth;
+    else if ((c == ']' || c == '}') && depth > 0) --depth;
   }
-  if (max_depth > 256) throw InputError(path + ": JSON nested deeper than 256 levels");
+  return max_depth;
+}
+
+nlohmann::json ParseJsonText(const std::string& text, const std::string& where) {
+  // The parser builds iteratively, but the serializer (every message that quotes a value),
+  // comparisons and copies recurse once per level: 10^4 levels overflow the stack.
+  if (JsonDepth(text) > kMaxJsonDepth)
+    throw InputError(where + ": JSON nested deeper than " + std::to_string(kMaxJsonDepth) + " levels");
   try {
     return nlohmann::json::parse(text);
   } catch (const nlohmann::json::exception& e) {
     // parse_error, and out_of_range for numbers beyond double ("1e400").
     std::string what = e.what();
     auto pos = what.find("] ");
-    throw InputError(path + ": not valid JSON: " + (pos == std::string::npos ? what : what.substr(pos + 2)));
+    throw InputError(where + ": not valid JSON: " + (pos == std::string::npos ? what : what.substr(pos + 2)));
   }
+}
+
+nlohmann::json ParseCliJson(const std::string& text, const std::string& option, bool bare_words) {
+  if (JsonDepth(text) > kMaxJsonDepth)
+    throw InputError(option + ": JSON nested deeper than " + std::to_string(kMaxJsonDepth) + " levels");
+  if (bare_words) {
+    nlohmann::json value = nlohmann::json::parse(text, nullptr, false);
+    return value.is_discarded() ? nlohmann::json(text) : value;
+  }
+  return ParseJsonText(text, option);
+}
+
+nlohmann::json ReadJson(const std::string& path) {
+  RequireRegularFile(path, "JSON file");
+  std::ifstream in(path);
+  if (!in) throw InputError(path + ": cannot be opened");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ParseJsonText(ss.str(), path);
 }
 
 namespace {
@@ -204,6 +225,10 @@ std::vector<GroundTruthObject> ReadGroundTruth(const std::string& path) {
     g.cls = o["class"].get<std::string>();
     g.center = Vec3(o.value("center", nlohmann::json()), at + "/center");
     g.size = Vec3(o.value("size", nlohmann::json()), at + "/size");
+    // A box of no size matches nothing (its width is the match radius): the AP would drop
+    // silently.
+    if (!(g.size.array() > 0.f).all())
+      throw InputError(at + "/size: expected three positive extents [m], got " + o["size"].dump());
     if (o.contains("yaw") && o["yaw"].is_number()) g.yaw = o["yaw"].get<float>();
     if (o.contains("model") && o["model"].is_string()) g.model = o["model"].get<std::string>();
     if (o.contains("yaw_symmetry")) {
