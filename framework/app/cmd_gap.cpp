@@ -393,7 +393,7 @@ int RunGap(const std::vector<std::string>& args) {
     WriteLinePlot((fs::path(out) / "hist" / feature_names[c]).string(), feature_names[c], ax, series);
   }
   AtomicWriteText((fs::path(out) / "gap.md").string(), md.str());
-  AtomicWriteText((fs::path(out) / "gap.json").string(), report.dump(2) + "\n");
+  WriteJson((fs::path(out) / "gap.json").string(), report);
   std::cout << md.str() << "-> " << out << "/gap.md, gap.json, hist/<column>.svg/.png\n";
   return 0;
 }

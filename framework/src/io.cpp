@@ -60,7 +60,13 @@ void AtomicWriteText(const std::string& path, const std::string& text) {
   });
 }
 
-void WriteJson(const std::string& path, const nlohmann::json& j) { AtomicWriteText(path, j.dump(2) + "\n"); }
+std::string DumpJson(const nlohmann::json& j, int indent) {
+  // Strings may hold what the file system or the command line gave (a file name that is not
+  // UTF-8): shown with U+FFFD, where the default dump throws (an internal error, exit 1).
+  return j.dump(indent, ' ', false, nlohmann::json::error_handler_t::replace);
+}
+
+void WriteJson(const std::string& path, const nlohmann::json& j) { AtomicWriteText(path, DumpJson(j, 2) + "\n"); }
 
 void WritePcd(const std::string& path, const Scan& scan) {
   AtomicWrite(path, [&](const std::string& tmp) {
@@ -163,7 +169,29 @@ size_t JsonDepth(const std::string& text) {
   return max_depth;
 }
 
+namespace {
+bool IsUtf8(const std::string& s) {
+  for (size_t i = 0; i < s.size();) {
+    const auto c = static_cast<unsigned char>(s[i]);
+    const size_t len = c < 0x80 ? 1 : (c >> 5) == 0x6 ? 2 : (c >> 4) == 0xE ? 3 : (c >> 3) == 0x1E ? 4 : 0;
+    if (len == 0 || i + len > s.size()) return false;
+    for (size_t k = 1; k < len; ++k)
+      if ((static_cast<unsigned char>(s[i + k]) & 0xC0) != 0x80) return false;
+    i += len;
+  }
+  return true;
+}
+}  // namespace
+
+void RequireUtf8(const std::string& text, const std::string& what) {
+  if (text.find('\0') != std::string::npos || !IsUtf8(text))
+    throw InputError(what + ": not UTF-8 text (a NUL byte or an invalid byte sequence)");
+}
+
 nlohmann::json ParseJsonText(const std::string& text, const std::string& where) {
+  // nlohmann's parser takes a NUL byte for the end of the text: "0\0junk" would be 0.
+  if (const size_t nul = text.find('\0'); nul != std::string::npos)
+    throw InputError(where + ": not valid JSON: a NUL byte at offset " + std::to_string(nul));
   // The parser builds iteratively, but the serializer (every message that quotes a value),
   // comparisons and copies recurse once per level: 10^4 levels overflow the stack.
   if (JsonDepth(text) > kMaxJsonDepth)
@@ -179,6 +207,7 @@ nlohmann::json ParseJsonText(const std::string& text, const std::string& where) 
 }
 
 nlohmann::json ParseCliJson(const std::string& text, const std::string& option, bool bare_words) {
+  RequireUtf8(text, option);  // JSON is UTF-8 text; the value ends up in run records
   if (JsonDepth(text) > kMaxJsonDepth)
     throw InputError(option + ": JSON nested deeper than " + std::to_string(kMaxJsonDepth) + " levels");
   if (bare_words) {

@@ -284,6 +284,8 @@ bool PrepareIssue50(const std::string& step, const Paths& p) {
     // dataset_origin:<x,y,z>: the room's dataset with that sensor origin.
     WriteFile(t + "/dataset.json", R"({"classes": ["cube"], "scenes": [{"scan": "room.pcd", "gt": "room.gt.json", "origin": [)" +
                                        arg[1] + "]}]}");
+  } else if (what == "utf8_name") {  // the room scan under a name that is not UTF-8
+    fs::copy_file(t + "/room.pcd", t + "/r\xffm.pcd");
   } else if (what == "notes") {
     WriteFile(t + "/notes.txt", "my notes\n");
   } else if (what == "many_objects") {

@@ -367,6 +367,12 @@ TEST(Io, CommandLineJsonIsBounded) {
   }
   EXPECT_NO_THROW(ParseCliJson(std::string(256, '[') + std::string(256, ']'), "--sensor x"));
   EXPECT_THROW(ParseCliJson("{", "--sensor x"), InputError);
+  // fuzz_cli_json: nlohmann takes a NUL byte for the end ("0\0..." parsed as 0) and invalid UTF-8
+  // reached the run record, whose dump threw (exit 1).
+  for (const std::string bad : {std::string("0\0junk", 6), std::string("/tmp/a\xff b")})
+    for (bool bare : {true, false}) EXPECT_THROW(ParseCliJson(bad, "--set fit.cloud_cache", bare), InputError);
+  EXPECT_THROW(ParseJsonText(std::string("{}\0junk", 6), "g.json"), InputError);
+  EXPECT_EQ(DumpJson(nlohmann::json("r\xffm.pcd")), "\"r\xef\xbf\xbdm.pcd\"");
 }
 
 // Output names from input names stay one path component and distinct.
