@@ -22,8 +22,10 @@
 #include <filesystem>
 #include <iostream>
 #include <map>
+#include <optional>
 #include <set>
 #include <sstream>
+#include <unordered_map>
 
 #include "cli_common.hpp"
 #include "commands.hpp"
@@ -201,6 +203,67 @@ float Penetration(const Footprint& a, const Footprint& b) {
   return depth;
 }
 
+// The overlapping pair (k, i), k < i, with the smallest i (then k) that interpenetrates by more
+// than `tolerance`, as a loop over all pairs in order would report first; none when no two do.
+// Footprints are filed by the centre of their bounding square in a hierarchy of square grids
+// (cells doubling in size; each footprint on the finest level whose cells are at least its
+// size), and each is tested against those on its own and the coarser levels in the cells around
+// it: n log n for any layout (rows along x or y, grids, a few large among many small), where
+// all pairs took 106 s for 78,400 objects.
+std::optional<std::pair<size_t, size_t>> FirstOverlap(const std::vector<Footprint>& feet, float tolerance) {
+  const size_t n = feet.size();
+  if (n < 2) return std::nullopt;
+  std::vector<Eigen::AlignedBox2f> box(n);
+  float smallest = std::numeric_limits<float>::max();
+  for (size_t i = 0; i < n; ++i) {
+    for (const auto& c : feet[i].Corners()) box[i].extend(c);
+    smallest = std::min(smallest, box[i].sizes().maxCoeff());
+  }
+  const double base = std::max(double(smallest), 1e-3);
+  auto level_of = [&](size_t i) {
+    int l = 0;
+    while (base * std::ldexp(1.0, l) < double(box[i].sizes().maxCoeff()) && l < 60) ++l;
+    return l;
+  };
+  auto key = [](int64_t x, int64_t y) { return (uint64_t(x) << 32) ^ (uint64_t(y) & 0xffffffffu); };
+  std::vector<int> level(n);
+  std::map<int, std::unordered_map<uint64_t, std::vector<size_t>>> grid;  // level -> cell -> footprints
+  for (size_t i = 0; i < n; ++i) {
+    level[i] = level_of(i);
+    const double cell = base * std::ldexp(1.0, level[i]);
+    const Eigen::Vector2f c = box[i].center();
+    grid[level[i]][key(int64_t(std::floor(c.x() / cell)), int64_t(std::floor(c.y() / cell)))].push_back(i);
+  }
+  std::optional<std::pair<size_t, size_t>> best;
+  auto consider = [&](size_t a, size_t b) {
+    const size_t lo = std::min(a, b), hi = std::max(a, b);
+    if (best && (hi > best->second || (hi == best->second && lo >= best->first))) return;
+    Eigen::AlignedBox2f grown = box[a];
+    grown.min().array() -= tolerance;
+    grown.max().array() += tolerance;
+    if (!grown.intersects(box[b]) || !(Penetration(feet[a], feet[b]) > tolerance)) return;
+    best = std::make_pair(lo, hi);
+  };
+  for (size_t i = 0; i < n; ++i)
+    for (auto it = grid.find(level[i]); it != grid.end(); ++it) {
+      // A footprint filed at this level lies within half a cell of its cell's square.
+      const double cell = base * std::ldexp(1.0, it->first);
+      const double reach = 0.5 * cell + tolerance;
+      const int64_t x0 = int64_t(std::floor((box[i].min().x() - reach) / cell)),
+                    x1 = int64_t(std::floor((box[i].max().x() + reach) / cell)),
+                    y0 = int64_t(std::floor((box[i].min().y() - reach) / cell)),
+                    y1 = int64_t(std::floor((box[i].max().y() + reach) / cell));
+      for (int64_t x = x0; x <= x1; ++x)
+        for (int64_t y = y0; y <= y1; ++y) {
+          const auto cell_it = it->second.find(key(x, y));
+          if (cell_it == it->second.end()) continue;
+          for (size_t j : cell_it->second)
+            if (j != i && (level[j] != level[i] || j > i)) consider(i, j);
+        }
+    }
+  return best;
+}
+
 // Floor (z = 0), optional walls and ceiling of the room [0, w] x [0, d] x [0, h].
 Mesh RoomMesh(const SceneSpec& s) {
   Mesh m;
@@ -288,15 +351,7 @@ int RunSimulate(const std::vector<std::string>& args) {
     throw InputError("--out " + out_path + ": unknown scan format (use .pcd, .ply or .xyz)");
   json user_params = json::object();
   if (!sensor_params_text.empty()) {
-    try {
-      // Depth-limited: messages dump offending values recursively (stack overflow at 10^4 levels).
-      user_params = json::parse(sensor_params_text, [](int depth, json::parse_event_t, json&) {
-        if (depth > 64) throw InputError("--sensor-params: nested deeper than 64 levels");
-        return true;
-      });
-    } catch (const json::exception& e) {  // parse_error, out_of_range ("1e400")
-      throw InputError(std::string("--sensor-params: not valid JSON: ") + e.what());
-    }
+    user_params = ParseCliJson(sensor_params_text, "--sensor-params");
     if (!user_params.is_object()) throw InputError("--sensor-params: expected a JSON object");
   }
 
@@ -340,13 +395,13 @@ int RunSimulate(const std::vector<std::string>& args) {
       throw InputError(scene_path + ": object " + ObjectName(i, o) + " (" + Fmt(m->size.z()) +
                        " m tall at z = " + Fmt(o.z) + ") does not fit between floor and ceiling (" +
                        Fmt(scene.height) + " m)");
-    for (size_t k = 0; k < feet.size(); ++k) {
-      const float pen = Penetration(f, feet[k]);
-      if (pen > kOverlapTolerance)
-        throw InputError(scene_path + ": objects " + ObjectName(k, scene.objects[k]) + " and " +
-                         ObjectName(i, o) + " overlap (footprints intersect by " + Fmt(pen) + " m)");
-    }
     feet.push_back(f);
+  }
+  if (const auto pair = FirstOverlap(feet, kOverlapTolerance)) {
+    const auto [k, i] = *pair;
+    throw InputError(scene_path + ": objects " + ObjectName(k, scene.objects[k]) + " and " +
+                     ObjectName(i, scene.objects[i]) + " overlap (footprints intersect by " +
+                     Fmt(Penetration(feet[i], feet[k])) + " m)");
   }
 
   // Sensor parameters: scene's sensor_params, then --sensor-params; the default room-centre

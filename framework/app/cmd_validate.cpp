@@ -26,7 +26,7 @@ int RunValidate(const std::vector<std::string>& args) {
   } catch (const StageError& e) {
     throw InputError(graph + ": " + e.what());
   }
-  if (print) std::cout << g.resolved.dump(2) << "\n";
+  if (print) std::cout << DumpJson(g.resolved, 2) << "\n";
   else std::cout << graph << ": valid (" << g.stages.size() << " stages)\n";
   return 0;
 }

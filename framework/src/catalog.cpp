@@ -338,7 +338,9 @@ FURNIHOST_API std::vector<std::string> Catalog::Classes() const {
 namespace {
 // assimp 5.2's PLY importer loops forever on a header without end_header (a truncated
 // download) or with a malformed line (fuzz_catalog): the header must follow the PLY grammar
-// before assimp sees the file.
+// before assimp sees the file. Its element counts must fit the file too: assimp allocates what a
+// header declares before reading a byte of data (2e9 faces: std::bad_alloc). Face indices are
+// checked on the imported scene (meshio/mesh_import.cpp), whatever the layout and encoding.
 void CheckPlyHeader(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   std::string line;
@@ -352,15 +354,19 @@ void CheckPlyHeader(const std::string& path) {
   if (line.rfind("ply", 0) != 0 && !ply_name) return;
   if (line != "ply")
     throw InputError(path + ": malformed PLY file (the first line is not 'ply')");
-  static const std::set<std::string> kTypes = {"char", "uchar", "short", "ushort", "int", "uint", "float",
-                                               "double", "int8", "uint8", "int16", "uint16", "int32",
-                                               "uint32", "float32", "float64"};
+  static const std::map<std::string, int> kTypes = {
+      {"char", 1},  {"uchar", 1},  {"int8", 1},  {"uint8", 1},  {"short", 2},   {"ushort", 2},
+      {"int16", 2}, {"uint16", 2}, {"int", 4},   {"uint", 4},   {"int32", 4},   {"uint32", 4},
+      {"float", 4}, {"float32", 4}, {"double", 8}, {"float64", 8}};
   auto bad = [&](const std::string& why) { return InputError(path + ": malformed PLY file (" + why + ")"); };
-  size_t read = line.size();
-  bool format = false, element = false, ascii = false;
-  std::vector<std::pair<std::string, long long>> elements;  // name, count
-  bool face_list_first = false;  // the face element's first property is its index list
-  int face_props = 0;
+  size_t read = line.size() + 1;
+  bool format = false, ascii = false;
+  struct Element {
+    std::string name;
+    unsigned long long count = 0;
+    unsigned long long min_bytes = 0;  // the fewest bytes one item of it takes in the file
+  };
+  std::vector<Element> elements;
   while (read < (1u << 16) && std::getline(in, line)) {
     read += line.size() + 1;
     if (!line.empty() && line.back() == '\r') line.pop_back();
@@ -371,7 +377,7 @@ void CheckPlyHeader(const std::string& path) {
     for (std::string w; ls >> w;) t.push_back(w);
     if (t.empty() || t[0] == "comment" || t[0] == "obj_info") continue;
     if (t[0] == "end_header") {
-      if (!format || !element) throw bad("no format or no element before end_header");
+      if (!format || elements.empty()) throw bad("no format or no element before end_header");
       break;
     }
     if (t[0] == "format") {
@@ -382,31 +388,31 @@ void CheckPlyHeader(const std::string& path) {
     } else if (t[0] == "element") {
       if (t.size() != 3 || t[2].find_first_not_of("0123456789") != std::string::npos || t[2].size() > 10)
         throw bad("bad element line '" + line.substr(0, 40) + "'");
-      element = true;
-      elements.emplace_back(t[1], std::stoll(t[2]));
+      elements.push_back({t[1], std::stoull(t[2]), 0});
     } else if (t[0] == "property") {
       const bool list = t.size() == 5 && t[1] == "list" && kTypes.count(t[2]) && kTypes.count(t[3]);
-      if (!element || !(list || (t.size() == 3 && kTypes.count(t[1]))))
+      if (elements.empty() || !(list || (t.size() == 3 && kTypes.count(t[1]))))
         throw bad("bad property line '" + line.substr(0, 40) + "'");
-      if (elements.size() == 2 && elements[1].first == "face" && face_props++ == 0) face_list_first = list;
+      // ascii: a value and its separator; binary: a scalar, or a list's count alone (it may be 0).
+      elements.back().min_bytes += ascii ? 2 : static_cast<unsigned long long>(kTypes.at(list ? t[2] : t[1]));
     } else {
       throw bad("unknown line '" + line.substr(0, 40) + "'");
     }
   }
   if (line.rfind("end_header", 0) != 0) throw InputError(path + ": PLY header has no end_header in its first 64 KB (truncated file?)");
-  // assimp does not check face indices either (it reads past its vertex array): check them in
-  // the common ascii layout, vertices then faces led by their index list.
-  if (!ascii || elements.size() < 2 || elements[0].first != "vertex" || !face_list_first) return;
-  const long long nv = elements[0].second;
-  for (long long i = 0; i < nv; ++i)
-    if (!std::getline(in, line)) return;  // short files are assimp's to refuse
-  for (long long f = 0; f < elements[1].second && std::getline(in, line); ++f) {
-    std::istringstream ls(line);
-    long long n = 0, idx = 0;
-    if (!(ls >> n) || n < 0) throw bad("face " + std::to_string(f) + " has no index count");
-    for (long long k = 0; k < n; ++k)
-      if (!(ls >> idx) || idx < 0 || idx >= nv)
-        throw bad("face " + std::to_string(f) + " uses vertex " + std::to_string(idx) + " of " + std::to_string(nv));
+  std::error_code ec;
+  const uintmax_t size = fs::file_size(path, ec);
+  const std::streamoff at = in.tellg();
+  if (ec || at < 0) return;
+  const unsigned long long left = size > uintmax_t(at) ? size - uintmax_t(at) : 0;
+  // The last ascii value needs no separator after it.
+  unsigned long long need = 0;
+  for (const auto& e : elements) {
+    const unsigned long long per = std::max<unsigned long long>(e.min_bytes, 1);
+    if (e.count > (left + 1) / per || need + e.count * per > left + 1)
+      throw bad("element '" + e.name.substr(0, 40) + "' declares " + std::to_string(e.count) + " items, the file holds " +
+                std::to_string(left) + " bytes of data");
+    need += e.count * per;
   }
 }
 

@@ -467,8 +467,8 @@ GraphConfig LoadGraph(const std::string& path, const Registry& registry, const s
     if (eq == std::string::npos || dot == std::string::npos || dot > eq || dot == 0 || dot + 1 == eq)
       throw InputError(where + ": expected TAG.PARAM=VALUE (e.g. vote.height_tolerance_m=0.2)");
     const std::string tag = s.substr(0, dot), key = s.substr(dot + 1, eq - dot - 1), text = s.substr(eq + 1);
-    nlohmann::json value = nlohmann::json::parse(text, nullptr, false);
-    if (value.is_discarded()) value = text;  // a bare word: a string
+    RequireUtf8(s, "--set");  // the override goes into run records
+    const nlohmann::json value = ParseCliJson(text, "--set " + s.substr(0, eq), true);  // a bare word: a string
     if (tag == "ground" || tag == "frame" || tag == "ensemble") {
       if (!config.contains(tag) || !config[tag].is_object()) config[tag] = nlohmann::json::object();
       config[tag][key] = value;

@@ -116,6 +116,8 @@ Dataset LoadDataset(const std::string& path) {
       if (!o.is_array() || o.size() != 3 ||
           !std::all_of(o.begin(), o.end(), [](const json& v) { return v.is_number() && std::isfinite(v.get<double>()); }))
         Bad(path, ptr + "/origin", "expected [x, y, z] (3 finite numbers, metres), got " + o.dump());
+      if (!std::all_of(o.begin(), o.end(), [](const json& v) { return std::abs(v.get<double>()) <= kMaxGlobalShift + kMaxScanCoordinate; }))
+        Bad(path, ptr + "/origin", "lies beyond 1e8 m of the file's origin: " + o.dump());
       s.origin = Eigen::Vector3f(o[0].get<float>(), o[1].get<float>(), o[2].get<float>());
     }
     {
@@ -136,6 +138,7 @@ Dataset LoadDataset(const std::string& path) {
           !std::all_of(o.begin(), o.end(), [](const json& v) { return v.is_number() && std::isfinite(v.get<double>()); }))
         Bad(path, ptr + "/shift", "expected [x, y, z] (3 finite numbers), got " + o.dump());
       s.frame.shift.shift = Eigen::Vector3d(o[0].get<double>(), o[1].get<double>(), o[2].get<double>());
+      CheckShift(*s.frame.shift.shift, path + ":" + ptr + "/shift");
     }
     d.scenes.push_back(s);
   }

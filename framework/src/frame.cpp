@@ -7,7 +7,10 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <cctype>
 #include <cmath>
+#include <cstdio>
+#include <filesystem>
 #include <nanoflann.hpp>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -48,6 +51,20 @@ Eigen::Isometry3d ParseTransform(const std::string& text, const std::string& opt
   if (!in.eof() || !finite || (v.size() != 16 && v.size() != 6))
     throw InputError(option + ": expected 16 numbers (a 4x4 matrix, row-major) or 6 (x,y,z,roll,pitch,yaw in metres "
                      "and radians), got '" + text.substr(0, 80) + "'");
+  // A subnormal entry (1e-310) is no angle's sine or cosine and no length: a corrupted value.
+  for (size_t k = 0; k < v.size(); ++k)
+    if (std::fpclassify(v[k]) == FP_SUBNORMAL)
+      throw InputError(option + ": number " + std::to_string(k + 1) + " is subnormal (below 2.2e-308): not a transform");
+  // The translation moves the scan's points, which lie within kMaxScanCoordinate of the file's
+  // (shifted) origin: as far again puts them beyond float's metre resolution, and 1e300 at
+  // infinity. Georeferenced coordinates take a global shift (--shift), not a translation.
+  const Eigen::Vector3d move = v.size() == 6 ? Eigen::Vector3d(v[0], v[1], v[2]) : Eigen::Vector3d(v[3], v[7], v[11]);
+  if (!(move.cwiseAbs().maxCoeff() <= kMaxScanCoordinate))
+    throw InputError(option + ": the translation (" + text.substr(0, 80) + ") reaches beyond " +
+                     std::to_string(static_cast<long long>(kMaxScanCoordinate)) +
+                     " m; georeferenced coordinates take a global shift (--shift x,y,z)");
+  if (v.size() == 6 && !(Eigen::Vector3d(v[3], v[4], v[5]).cwiseAbs().maxCoeff() <= 1e3))
+    throw InputError(option + ": roll, pitch and yaw are radians; got (" + text.substr(0, 80) + ")");
   Eigen::Isometry3d iso = Eigen::Isometry3d::Identity();
   if (v.size() == 6) {
     iso.linear() = (Eigen::AngleAxisd(v[5], Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(v[4], Eigen::Vector3d::UnitY()) *
@@ -72,6 +89,42 @@ Eigen::Isometry3d ParseTransform(const std::string& text, const std::string& opt
   iso.linear() = svd.matrixU() * svd.matrixV().transpose();
   iso.translation() = m.topRightCorner<3, 1>();
   return iso;
+}
+
+void CheckShift(const Eigen::Vector3d& shift, const std::string& option) {
+  if (!(shift.cwiseAbs().maxCoeff() <= kMaxGlobalShift))
+    throw InputError(option + ": a global shift is at most " + std::to_string(static_cast<long long>(kMaxGlobalShift)) +
+                     " m per axis (ECEF and map projections stay below), got (" + std::to_string(shift.x()) + ", " +
+                     std::to_string(shift.y()) + ", " + std::to_string(shift.z()) + ")");
+}
+
+void CheckSensorOrigin(const Scan& scan, const std::string& given_as) {
+  if (!scan.origin) return;
+  std::string ext = std::filesystem::path(scan.source).extension().string();
+  for (auto& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  const std::string name = !given_as.empty() ? given_as
+                           : ext == ".pcd"    ? std::string("its VIEWPOINT")
+                                              : std::string("the sensor's \"origin\" parameter");
+  const Eigen::Vector3d o = scan.origin->cast<double>();
+  const Eigen::Vector3d file = o + scan.frame.shift;
+  auto where = [&] {
+    char b[160];
+    std::snprintf(b, sizeof b, "(%.6g, %.6g, %.6g)", file.x(), file.y(), file.z());
+    return std::string(b);
+  };
+  if (!o.allFinite() || !(o.cwiseAbs().maxCoeff() <= kMaxScanCoordinate))
+    throw InputError(scan.source + ": the sensor origin given by " + name + " " + where() + " lies beyond " +
+                     std::to_string(static_cast<long long>(kMaxScanCoordinate)) + " m of the scan's origin");
+  Eigen::AlignedBox3d box;
+  for (const auto& p : scan.points)
+    if (p.allFinite()) box.extend(p.cast<double>());
+  if (box.isEmpty()) return;
+  const double d = (o - o.cwiseMax(box.min()).cwiseMin(box.max())).norm();
+  if (!(d <= kMaxSensorRange))
+    throw InputError(scan.source + ": the sensor origin given by " + name + " " + where() + " lies " +
+                     std::to_string(static_cast<long long>(std::llround(d))) + " m from the scan's points (no sensor sees " +
+                     "farther than " + std::to_string(static_cast<long long>(kMaxSensorRange)) +
+                     " m; a sensor origin in other coordinates than the points?)");
 }
 
 std::optional<Eigen::Vector3d> EstimateUpAxis(const Points& points, const std::optional<Eigen::Vector3d>& near,

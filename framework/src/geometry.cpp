@@ -66,11 +66,7 @@ class FlatSlots {
   }
 
  private:
-  size_t Home(uint64_t key) const {
-    uint64_t x = key * 0x9E3779B97F4A7C15ull;
-    x ^= x >> 29;
-    return size_t(x) & (keys_.size() - 1);
-  }
+  size_t Home(uint64_t key) const { return HashSlot(key, keys_.size() - 1); }
   void Grow() {
     std::vector<uint64_t> keys;
     std::vector<int> vals;
@@ -149,10 +145,7 @@ Points GroupEqualPoints(const Points& points, std::vector<uint32_t>* of) {
   if (of) of->resize(points.size());
   for (size_t i = 0; i < points.size(); ++i) {
     const Eigen::Vector3f& p = points[i];
-    uint64_t h = bits(p.x()) * 0x9E3779B97F4A7C15ull;
-    h ^= (h >> 29) + bits(p.y()) * 0xC2B2AE3D27D4EB4Full;
-    h ^= (h >> 31) + bits(p.z()) * 0x165667B19E3779F9ull;
-    size_t k = size_t(h ^ (h >> 32)) & (cap - 1);
+    size_t k = HashSlot(SplitMix64((uint64_t(bits(p.x())) << 32) | bits(p.y())) ^ bits(p.z()), cap - 1);
     while (slot[k] != UINT32_MAX && !same(distinct[slot[k]], p)) k = (k + 1) & (cap - 1);
     if (slot[k] == UINT32_MAX) {
       slot[k] = uint32_t(distinct.size());

@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <cstring>
@@ -59,7 +60,13 @@ void AtomicWriteText(const std::string& path, const std::string& text) {
   });
 }
 
-void WriteJson(const std::string& path, const nlohmann::json& j) { AtomicWriteText(path, j.dump(2) + "\n"); }
+std::string DumpJson(const nlohmann::json& j, int indent) {
+  // Strings may hold what the file system or the command line gave (a file name that is not
+  // UTF-8): shown with U+FFFD, where the default dump throws (an internal error, exit 1).
+  return j.dump(indent, ' ', false, nlohmann::json::error_handler_t::replace);
+}
+
+void WriteJson(const std::string& path, const nlohmann::json& j) { AtomicWriteText(path, DumpJson(j, 2) + "\n"); }
 
 void WritePcd(const std::string& path, const Scan& scan) {
   AtomicWrite(path, [&](const std::string& tmp) {
@@ -144,15 +151,9 @@ void WriteScan(const std::string& path, const Scan& scan) {
   else throw InputError(path + ": unknown output format '" + ext + "' (use .pcd, .ply or .xyz)");
 }
 
-nlohmann::json ReadJson(const std::string& path) {
-  RequireRegularFile(path, "JSON file");
-  std::ifstream in(path);
-  if (!in) throw InputError(path + ": cannot be opened");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  const std::string text = ss.str();
-  // Refuse absurd nesting before parsing (the parser and destructor would recurse deeply).
-  int depth = 0, max_depth = 0;
+size_t JsonDepth(const std::string& text) {
+  // Brackets outside strings; enough to refuse absurd nesting before any parser recurses.
+  size_t depth = 0, max_depth = 0;
   bool in_str = false, esc = false;
   for (char c : text) {
     if (in_str) {
@@ -163,17 +164,66 @@ nlohmann::json ReadJson(const std::string& path) {
     }
     if (c == '"') in_str = true;
     else if (c == '[' || c == '{') max_depth = std::max(max_depth, ++depth);
-    else if (c == ']' || c == '}') --depth;
+    else if ((c == ']' || c == '}') && depth > 0) --depth;
   }
-  if (max_depth > 256) throw InputError(path + ": JSON nested deeper than 256 levels");
+  return max_depth;
+}
+
+namespace {
+bool IsUtf8(const std::string& s) {
+  for (size_t i = 0; i < s.size();) {
+    const auto c = static_cast<unsigned char>(s[i]);
+    const size_t len = c < 0x80 ? 1 : (c >> 5) == 0x6 ? 2 : (c >> 4) == 0xE ? 3 : (c >> 3) == 0x1E ? 4 : 0;
+    if (len == 0 || i + len > s.size()) return false;
+    for (size_t k = 1; k < len; ++k)
+      if ((static_cast<unsigned char>(s[i + k]) & 0xC0) != 0x80) return false;
+    i += len;
+  }
+  return true;
+}
+}  // namespace
+
+void RequireUtf8(const std::string& text, const std::string& what) {
+  if (text.find('\0') != std::string::npos || !IsUtf8(text))
+    throw InputError(what + ": not UTF-8 text (a NUL byte or an invalid byte sequence)");
+}
+
+nlohmann::json ParseJsonText(const std::string& text, const std::string& where) {
+  // nlohmann's parser takes a NUL byte for the end of the text: "0\0junk" would be 0.
+  if (const size_t nul = text.find('\0'); nul != std::string::npos)
+    throw InputError(where + ": not valid JSON: a NUL byte at offset " + std::to_string(nul));
+  // The parser builds iteratively, but the serializer (every message that quotes a value),
+  // comparisons and copies recurse once per level: 10^4 levels overflow the stack.
+  if (JsonDepth(text) > kMaxJsonDepth)
+    throw InputError(where + ": JSON nested deeper than " + std::to_string(kMaxJsonDepth) + " levels");
   try {
     return nlohmann::json::parse(text);
   } catch (const nlohmann::json::exception& e) {
     // parse_error, and out_of_range for numbers beyond double ("1e400").
     std::string what = e.what();
     auto pos = what.find("] ");
-    throw InputError(path + ": not valid JSON: " + (pos == std::string::npos ? what : what.substr(pos + 2)));
+    throw InputError(where + ": not valid JSON: " + (pos == std::string::npos ? what : what.substr(pos + 2)));
   }
+}
+
+nlohmann::json ParseCliJson(const std::string& text, const std::string& option, bool bare_words) {
+  RequireUtf8(text, option);  // JSON is UTF-8 text; the value ends up in run records
+  if (JsonDepth(text) > kMaxJsonDepth)
+    throw InputError(option + ": JSON nested deeper than " + std::to_string(kMaxJsonDepth) + " levels");
+  if (bare_words) {
+    nlohmann::json value = nlohmann::json::parse(text, nullptr, false);
+    return value.is_discarded() ? nlohmann::json(text) : value;
+  }
+  return ParseJsonText(text, option);
+}
+
+nlohmann::json ReadJson(const std::string& path) {
+  RequireRegularFile(path, "JSON file");
+  std::ifstream in(path);
+  if (!in) throw InputError(path + ": cannot be opened");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ParseJsonText(ss.str(), path);
 }
 
 namespace {
@@ -204,6 +254,10 @@ std::vector<GroundTruthObject> ReadGroundTruth(const std::string& path) {
     g.cls = o["class"].get<std::string>();
     g.center = Vec3(o.value("center", nlohmann::json()), at + "/center");
     g.size = Vec3(o.value("size", nlohmann::json()), at + "/size");
+    // A box of no size matches nothing (its width is the match radius): the AP would drop
+    // silently.
+    if (!(g.size.array() > 0.f).all())
+      throw InputError(at + "/size: expected three positive extents [m], got " + o["size"].dump());
     if (o.contains("yaw") && o["yaw"].is_number()) g.yaw = o["yaw"].get<float>();
     if (o.contains("model") && o["model"].is_string()) g.model = o["model"].get<std::string>();
     if (o.contains("yaw_symmetry")) {

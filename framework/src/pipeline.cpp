@@ -20,7 +20,7 @@ namespace fs = std::filesystem;
 namespace furnihost {
 
 namespace {
-const char kMagic[] = "furnihost-model\n";
+constexpr auto& kMagic = kModelMagic;
 
 nlohmann::json StageKey(const StageConfig* s) {
   if (!s) return nullptr;
@@ -413,6 +413,7 @@ Pipeline::Result Pipeline::DetectOnce(const std::vector<SceneInput>& scenes, con
     req.shift = sc.frame.shift;
     Stopwatch sw;
     auto got = Call(*input_cfg_, [&] { return input_->Acquire(req, ctx); });
+    for (const auto& s : got) CheckSensorOrigin(s, sc.origin ? sc.origin_name : std::string());
     if (sc.jitter_m > 0.f)
       for (size_t k = 0; k < got.size(); ++k) JitterPoints(got[k].points, sc.jitter_m, sc.jitter_seed + k);
     // An ensemble run's noise, drawn by point index along the first run's working axes: the same
@@ -671,6 +672,7 @@ Pipeline::Result Pipeline::DetectOnce(const std::vector<SceneInput>& scenes, con
 
 TrainedModel EnsureModel(Pipeline& p, const Catalog& catalog, const RunContext& ctx, bool force) {
   const std::string cache = p.Graph().model_cache;
+  if (!cache.empty()) CheckModelCacheTarget(cache, p.Graph().path + ":/model_cache: ");
   if (!force && !cache.empty() && fs::exists(cache)) {
     try {
       TrainedModel m = LoadModel(cache);

@@ -8,12 +8,14 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <limits>
 #include <map>
+#include <optional>
 #include <sstream>
 
 #include "shown.hpp"
@@ -48,7 +50,7 @@ void CheckCap(const std::string& path, size_t n, size_t max_points) {
 
 // Scans are in metres in a local frame. Farther points are dropped like NaNs: they are no
 // furniture, and grid keys (voxels, vote cells) computed from them would overflow.
-constexpr float kMaxCoordinate = 1e6f;
+constexpr float kMaxCoordinate = float(kMaxScanCoordinate);
 // A file whose first finite point other than (0, 0, 0) (a depth camera's invalid return) lies
 // this far from the origin [m] is shifted automatically (as CloudCompare offers). 100 m, not
 // more: the pipeline computes in float, and a ScanNet dev room moved 1 km off the origin lost
@@ -57,7 +59,7 @@ constexpr float kMaxCoordinate = 1e6f;
 constexpr double kAutoShiftFrom = 100.0;
 // ... and no farther than this: ECEF and every map projection stay below 1e8 m; beyond is
 // garbage (1e30 from a broken driver), dropped as far points, never a shift.
-constexpr double kAutoShiftUpTo = 1e8;
+constexpr double kAutoShiftUpTo = kMaxGlobalShift;
 // The shift for a first point `d`: each far coordinate rounded down to 100 m, so the local
 // coordinates keep their decimals and the shift reads well in a log.
 Eigen::Vector3d AutoShift(const Eigen::Vector3d& d) {
@@ -76,11 +78,27 @@ struct Tally {
   std::optional<Eigen::Vector3d> shift;  // subtracted from every point; when automatic, set by the first point
   bool auto_shift = true;
   bool decided = false;  // the automatic shift is decided, once, by the first finite point not (0, 0, 0) nor garbage
+  // Every stride-th finite point (file coordinates), at most kSample of them, thinned as the
+  // file goes on: where the bulk of the scan lies, whichever point came first (ReadScan checks
+  // the automatic shift against it).
+  static constexpr size_t kSample = 4096;
+  std::vector<Eigen::Vector3d> sample;
+  size_t stride = 1, countdown = 1;
   // True when `d` is kept (then `v` holds it, shifted); counts it otherwise.
   bool Keep(const Eigen::Vector3d& d, Eigen::Vector3f& v) {
     if (!d.allFinite()) {
       ++stats.non_finite;
       return false;
+    }
+    if (auto_shift && --countdown == 0) {
+      countdown = stride;
+      sample.push_back(d);
+      if (sample.size() == kSample) {  // keep every other one, sample half as often
+        for (size_t k = 0; 2 * k < kSample; ++k) sample[k] = sample[2 * k];
+        sample.resize(kSample / 2);
+        countdown = stride;  // the next kept position: every 2 x stride-th from the first
+        stride *= 2;
+      }
     }
     // One decision for the whole file: a room that straddles the threshold is shifted whole or
     // not at all, never torn in two.
@@ -297,18 +315,35 @@ PcdHeader ReadPcdHeader(const std::string& path, std::ifstream& in, uint64_t fil
 
 // LZF as PCL's binary_compressed writes it: a control byte below 32 starts a run of
 // control + 1 literal bytes; above, its top 3 bits are a length - 2 (7: a further byte adds to
-// it) and its low 5 bits with the next byte an offset - 1 back into the output. Every read and
-// write is bounds-checked; false when the stream is corrupt or does not fill `out` exactly.
-bool LzfDecompress(const uint8_t* in, size_t in_size, uint8_t* out, size_t out_size) {
-  size_t ip = 0, op = 0;
+// it) and its low 5 bits with the next byte an offset - 1 back into the output. Every read is
+// bounds-checked. The output is decoded into a window and handed to `emit(offset, bytes, n)` a
+// piece at a time, in order: a reference reaches at most 8 KiB back, so the whole output is
+// never held (a header may declare gigabytes). False when the stream is corrupt or does not
+// give exactly `out_size` bytes.
+template <class Emit>
+bool LzfDecompress(const uint8_t* in, size_t in_size, uint64_t out_size, Emit&& emit) {
+  constexpr size_t kReach = 8192, kWindow = size_t(1) << 18;
+  std::vector<uint8_t> win(kWindow);
+  size_t ip = 0, wp = 0;   // input position; window position
+  uint64_t flushed = 0;    // output bytes emitted before win[0]
+  uint64_t first = 0;      // the first output byte not emitted yet
+  auto produced = [&] { return flushed + wp; };
   while (ip < in_size) {
+    if (wp + 300 > kWindow) {  // room for the longest run (264 bytes): emit, keep the reach
+      const size_t keep = std::min<size_t>(kReach, wp);
+      if (produced() > first) emit(first, win.data() + (first - flushed), size_t(produced() - first));
+      first = produced();
+      std::memmove(win.data(), win.data() + (wp - keep), keep);
+      flushed += wp - keep;
+      wp = keep;
+    }
     const unsigned ctrl = in[ip++];
     if (ctrl < 32) {
       const size_t len = ctrl + 1;
-      if (len > in_size - ip || len > out_size - op) return false;
-      std::memcpy(out + op, in + ip, len);
+      if (len > in_size - ip || len > out_size - produced()) return false;
+      std::memcpy(win.data() + wp, in + ip, len);
       ip += len;
-      op += len;
+      wp += len;
       continue;
     }
     size_t len = ctrl >> 5;
@@ -319,11 +354,13 @@ bool LzfDecompress(const uint8_t* in, size_t in_size, uint8_t* out, size_t out_s
     len += 2;
     if (ip >= in_size) return false;
     const size_t back = ((size_t(ctrl & 31) << 8) | in[ip++]) + 1;
-    if (back > op || len > out_size - op) return false;
+    if (back > wp || len > out_size - produced()) return false;
     // A reference may overlap the bytes it writes (a repeated run): copy forwards, bytewise.
-    for (size_t k = 0; k < len; ++k, ++op) out[op] = out[op - back];
+    for (size_t k = 0; k < len; ++k, ++wp) win[wp] = win[wp - back];
   }
-  return op == out_size;
+  if (produced() != out_size) return false;
+  if (produced() > first) emit(first, win.data() + (first - flushed), size_t(produced() - first));
+  return true;
 }
 
 double PcdValue(const uint8_t* p, const PcdField& f) {
@@ -495,15 +532,30 @@ Scan ReadPcd(const std::string& path, Tally& tally, size_t max_points) {
       done += m;
     }
   } else {
-    std::vector<uint8_t> packed(sz[0]), raw(sz[1]);
+    // The compressed bytes (no more than the file holds), decoded as a stream: stored field by
+    // field (all points' x, then all y, ...; field f starts at n x its offset), of which only the
+    // fields a point keeps (x, y, z, colour, attributes) are collected, one column each.
+    std::vector<uint8_t> packed(sz[0]);
     in.read(reinterpret_cast<char*>(packed.data()), static_cast<std::streamsize>(packed.size()));
     if (static_cast<size_t>(in.gcount()) != packed.size()) throw InputError(path + ": binary_compressed PCD data truncated");
-    if (!LzfDecompress(packed.data(), packed.size(), raw.data(), raw.size()))
+    std::vector<int> kept(roles.xyz, roles.xyz + 3);
+    if (roles.rgb >= 0) kept.push_back(roles.rgb);
+    kept.insert(kept.end(), roles.attrs.begin(), roles.attrs.end());
+    std::vector<std::vector<uint8_t>> column(h.fields.size());
+    for (int f : kept) column[size_t(f)].resize(h.n * size_t(h.fields[f].size));  // count 1: RolesOf
+    const bool ok = LzfDecompress(packed.data(), packed.size(), sz[1], [&](uint64_t at, const uint8_t* b, size_t len) {
+      for (int f : kept) {
+        const uint64_t lo = uint64_t(h.n) * h.fields[f].offset, hi = lo + column[size_t(f)].size();
+        const uint64_t from = std::max(lo, at), to = std::min<uint64_t>(hi, at + len);
+        if (from < to) std::memcpy(column[size_t(f)].data() + (from - lo), b + (from - at), size_t(to - from));
+      }
+    });
+    packed = {};
+    if (!ok)
       throw InputError(path + ": corrupt or truncated PCD data (the binary_compressed stream does not decode to " +
-                       std::to_string(raw.size()) + " bytes)");
-    // Stored field by field: all points' x, then all y, ...; field f starts at n x its offset.
+                       std::to_string(sz[1]) + " bytes)");
     for (size_t i = 0; i < h.n; ++i) {
-      auto at = [&](int f) { return raw.data() + h.n * h.fields[f].offset + i * h.fields[f].size * h.fields[f].count; };
+      auto at = [&](int f) { return column[size_t(f)].data() + i * size_t(h.fields[f].size); };
       sink.Add([&](int f) { return PcdValue(at(f), h.fields[f]); }, roles.rgb >= 0 ? bits_at(at(roles.rgb)) : 0);
     }
   }
@@ -582,6 +634,8 @@ Scan ReadPly(const std::string& path, Tally& tally, size_t max_points) {
       ls >> name >> count;
       if (count < 0 || ls.fail()) throw InputError(path + ": PLY element '" + name + "' has a bad count");
       in_vertex = name == "vertex";
+      if (in_vertex && seen_vertex)
+        throw InputError(path + ": PLY has two 'vertex' elements (one point list per file is read)");
       if (in_vertex) {
         n_vertex = static_cast<size_t>(count);
         seen_vertex = true;
@@ -692,57 +746,276 @@ Scan ReadPly(const std::string& path, Tally& tally, size_t max_points) {
 }
 
 // ---- XYZ -------------------------------------------------------------------------------
+// One point per line: x y z and optional further columns (intensity, colour, normals), the same
+// number on every line. Values are separated by blanks, by commas (CSV) or by semicolons; with
+// semicolons (or blanks) a decimal comma ("1,25;2,5;0,75", "1,25 2,5 0,75") is a decimal point,
+// decided once, on the first data line, and held to on every line (a file that mixes the styles
+// is refused rather than misread). A UTF-8 byte-order mark is skipped; UTF-16 text is refused
+// with its name. Leica .pts files begin (each scan) with a line holding the point count alone.
+
+constexpr size_t kXyzMaxLine = size_t(1) << 16;  // bytes; longer is not one point's line
+constexpr size_t kXyzMaxColumns = 64;
+
+enum class XyzStyle { kBlank, kComma, kSemicolon, kBlankDecimalComma };
+
+// Blank-separated fields of `line` (blanks: space, tab, CR).
+std::vector<std::string> BlankFields(const std::string& line) {
+  std::vector<std::string> t;
+  size_t i = 0;
+  while (i < line.size()) {
+    while (i < line.size() && (line[i] == ' ' || line[i] == '\t' || line[i] == '\r')) ++i;
+    size_t j = i;
+    while (j < line.size() && line[j] != ' ' && line[j] != '\t' && line[j] != '\r') ++j;
+    if (j > i) t.push_back(line.substr(i, j - i));
+    i = j;
+  }
+  return t;
+}
+
+// A comma between digits inside a field: "1,25".
+bool InnerComma(const std::string& f) {
+  const size_t c = f.find(',');
+  return c != std::string::npos && c > 0 && c + 1 < f.size() && std::isdigit(static_cast<unsigned char>(f[c - 1])) &&
+         std::isdigit(static_cast<unsigned char>(f[c + 1]));
+}
+
+// Semicolons: separators (commas are decimal). Otherwise commas inside blank-separated values
+// ("1,25 2 0,75") are decimal commas, and commas between values ("1,2,3", "1, 2, 3") separate.
+XyzStyle StyleOf(const std::string& line) {
+  if (line.find(';') != std::string::npos) return XyzStyle::kSemicolon;
+  if (line.find(',') == std::string::npos) return XyzStyle::kBlank;
+  const auto f = BlankFields(line);
+  const bool inner = std::any_of(f.begin(), f.end(), InnerComma);
+  const bool trailing = std::any_of(f.begin(), f.end(), [](const std::string& v) { return v.back() == ','; });
+  return f.size() >= 3 && inner && !trailing ? XyzStyle::kBlankDecimalComma : XyzStyle::kComma;
+}
+
+// The fields of a data line in `style`, decimal commas made points; "" in `why` when the line
+// does not follow the style.
+std::vector<std::string> XyzFields(const std::string& line, XyzStyle style, std::string& why) {
+  std::string t = line;
+  std::vector<std::string> f;
+  switch (style) {
+    case XyzStyle::kBlank:
+      if (t.find(',') != std::string::npos || t.find(';') != std::string::npos)
+        why = "separators change: ',' or ';' after blank-separated lines";
+      return BlankFields(t);
+    case XyzStyle::kComma:
+      if (t.find(';') != std::string::npos) why = "separators change: ';' after comma-separated lines";
+      for (auto& c : t)
+        if (c == ',') c = ' ';
+      return BlankFields(t);
+    case XyzStyle::kSemicolon:
+      for (auto& c : t)
+        if (c == ';') c = ' ';
+      f = BlankFields(t);
+      break;
+    case XyzStyle::kBlankDecimalComma:
+      if (t.find(';') != std::string::npos) why = "separators change: ';' after blank-separated lines";
+      f = BlankFields(t);
+      break;
+  }
+  for (auto& v : f) {  // decimal commas
+    const size_t c = v.find(',');
+    if (c == std::string::npos) continue;
+    if (v.find(',', c + 1) != std::string::npos || v.find('.') != std::string::npos) {
+      why = "'" + Clipped(v, 30) + "' is no number with a decimal comma";
+      return f;
+    }
+    v[c] = '.';
+  }
+  return f;
+}
+
 Scan ReadXyz(const std::string& path, Tally& tally, size_t max_points) {
   ReadStats& stats = tally.stats;
-  std::ifstream in(path);
+  std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path + ": cannot be opened");
+  const bool pts = Lower(fs::path(path).extension().string()) == ".pts";
   Scan scan;
   scan.source = path;
+  std::optional<XyzStyle> style;
+  size_t columns = 0, first_line = 0;
+  std::vector<char> buf(size_t(1) << 16);
   std::string line;
   size_t lineno = 0;
-  while (std::getline(in, line)) {
+  bool start = true, done = false;
+  auto bad = [&](const std::string& why) { return InputError(path + ":" + std::to_string(lineno) + ": " + why); };
+  auto take = [&]() {  // one whole line in `line`
     ++lineno;
-    size_t first = line.find_first_not_of(" \t\r");
-    if (first == std::string::npos || line[first] == '#' || line[first] == '/') continue;
-    for (auto& c : line)
-      if (c == ',' || c == ';') c = ' ';
-    const char* s = line.c_str();
+    if (line.find('\0') != std::string::npos)
+      throw bad("holds NUL bytes: UTF-16 text or binary data, not an XYZ text of one point per line");
+    const size_t first = line.find_first_not_of(" \t\r");
+    if (first == std::string::npos || line[first] == '#' || line[first] == '/') return;
+    if (!style) style = StyleOf(line), first_line = lineno;
+    std::string why;
+    const std::vector<std::string> f = XyzFields(line, *style, why);
+    if (!why.empty()) throw bad(why + " (line " + std::to_string(first_line) + " set the style)");
+    // A Leica .pts count line: the number of points of the scan that follows.
+    if (pts && f.size() == 1 && f[0].find_first_not_of("0123456789") == std::string::npos) return;
+    if (f.size() > kXyzMaxColumns)
+      throw bad("holds " + std::to_string(f.size()) + " values: an XYZ file holds one point per line (x y z and at most " +
+                std::to_string(kXyzMaxColumns - 3) + " more columns)");
     double v[3];
-    for (int k = 0; k < 3; ++k) {
+    for (size_t k = 0; k < f.size(); ++k) {
+      const char* s = f[k].c_str();
       char* end = nullptr;
-      v[k] = std::strtod(s, &end);
-      if (end == s) throw InputError(path + ":" + std::to_string(lineno) + ": expected x y z, got '" + line.substr(0, 40) + "'");
-      s = end;
+      const double d = std::strtod(s, &end);
+      if (end == s || *end != '\0') throw bad("expected x y z, got '" + Clipped(line, 40) + "'");
+      if (k < 3) v[k] = d;
     }
+    if (f.size() < 3) throw bad("expected x y z, got '" + Clipped(line, 40) + "'");
+    if (columns == 0) columns = f.size();
+    if (f.size() != columns)
+      throw bad("holds " + std::to_string(f.size()) + " values, line " + std::to_string(first_line) + " held " +
+                std::to_string(columns) + " (one point per line, the same columns on every line)");
     ++stats.read;
     CheckCap(path, stats.read, max_points);
     Eigen::Vector3f p;
-    if (!tally.Keep(Eigen::Vector3d(v[0], v[1], v[2]), p)) continue;
+    if (!tally.Keep(Eigen::Vector3d(v[0], v[1], v[2]), p)) return;
     scan.points.push_back(p);
+  };
+  // Lines are cut from fixed-size reads: a line longer than kXyzMaxLine is refused when it
+  // gets that long, never held whole (20 million points on one line).
+  while (!done) {
+    in.read(buf.data(), std::streamsize(buf.size()));
+    const size_t got = size_t(in.gcount());
+    if (got == 0) break;
+    size_t i = 0;
+    if (start) {  // byte-order marks: UTF-8's is skipped, UTF-16 (or 32) is refused by name
+      start = false;
+      const auto* u = reinterpret_cast<const uint8_t*>(buf.data());
+      if (got >= 2 && ((u[0] == 0xFF && u[1] == 0xFE) || (u[0] == 0xFE && u[1] == 0xFF)))
+        throw InputError(path + ": is UTF-16 text; save it as UTF-8 or ASCII (one point per line: x y z)");
+      if (got >= 3 && u[0] == 0xEF && u[1] == 0xBB && u[2] == 0xBF) i = 3;
+    }
+    while (i < got) {
+      const char* nl = static_cast<const char*>(std::memchr(buf.data() + i, '\n', got - i));
+      const size_t end = nl ? size_t(nl - buf.data()) : got;
+      line.append(buf.data() + i, end - i);
+      if (line.size() > kXyzMaxLine) {
+        ++lineno;
+        throw bad("is longer than " + std::to_string(kXyzMaxLine / 1024) +
+                  " KiB: an XYZ file holds one point per line (x y z [more columns])");
+      }
+      i = end;
+      if (nl) {
+        take();
+        line.clear();
+        ++i;
+      }
+    }
   }
+  if (!line.empty()) take();
   return scan;
+}
+
+}  // namespace
+
+namespace {
+
+// The file read once with `tally`'s shift rules.
+Scan ReadFormat(const std::string& path, const std::string& ext, Tally& tally, size_t max_points) {
+  if (ext == ".pcd") return ReadPcd(path, tally, max_points);
+  if (ext == ".ply") return ReadPly(path, tally, max_points);
+  return ReadXyz(path, tally, max_points);
+}
+
+// The automatic shift is decided by the first point; when the bulk of the scan (the median of
+// the sample) lies farther than this from where that shift put the origin, the first point was
+// a stray return (or a stray return near the origin came before a georeferenced bulk), and the
+// file is read again with the shift the bulk calls for. [m]
+constexpr double kReshiftFrom = 1000.0;
+
+std::optional<Eigen::Vector3d> BetterShift(Tally& t) {
+  if (t.sample.empty()) return std::nullopt;
+  Eigen::Vector3d m;
+  for (int a = 0; a < 3; ++a) {
+    std::vector<double> c(t.sample.size());
+    for (size_t i = 0; i < c.size(); ++i) c[i] = t.sample[i][a];
+    std::nth_element(c.begin(), c.begin() + long(c.size() / 2), c.end());
+    m[a] = c[c.size() / 2];
+  }
+  if (!(m.cwiseAbs().maxCoeff() <= kAutoShiftUpTo)) return std::nullopt;  // a bulk of garbage: dropped as far
+  const Eigen::Vector3d now = t.shift.value_or(Eigen::Vector3d::Zero());
+  if ((m - now).cwiseAbs().maxCoeff() <= kReshiftFrom) return std::nullopt;
+  const Eigen::Vector3d want = AutoShift(m);
+  if (want == now) return std::nullopt;
+  return want;
+}
+
+// Stray far returns (a driver's garbage, a reflection, a point of another scan): points that a
+// gap of more than kStrayGap along some axis separates from the largest group of the scan. They
+// are dropped, with a warning, in every graph alike, before any stage sees the scan: grids that
+// span the scan (voxel indices, occupancy, the canonical frame's box) would otherwise span them.
+constexpr float kStrayGap = 100.f;
+
+size_t DropStrayReturns(Scan& scan) {
+  const size_t n = scan.points.size();
+  if (n < 2) return 0;
+  Eigen::AlignedBox3f box;
+  for (const auto& p : scan.points) box.extend(p);
+  const Eigen::Vector3f extent = box.sizes();
+  if (!(extent.maxCoeff() > kStrayGap)) return 0;  // no such gap can fit (every room scan)
+  std::vector<char> stray(n, 0);
+  std::vector<float> v(n);
+  for (int a = 0; a < 3; ++a) {
+    if (!(extent[a] > kStrayGap)) continue;
+    for (size_t i = 0; i < n; ++i) v[i] = scan.points[i][a];
+    std::sort(v.begin(), v.end());
+    // The longest run of sorted values without a gap wider than kStrayGap (the first of equals).
+    size_t best_b = 0, best_e = 1, b = 0;
+    for (size_t i = 1; i <= n; ++i)
+      if (i == n || v[i] - v[i - 1] > kStrayGap) {
+        if (i - b > best_e - best_b) best_b = b, best_e = i;
+        b = i;
+      }
+    const float lo = v[best_b], hi = v[best_e - 1];
+    for (size_t i = 0; i < n; ++i)
+      if (scan.points[i][a] < lo || scan.points[i][a] > hi) stray[i] = 1;
+  }
+  std::vector<size_t> kept;
+  kept.reserve(n);
+  for (size_t i = 0; i < n; ++i)
+    if (!stray[i]) kept.push_back(i);
+  if (kept.size() == n) return 0;
+  auto keep = [&](auto& values) {
+    if (values.size() != n) return;
+    for (size_t k = 0; k < kept.size(); ++k) values[k] = values[kept[k]];
+    values.resize(kept.size());
+  };
+  keep(scan.points);
+  keep(scan.colors);
+  for (auto& [name, values] : scan.attributes) keep(values);
+  return n - kept.size();
 }
 
 }  // namespace
 
 Scan ReadScan(const std::string& path, ReadStats* stats_out, size_t max_points, const ShiftOption& shift) {
   RequireRegularFile(path, "scan file");
+  const std::string ext = Lower(fs::path(path).extension().string());
+  if (ext != ".pcd" && ext != ".ply" && ext != ".xyz" && ext != ".txt" && ext != ".pts" && ext != ".asc")
+    throw InputError(path + ": unknown scan format '" + ext + "' (expected .pcd, .ply, .xyz or .txt)");
   Tally tally;
   tally.shift = shift.shift;
-  tally.auto_shift = shift.automatic;
+  tally.auto_shift = shift.automatic && !shift.shift;
+  Scan scan = ReadFormat(path, ext, tally, max_points);
+  if (tally.auto_shift)
+    if (const auto better = BetterShift(tally)) {
+      Tally again;
+      again.shift = *better;
+      again.auto_shift = false;
+      scan = ReadFormat(path, ext, again, max_points);
+      tally = std::move(again);
+    }
   const ReadStats& stats = tally.stats;
-  const std::string ext = Lower(fs::path(path).extension().string());
-  Scan scan;
-  if (ext == ".pcd") scan = ReadPcd(path, tally, max_points);
-  else if (ext == ".ply") scan = ReadPly(path, tally, max_points);
-  else if (ext == ".xyz" || ext == ".txt" || ext == ".pts" || ext == ".asc") scan = ReadXyz(path, tally, max_points);
-  else throw InputError(path + ": unknown scan format '" + ext + "' (expected .pcd, .ply, .xyz or .txt)");
   if (scan.points.empty() && tally.far)
     throw InputError(path + ": holds no points within " + std::to_string(static_cast<int>(kMaxCoordinate)) +
                      " m of the " + (tally.shift ? "shifted origin" : "origin") + " (" + std::to_string(tally.far) +
                      " farther; give the global shift with --shift x,y,z)");
   scan.frame.shift = tally.shift.value_or(Eigen::Vector3d::Zero());
-  if (tally.shift && !shift.shift)
+  if (!shift.shift && !scan.frame.shift.isZero(0.0))
     spdlog::info("{}: coordinates far from the origin: global shift ({:.1f}, {:.1f}, {:.1f}) subtracted (outputs are "
                  "written back in the file's coordinates)", path, scan.frame.shift.x(), scan.frame.shift.y(),
                  scan.frame.shift.z());
@@ -751,6 +1024,9 @@ Scan ReadScan(const std::string& path, ReadStats* stats_out, size_t max_points, 
   if (tally.far)
     spdlog::warn("{}: dropped {} of {} points farther than {} m from the origin (scans are metres in a local frame)",
                  path, tally.far, stats.read, static_cast<int>(kMaxCoordinate));
+  if (const size_t strays = DropStrayReturns(scan))
+    spdlog::warn("{}: dropped {} stray returns of {} points, separated from the rest of the scan by more than {} m",
+                 path, strays, stats.read, static_cast<int>(kStrayGap));
   if (stats_out) *stats_out = stats;
   return scan;
 }

@@ -46,6 +46,20 @@ FURNIHOST_API Eigen::Matrix3d UpAxisRotation(const std::string& axis, const std:
 // rotation must be orthonormal with determinant +1 (within 1e-4). InputError naming `option`.
 FURNIHOST_API Eigen::Isometry3d ParseTransform(const std::string& text, const std::string& option);
 
+// InputError naming `option` unless every coordinate of a global shift is within
+// kMaxGlobalShift (--shift, a dataset's "shift").
+FURNIHOST_API void CheckShift(const Eigen::Vector3d& shift, const std::string& option);
+
+// The farthest a sensor origin may lie from its scan's points [m]: beyond any laser scanner's
+// range (terrestrial scanners reach a few km).
+constexpr double kMaxSensorRange = 1e4;
+// A scan just read (file frame, shifted): InputError "<file>: the sensor origin given by <name>
+// ..." when its origin is not finite, beyond kMaxScanCoordinate, or farther than kMaxSensorRange
+// from its points' bounding box. `given_as` names where the origin came from (--origin, a
+// dataset's /scenes/3/origin); empty: the file's VIEWPOINT or the sensor's "origin" parameter.
+// Checked before any stage runs, so a wrong origin is named before it costs a detection.
+FURNIHOST_API void CheckSensorOrigin(const Scan& scan, const std::string& given_as);
+
 // The up axis of a cloud (file frame, after the shift) for --up auto: the normal, among the
 // dominant plane directions, of the largest plane that has (nearly) all points on one side,
 // signed to point at them. nullopt when no plane direction dominates. With `near`: only plane

@@ -51,10 +51,16 @@ struct TrainedModel {
 // the other shape is stale and retrained.
 FURNIHOST_API nlohmann::json TrainingKey(const GraphConfig& graph);
 
-// Writes atomically: magic line "furnihost-model\n" followed by CBOR.
+// The first bytes of every model file.
+constexpr char kModelMagic[] = "furnihost-model\n";
+// Writes atomically: magic line kModelMagic followed by CBOR.
 FURNIHOST_API void SaveModel(const std::string& path, const TrainedModel& model);
 // InputError on a missing/corrupt file or another format version (says what to do).
 FURNIHOST_API TrainedModel LoadModel(const std::string& path);
+// A model cache replaces only its own kind of file: InputError "<where><path>: ..." unless
+// `path` does not exist or is a regular file that starts with the model magic (a corrupt one
+// too: it is retrained). Checked before anything is trained (model_cache.cpp).
+FURNIHOST_API void CheckModelCacheTarget(const std::string& path, const std::string& where);
 // "" when compatible, else one line saying what differs.
 FURNIHOST_API std::string Incompatibility(const TrainedModel& model, const GraphConfig& graph,
                                           const std::string& catalog_hash);
@@ -73,6 +79,7 @@ class FURNIHOST_API Pipeline {
   struct SceneInput {
     std::string path;
     std::optional<Eigen::Vector3f> origin;  // in the file's frame
+    std::string origin_name = "--origin";   // where `origin` came from, for messages
     Eigen::Isometry3f pose = Eigen::Isometry3f::Identity();
     FrameOptions frame;                      // up axis / transform / global shift
     // Gaussian noise [m] added to the points as read, before the frame and every stage
@@ -162,7 +169,8 @@ FURNIHOST_API std::vector<Detection> FuseDetections(const std::vector<std::vecto
 FURNIHOST_API std::map<std::string, Eigen::Vector3f> TypicalClassSizes(const Catalog& catalog);
 
 // Resolves the model for a graph: loads the cache when compatible, otherwise trains and
-// writes it (atomically). `force` retrains.
+// writes it (atomically). `force` retrains. A model_cache that names something other than a
+// model file is refused first (CheckModelCacheTarget).
 FURNIHOST_API TrainedModel EnsureModel(Pipeline& pipeline, const Catalog& catalog,
                                        const RunContext& ctx, bool force = false);
 
