@@ -104,11 +104,13 @@ struct RansacUprightOptions {
   float stretch_margin = 0.1f;
   float select_pixel_deg = 1.0f;
   float min_new_share = 0.5f;
+  float max_box_iou = 0.3f;
   int max_candidates = 12;
   float shape_exponent = 1.f;
   float prior_floor = 0.003f;
   float completeness_exponent = 0.5f;
   float evidence_m2 = 0.1f;
+  float choice_shape_exponent = -1.f;
   float explained_exponent = 1.f;
   float agreement_exponent = 0.5f;
   std::map<std::string, float> thresholds;
@@ -266,6 +268,9 @@ const ParamBinding<RansacUprightOptions>& Binding() {
           .Number("min_new_share", &O::min_new_share, 0, 1, "",
                   "synthesis: a detection whose explained surface is explained by better-scored kept ones but for "
                   "less than this share is explained away (a duplicate, or several objects read as one)")
+          .Number("max_box_iou", &O::max_box_iou, 0, 1, "",
+                  "synthesis: a detection whose box overlaps a better-scored kept one's by more 3D IoU is explained "
+                  "away (two objects do not stand in one place; a chair pushed under a table overlaps it by about 0.2)")
           .Int("max_candidates", &O::max_candidates, 1, 100000, "",
                "synthesis: detections searched per scene and class, those whose first poses explain the most first "
                "(the others are dropped)")
@@ -286,6 +291,10 @@ const ParamBinding<RansacUprightOptions>& Binding() {
           .Number("evidence_m2", &O::evidence_m2, 0, 100, "m2",
                   "synthesis: the score is also multiplied by 1 - exp(-seen / evidence_m2): a few square centimetres "
                   "that a model explains fully are weak evidence of it (0 = off)")
+          .Number("choice_shape_exponent", &O::choice_shape_exponent, -1, 10, "",
+                  "synthesis: the joint choice takes the detections by max(recogniser score, prior_floor)^this x seen "
+                  "furniture surface x explained share x seen / (seen + free) (what each explains of the view); -1: "
+                  "by their scores")
           .NumberMap("thresholds", &O::thresholds, 0, std::nullopt, "",
                      "synthesis: operating score per detected class (accepted at or above)")
           .Number("default_threshold", &O::default_threshold, 0, std::nullopt, "",
@@ -653,8 +662,9 @@ class RansacUprightFitter : public Fitter {
       SearchResult r;
       const CatalogModel* model = nullptr;
       ExplainedPixels pixels;
-      double explained_share = 0.0, own_area = 0.0;
+      double explained_share = 0.0, own_area = 0.0, explained_area = 0.0;
       float prior = 0.f;
+      double order = 0.0;  // the joint choice's order
     };
     std::vector<Fitted> fit(order.size());
     tbb::parallel_for(size_t(0), order.size(), [&](size_t j) {
@@ -671,21 +681,34 @@ class RansacUprightFitter : public Fitter {
       ft.model = ms[x.models[size_t(ft.r.model)]];
       std::vector<uint64_t> keys;
       std::vector<float> areas;
-      ComparePose(*renders[size_t(ft.r.model)], ft.r.pose, views, o_.compare, &sc, sel, &keys, &areas);
+      ComparePose(*renders[size_t(ft.r.model)], ft.r.pose, views, o_.compare, &sc, &keys, &areas, sel);
       std::vector<size_t> idx(keys.size());
       for (size_t i = 0; i < idx.size(); ++i) idx[i] = i;
       std::sort(idx.begin(), idx.end(), [&](size_t a, size_t b) { return keys[a] < keys[b]; });
-      for (size_t i : idx) ft.pixels.keys.push_back(keys[i]), ft.pixels.areas.push_back(areas[i]);
+      for (size_t i : idx) {
+        if (!ft.pixels.keys.empty() && ft.pixels.keys.back() == keys[i]) {
+          ft.pixels.areas.back() += areas[i];
+        } else {
+          ft.pixels.keys.push_back(keys[i]);
+          ft.pixels.areas.push_back(areas[i]);
+        }
+      }
       std::vector<uint64_t> own;
       std::vector<float> own_area;
       PointPixels(x.points, views, sel, o_.compare, &own, &own_area);
-      double total = 0.0, expl = 0.0;
+      // The share of the detection's surface the model explains, the detection's surface being
+      // its own points' pixels and those the model explains: a model that moved from a fragment
+      // onto its whole object is judged on that object, one that leaves most of its own points
+      // unexplained (a chair model on a table with a chair under it) loses.
+      double own_total = 0.0, unexplained = 0.0, explained = 0.0;
       for (size_t i = 0; i < own.size(); ++i) {
-        total += own_area[i];
-        if (std::binary_search(ft.pixels.keys.begin(), ft.pixels.keys.end(), own[i])) expl += own_area[i];
+        own_total += own_area[i];
+        if (!std::binary_search(ft.pixels.keys.begin(), ft.pixels.keys.end(), own[i])) unexplained += own_area[i];
       }
-      ft.own_area = total;
-      ft.explained_share = total > 0.0 ? expl / total : 0.0;
+      for (float a : ft.pixels.areas) explained += a;
+      ft.own_area = own_total;
+      ft.explained_area = explained;
+      ft.explained_share = explained + unexplained > 0.0 ? explained / (explained + unexplained) : 0.0;
       const Comparison& c = ft.r.comparison;
       const double agree = c.seen_object + c.free > 0.0 ? c.seen_object / (c.seen_object + c.free) : 0.0;
       ft.prior = float(std::pow(std::max(double(det.score), double(o_.prior_floor)), double(o_.shape_exponent)));
@@ -695,12 +718,25 @@ class RansacUprightFitter : public Fitter {
                         std::pow(agree, double(o_.agreement_exponent)) *
                         std::pow(complete, double(o_.completeness_exponent)) *
                         (o_.evidence_m2 > 0.f ? 1.0 - std::exp(-c.seen_object / double(o_.evidence_m2)) : 1.0);
+      // The joint choice takes the detections by how much of the view each explains well: its
+      // seen furniture surface, the share of its own points explained and its agreement with
+      // free space, weighed by the prior at choice_shape_exponent (what the views explain
+      // decides between readings of one object, the shape prior much less).
+      ft.order = std::pow(std::max(double(det.score), double(o_.prior_floor)), double(o_.choice_shape_exponent)) *
+                 c.seen_object * ft.explained_share * agree;
     });
     // The joint choice.
     std::vector<ExplainedPixels> chosen(order.size());
-    for (size_t j = 0; j < order.size(); ++j) chosen[j] = fit[j].pixels;
-    std::vector<char> kept;
-    const std::vector<float> share = ExplainAway(chosen, o_.min_new_share, &kept);
+    for (size_t j = 0; j < order.size(); ++j) {
+      chosen[j] = fit[j].pixels;
+      if (fit[j].model) {
+        const Eigen::AlignedBox3f& b = render_of.at(fit[j].model)->bounds;
+        const ModelPlacement& p = fit[j].r.pose;
+        chosen[j].box = OrientedBox{p.Apply(b.center()), b.sizes().cwiseProduct(Eigen::Vector3f(p.sx, p.sy, p.sz)), p.yaw}.Aabb();
+      }
+      if (o_.choice_shape_exponent >= 0.f) chosen[j].score = fit[j].order;
+    }
+    const std::vector<Choice> choice = ExplainAway(chosen, o_.min_new_share, o_.max_box_iou);
     std::vector<Detection> out;
     for (size_t j = 0; j < order.size(); ++j) {
       const Fitted& ft = fit[j];
@@ -725,7 +761,7 @@ class RansacUprightFitter : public Fitter {
       det.coverage = float(ft.explained_share);
       const double seen = c.seen_object + c.seen_other;
       det.free_space_ratio = seen + c.free > 0.0 ? float(c.free / (seen + c.free)) : 0.f;
-      det.score = float(ft.pixels.score) * share[j];
+      det.score = float(ft.pixels.score) * choice[j].share;
       det.evidence["recogniser_score"] = voter_score;
       det.evidence["syn_seen_m2"] = float(c.seen_object);
       det.evidence["syn_seen_other_m2"] = float(c.seen_other);
@@ -733,17 +769,19 @@ class RansacUprightFitter : public Fitter {
       det.evidence["syn_occluded_m2"] = float(c.occluded);
       det.evidence["syn_unknown_m2"] = float(c.unknown);
       det.evidence["syn_own_m2"] = float(ft.own_area);
+      det.evidence["syn_explained_m2"] = float(ft.explained_area);
       det.evidence["syn_explained_share"] = float(ft.explained_share);
-      det.evidence["syn_new_share"] = share[j];
+      det.evidence["syn_new_share"] = choice[j].share;
       det.evidence["syn_stretch_x"] = p.sx;
       det.evidence["syn_stretch_y"] = p.sy;
       det.evidence["syn_stretch_z"] = p.sz;
       const auto thr = o_.thresholds.find(det.cls);
-      det.checks.push_back(Check::AtLeast("score", det.score, thr == o_.thresholds.end() ? o_.default_threshold : thr->second));
       det.checks.push_back(Check::AtMost("free_space_ratio", *det.free_space_ratio, o_.max_free_space_ratio));
-      det.checks.push_back(Check::AtLeast("new_share", share[j], o_.min_new_share));
+      det.checks.push_back(Check::AtLeast("score", det.score, thr == o_.thresholds.end() ? o_.default_threshold : thr->second));
+      det.checks.push_back(Check::AtLeast("new_share", choice[j].share, o_.min_new_share));
+      det.checks.push_back(Check::AtMost("box_iou_with_kept", choice[j].overlap, o_.max_box_iou));
       det.verified = std::all_of(det.checks.begin(), det.checks.end(), [](const Check& x) { return x.passed; });
-      if (!kept[j]) det.notes.push_back("explained away by better-scored detections");
+      if (!choice[j].kept) det.notes.push_back("explained away by better-scored detections");
       out.push_back(std::move(det));
     }
     spdlog::debug("fitters.ransac_upright: synthesis: images {:.0f} ms, {} detections screened ({:.0f} ms), {} searched "

@@ -281,8 +281,8 @@ std::vector<float>& Scratch::Buffer(size_t view, int level, size_t pixels) {
 }
 
 Comparison ComparePose(const RenderCloud& model, const ModelPlacement& pose, const std::vector<View>& views,
-                       const CompareOptions& o, Scratch* scratch, int fixed_level, std::vector<uint64_t>* explained,
-                       std::vector<float>* areas) {
+                       const CompareOptions& o, Scratch* scratch, std::vector<uint64_t>* explained,
+                       std::vector<float>* areas, int key_level) {
   Comparison c;
   if (model.points.empty()) return c;
   const float c0 = std::cos(pose.yaw), s0 = std::sin(pose.yaw);
@@ -299,26 +299,28 @@ Comparison ComparePose(const RenderCloud& model, const ModelPlacement& pose, con
     // The finest level whose pixels at the object's depth are pixel_per_spacing samples wide
     // (no holes in the rendered surface, through which its back faces would show).
     int lev = img.Levels() - 1;
-    if (fixed_level >= 0) {
-      lev = std::min(fixed_level, img.Levels() - 1);
-    } else {
-      for (int l = 0; l < img.Levels(); ++l)
-        if (img.PixelRad(l) * depth_c >= o.pixel_per_spacing * spacing) {
-          lev = l;
-          break;
-        }
-    }
+    for (int l = 0; l < img.Levels(); ++l)
+      if (img.PixelRad(l) * depth_c >= o.pixel_per_spacing * spacing) {
+        lev = l;
+        break;
+      }
     std::vector<float>& z = scratch->Buffer(v, lev, img.Pixels(lev));
     std::vector<uint32_t>& touched = scratch->touched;
+    std::vector<uint32_t>& front = scratch->front;
+    if (explained && front.size() < z.size()) front.resize(z.size());
     touched.clear();
-    for (const auto& m : model.points) {
+    for (size_t k = 0; k < model.points.size(); ++k) {
+      const Eigen::Vector3f& m = model.points[k];
       const float mx = m.x() * pose.sx, my = m.y() * pose.sy;
       const Eigen::Vector3f w(pose.x + c0 * mx - s0 * my, pose.y + s0 * mx + c0 * my, pose.z + m.z() * pose.sz);
       uint32_t id;
       float d;
       if (!img.Project(R * w + t, lev, &id, &d)) continue;
       if (z[id] == kInf) touched.push_back(id);
-      if (d < z[id]) z[id] = d;
+      if (d < z[id]) {
+        z[id] = d;
+        if (explained) front[id] = uint32_t(k);
+      }
     }
     for (uint32_t id : touched) {
       const float dm = z[id];
@@ -335,8 +337,15 @@ Comparison ComparePose(const RenderCloud& model, const ModelPlacement& pose, con
         if (img.Object(lev, id)) {
           c.seen_object += a;
           if (explained) {
-            explained->push_back(PixelKey(v, id));
-            if (areas) areas->push_back(a);
+            const Eigen::Vector3f& m = model.points[front[id]];
+            const float mx = m.x() * pose.sx, my = m.y() * pose.sy;
+            const Eigen::Vector3f w(pose.x + c0 * mx - s0 * my, pose.y + s0 * mx + c0 * my, pose.z + m.z() * pose.sz);
+            uint32_t key;
+            float d;
+            if (img.Project(R * w + t, std::min(key_level, img.Levels() - 1), &key, &d)) {
+              explained->push_back(PixelKey(v, key));
+              if (areas) areas->push_back(a);
+            }
           }
         } else {
           c.seen_other += a;
@@ -375,12 +384,22 @@ void PointPixels(const Points& world, const std::vector<View>& views, int level,
   for (const auto& [k, a] : kv) keys->push_back(k), areas->push_back(a);
 }
 
-std::vector<float> ExplainAway(const std::vector<ExplainedPixels>& c, float min_new_share, std::vector<char>* kept) {
+namespace {
+float AabbIou(const Eigen::AlignedBox3f& a, const Eigen::AlignedBox3f& b) {
+  if (a.isEmpty() || b.isEmpty()) return 0.f;
+  const Eigen::AlignedBox3f i = a.intersection(b);
+  if (i.isEmpty()) return 0.f;
+  const float vi = i.volume(), u = a.volume() + b.volume() - vi;
+  return u > 0.f ? vi / u : 0.f;
+}
+}  // namespace
+
+std::vector<Choice> ExplainAway(const std::vector<ExplainedPixels>& c, float min_new_share, float max_box_iou) {
   std::vector<size_t> order(c.size());
   for (size_t i = 0; i < order.size(); ++i) order[i] = i;
   std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return c[a].score > c[b].score; });
-  std::vector<float> share(c.size(), 1.f);
-  kept->assign(c.size(), 0);
+  std::vector<Choice> out(c.size());
+  std::vector<size_t> kept;
   std::unordered_map<uint64_t, char> claimed;
   for (size_t i : order) {
     double total = 0.0, fresh = 0.0;
@@ -388,13 +407,17 @@ std::vector<float> ExplainAway(const std::vector<ExplainedPixels>& c, float min_
       total += c[i].areas[k];
       if (!claimed.count(c[i].keys[k])) fresh += c[i].areas[k];
     }
-    share[i] = total > 0.0 ? float(fresh / total) : 1.f;
-    if (total > 0.0 && share[i] >= min_new_share) {
-      (*kept)[i] = 1;
+    Choice& ch = out[i];
+    ch.share = total > 0.0 ? float(fresh / total) : 1.f;
+    for (size_t j : kept) ch.overlap = std::max(ch.overlap, AabbIou(c[i].box, c[j].box));
+    if (ch.overlap > max_box_iou) ch.share = std::min(ch.share, 1.f - ch.overlap);
+    ch.kept = total > 0.0 && ch.share >= min_new_share && ch.overlap <= max_box_iou;
+    if (ch.kept) {
+      kept.push_back(i);
       for (uint64_t k : c[i].keys) claimed.emplace(k, 1);
     }
   }
-  return share;
+  return out;
 }
 
 }  // namespace furnihost::ransac_upright

@@ -158,18 +158,20 @@ class Scratch {
  public:
   std::vector<float>& Buffer(size_t view, int level, size_t pixels);
   std::vector<uint32_t> touched;
+  std::vector<uint32_t> front;  // per pixel of the current buffer: its front-most sample (when keys are asked for)
 
  private:
   std::vector<std::vector<std::vector<float>>> buf_;
 };
 
 // Renders `model` at `pose` into every view (at the level that suits its depth and sample
-// spacing, or `fixed_level` >= 0) and compares. With `explained`, appends the (view, level-pixel
-// id) keys of the furniture pixels it explains, and with `areas` their areas (for the joint
-// choice of objects; ids of fixed_level are comparable between candidates).
+// spacing) and compares. With `explained`, also appends the keys (PixelKey) of the furniture
+// pixels it explains as pixels of `key_level` (the pixel of `key_level` holding each explained
+// pixel's front-most sample; comparable between candidates whatever level each was rendered at),
+// with their explained areas in `areas` (a key may repeat: several rendered pixels in one).
 Comparison ComparePose(const RenderCloud& model, const ModelPlacement& pose, const std::vector<View>& views,
-                       const CompareOptions& options, Scratch* scratch, int fixed_level = -1,
-                       std::vector<uint64_t>* explained = nullptr, std::vector<float>* areas = nullptr);
+                       const CompareOptions& options, Scratch* scratch, std::vector<uint64_t>* explained = nullptr,
+                       std::vector<float>* areas = nullptr, int key_level = 0);
 
 // The key ComparePose uses for pixel `id` of view `view`.
 inline uint64_t PixelKey(size_t view, uint32_t id) { return (uint64_t(view) << 32) | id; }
@@ -181,18 +183,25 @@ void PointPixels(const Points& world, const std::vector<View>& views, int level,
                  std::vector<uint64_t>* keys, std::vector<float>* areas);
 
 // The joint choice of the objects that explain a view: candidates (each with the sorted keys
-// of the furniture pixels it explains and their areas) taken by descending score; each keeps
-// the share of its explained area that no candidate kept before it explains. A candidate keeps
-// its pixels (is kept) when that share is at least `min_new_share`; one below it is explained
-// away (a duplicate of a kept object, or a reading of several kept objects as one). Returns
-// the shares (1 for a candidate that explains nothing) and, in *kept, which were kept.
+// of the furniture pixels it explains and their areas, and its box) taken by descending score;
+// each keeps the share of its explained area that no candidate kept before it explains. A
+// candidate keeps its pixels (is kept) when that share is at least `min_new_share` and its box
+// overlaps no kept one's by more than `max_box_iou` (two objects do not stand in one place; a
+// chair under a table overlaps it by less); else it is explained away (a duplicate of a kept
+// object, another reading of it, or several kept objects read as one) and its share is at most
+// 1 - that IoU.
 struct ExplainedPixels {
   double score = 0.0;
   std::vector<uint64_t> keys;  // ascending
   std::vector<float> areas;
+  Eigen::AlignedBox3f box;     // empty: no box test
 };
-std::vector<float> ExplainAway(const std::vector<ExplainedPixels>& candidates, float min_new_share,
-                               std::vector<char>* kept);
+struct Choice {
+  float share = 1.f;    // of its explained area, what no better kept candidate explains (1: explains nothing)
+  float overlap = 0.f;  // largest box IoU with a better kept candidate
+  bool kept = false;
+};
+std::vector<Choice> ExplainAway(const std::vector<ExplainedPixels>& candidates, float min_new_share, float max_box_iou);
 
 // The sensor's mean angular point spacing [rad]: the solid angle the points cover (counted on a
 // cube map of about 1 degree pixels) per point, square-rooted. 0 for fewer than 10 points.
