@@ -7,6 +7,9 @@
 //    "sensors": [{"position": [0.5, 0.5, 1.5], "yaw_deg": 45, "pitch_deg": 0}],
 //    "sensor_params": {"voxel_m": 0.03}}
 // x, y = where the model's bounding-box bottom centre stands; yaw about +z, counter-clockwise.
+// Objects may not overlap on the floor plan, except one marked "under": true (a chair pushed
+// under a table, whose seat passes below the top): the scene's author vouches that its mesh
+// clears the others.
 // Sensor pitch_deg turns about the sensor's y (left) axis, positive looks down. Without
 // "sensors": one pan-tilt scan from sensor_height_m at the room centre with a 360 deg sweep.
 //
@@ -47,6 +50,7 @@ constexpr float kOverlapTolerance = 0.005f;
 struct SceneObject {
   std::string model;
   float x = 0, y = 0, z = 0, yaw_deg = 0;
+  bool under = false;  // may overlap the others on the floor plan
 };
 struct SceneSensor {
   Eigen::Vector3f position = Eigen::Vector3f::Zero();
@@ -125,7 +129,7 @@ SceneSpec ParseScene(const json& j, const std::string& file) {
     for (size_t i = 0; i < j["objects"].size(); ++i) {
       const json& o = j["objects"][i];
       const std::string p = "/objects/" + std::to_string(i);
-      CheckKeys(o, {"model", "x", "y", "z", "yaw_deg"}, file, p);
+      CheckKeys(o, {"model", "x", "y", "z", "yaw_deg", "under"}, file, p);
       SceneObject so;
       if (!o.contains("model") || !o["model"].is_string())
         throw InputError(Ptr(file, p + "/model") + ": missing model id (a string)");
@@ -134,6 +138,10 @@ SceneSpec ParseScene(const json& j, const std::string& file) {
       so.y = Number(o, "y", file, p, std::nullopt, -1e4f, 1e4f);
       so.z = Number(o, "z", file, p, 0.f, -1e4f, 1e4f);
       so.yaw_deg = Number(o, "yaw_deg", file, p, 0.f, -3600.f, 3600.f);
+      if (o.contains("under")) {
+        if (!o["under"].is_boolean()) throw InputError(Ptr(file, p + "/under") + ": expected true or false");
+        so.under = o["under"].get<bool>();
+      }
       s.objects.push_back(so);
     }
   }
@@ -341,6 +349,7 @@ int RunSimulate(const std::vector<std::string>& args) {
                        " m tall at z = " + Fmt(o.z) + ") does not fit between floor and ceiling (" +
                        Fmt(scene.height) + " m)");
     for (size_t k = 0; k < feet.size(); ++k) {
+      if (o.under || scene.objects[k].under) continue;
       const float pen = Penetration(f, feet[k]);
       if (pen > kOverlapTolerance)
         throw InputError(scene_path + ": objects " + ObjectName(k, scene.objects[k]) + " and " +

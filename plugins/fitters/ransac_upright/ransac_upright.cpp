@@ -749,7 +749,8 @@ class RansacUprightFitter : public Fitter {
       const float voter_score = det.score;
       if (!ft.model) continue;
       const Eigen::AlignedBox3f& bounds = render_of.at(ft.model)->bounds;
-      const ModelPlacement& p = ft.r.pose;
+      ModelPlacement p = ft.r.pose;
+      p.yaw = std::remainder(p.yaw, float(2 * M_PI));
       const Comparison& c = ft.r.comparison;
       det.model = ft.model->id;
       det.model_pose = p.Rigid();

@@ -566,20 +566,6 @@ class ClusterProposer : public Proposer {
     }
     const size_t clusters = raw.size();
     for (size_t i = 0; i < clusters; ++i) raw[i].parent = int(i);
-    // The clusters' cuts are independent: found in parallel, appended in cluster order.
-    std::vector<std::vector<std::pair<std::vector<int>, int>>> parts(clusters);
-    tbb::parallel_for(size_t(0), clusters, [&](size_t i) { parts[i] = SplitLong(P, hz, raw[i].idx); });
-    for (size_t i = 0; i < clusters; ++i)
-      for (auto& part : parts[i]) {
-        Raw r;
-        r.idx = std::move(part.first);
-        r.rule = raw[i].rule;
-        r.how = raw[i].how + "+split" + std::to_string(part.second);
-        r.parent = int(i);
-        r.set = raw[i].set;
-        r.radius = raw[i].radius;
-        raw.push_back(std::move(r));
-      }
     // Support splits: the parts of a cluster without its support surface, and the surface with
     // its legs.
     if (o_.support_splits) {
@@ -618,6 +604,22 @@ class ClusterProposer : public Proposer {
           raw.push_back(std::move(r));
         }
     }
+    // The clusters' cuts are independent: found in parallel, appended in cluster order.
+    // Support parts too: a chair under a table may come out of it with the table's apron.
+    const size_t to_split = raw.size();
+    std::vector<std::vector<std::pair<std::vector<int>, int>>> parts(to_split);
+    tbb::parallel_for(size_t(0), to_split, [&](size_t i) { parts[i] = SplitLong(P, hz, raw[i].idx); });
+    for (size_t i = 0; i < to_split; ++i)
+      for (auto& part : parts[i]) {
+        Raw r;
+        r.idx = std::move(part.first);
+        r.rule = raw[i].rule;
+        r.how = raw[i].how + "+split" + std::to_string(part.second);
+        r.parent = raw[i].parent;
+        r.set = raw[i].set;
+        r.radius = raw[i].radius;
+        raw.push_back(std::move(r));
+      }
     // Work-top variants: a cluster holding a large horizontal level at table height with more
     // above it (a desk under monitors, shelves or lamps) also gives the level and what is under it.
     if (o_.top_variants) {
