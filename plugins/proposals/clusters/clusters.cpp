@@ -587,8 +587,11 @@ class ClusterProposer : public Proposer {
         }
       }
       std::vector<std::vector<std::vector<int>>> sup(upto);
+      // Only the clusters of the walls' "all" removal (those chairs and tables are scored on):
+      // the "segs" removal keeps low cabinet fronts, which stand on no table top.
       tbb::parallel_for(size_t(0), upto, [&](size_t i) {
-        if (first[i] == i) sup[i] = SupportSplit(P, hz, ls, sp, raw[i].idx, raw[i].radius, adaptive);
+        if (first[i] == i && (raw[i].rule == "all" || raw[i].rule == "all_blocks"))
+          sup[i] = SupportSplit(P, hz, ls, sp, raw[i].idx, raw[i].radius, adaptive);
       });
       for (size_t i = 0; i < upto; ++i)
         if (first[i] != i) sup[i] = sup[first[i]];
@@ -605,8 +608,7 @@ class ClusterProposer : public Proposer {
         }
     }
     // The clusters' cuts are independent: found in parallel, appended in cluster order.
-    // Support parts too: a chair under a table may come out of it with the table's apron.
-    const size_t to_split = raw.size();
+    const size_t to_split = clusters;
     std::vector<std::vector<std::pair<std::vector<int>, int>>> parts(to_split);
     tbb::parallel_for(size_t(0), to_split, [&](size_t i) { parts[i] = SplitLong(P, hz, raw[i].idx); });
     for (size_t i = 0; i < to_split; ++i)
