@@ -1,8 +1,7 @@
 #include "view_synthesis.hpp"
 
 #include "furnihost/hash.hpp"
-
-#include <unistd.h>
+#include "model_cloud.hpp"
 
 #include <algorithm>
 #include <cstring>
@@ -203,10 +202,7 @@ uint64_t RenderCloud::CacheKey(uint64_t cloud_key, int target) {
 }
 
 void RenderCloud::Save(const std::string& path, uint64_t key) const {
-  namespace fs = std::filesystem;
-  const fs::path tmp = path + ".tmp" + std::to_string(::getpid());
-  {
-    std::ofstream out(tmp, std::ios::binary);
+  WriteCacheFile(path, [&](std::ostream& out) {
     const uint64_t n = points.size();
     out.write(kRenderMagic, sizeof(kRenderMagic));
     out.write(reinterpret_cast<const char*>(&key), sizeof(key));
@@ -216,19 +212,7 @@ void RenderCloud::Save(const std::string& path, uint64_t key) const {
     out.write(reinterpret_cast<const char*>(&n), sizeof(n));
     out.write(reinterpret_cast<const char*>(points.data()), std::streamsize(n * sizeof(Eigen::Vector3f)));
     out.write(kRenderMagic, sizeof(kRenderMagic));
-    out.close();
-    if (!out) {
-      std::error_code ec;
-      fs::remove(tmp, ec);
-      throw StageError("cannot write " + tmp.string());
-    }
-  }
-  std::error_code ec;
-  fs::rename(tmp, path, ec);
-  if (ec) {
-    fs::remove(tmp, ec);
-    throw StageError("cannot rename " + tmp.string() + " to " + path);
-  }
+  });
 }
 
 std::shared_ptr<const RenderCloud> RenderCloud::Load(const std::string& path, uint64_t key) {

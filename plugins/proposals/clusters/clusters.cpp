@@ -702,6 +702,26 @@ class ClusterProposer : public Proposer {
   }
 
  private:
+  // Of (top-view cell, height bin) pairs sorted by cell (`nb` bins), the window of two adjacent
+  // bins that the most cells reach, each cell counted once per window; its lower bin (-1 when no
+  // cell reaches any), and in *cells how many cells reach it.
+  static int BusiestLevel(const std::vector<std::pair<uint64_t, int>>& level, int nb, size_t* cells) {
+    std::vector<size_t> occupied(size_t(nb), 0);
+    for (size_t a = 0; a < level.size();) {
+      int last = -1;
+      size_t e = a;
+      for (; e < level.size() && level[e].first == level[a].first; ++e)
+        for (int w : {level[e].second - 1, level[e].second})
+          if (w > last && w >= 0 && w + 1 < nb) ++occupied[size_t(w)], last = w;
+      a = e;
+    }
+    *cells = 0;
+    int k = -1;
+    for (int b = 0; b + 1 < nb; ++b)
+      if (occupied[size_t(b)] > *cells) *cells = occupied[size_t(b)], k = b;
+    return k;
+  }
+
   // Support splits of cluster `idx` (clustered at `radius` spacings): nothing, or first the
   // support surface with the remains too small to be objects (min_points), then each part of
   // real size that remains when the surface is taken out. The support surface is the 4 cm
@@ -725,19 +745,8 @@ class ClusterProposer : public Proposer {
       level.emplace_back(key(P[size_t(i)]), std::min(nb - 1, int((h - o_.support_min) / bin)));
     }
     std::sort(level.begin(), level.end());
-    std::vector<size_t> occupied(size_t(nb), 0);
-    for (size_t a = 0; a < level.size();) {
-      int last = -1;
-      size_t e = a;
-      for (; e < level.size() && level[e].first == level[a].first; ++e)
-        for (int w : {level[e].second - 1, level[e].second})
-          if (w > last && w >= 0 && w + 1 < nb) ++occupied[size_t(w)], last = w;
-      a = e;
-    }
     size_t best = 0;
-    int k = -1;
-    for (int b = 0; b + 1 < nb; ++b)
-      if (occupied[size_t(b)] > best) best = occupied[size_t(b)], k = b;
+    const int k = BusiestLevel(level, nb, &best);
     if (k < 0 || double(best) * cell * cell < o_.support_area) return {};
     const float lo = o_.support_min + float(k) * bin, hi = lo + 2.f * bin;
     std::unordered_set<uint64_t> top_cells;
@@ -793,22 +802,9 @@ class ClusterProposer : public Proposer {
     }
     std::sort(all.begin(), all.end());
     const size_t cells = size_t(std::unique(all.begin(), all.end()) - all.begin());
-    // Cells per window (bins b and b + 1): each cell's bins in ascending order, each window it
-    // touches counted once.
     std::sort(level.begin(), level.end());
-    std::vector<size_t> occupied(size_t(nb), 0);
-    for (size_t a = 0; a < level.size();) {
-      int last = -1;
-      size_t e = a;
-      for (; e < level.size() && level[e].first == level[a].first; ++e)
-        for (int w : {level[e].second - 1, level[e].second})
-          if (w > last && w >= 0 && w + 1 < nb) ++occupied[size_t(w)], last = w;
-      a = e;
-    }
     size_t best = 0;
-    int k = -1;
-    for (int b = 0; b + 1 < nb; ++b)
-      if (occupied[size_t(b)] > best) best = occupied[size_t(b)], k = b;
+    const int k = BusiestLevel(level, nb, &best);
     if (k < 0 || double(best) < o_.top_cover * double(cells)) return {};
     const float level_top = o_.top_min + float(k + 2) * bin;  // the window's upper edge
     std::vector<int> out;
