@@ -1423,6 +1423,6 @@ class ClusterProposer : public Proposer {
 }  // namespace
 }  // namespace furnihost
 
-FURNIHOST_PLUGIN(furnihost::ClusterProposer, "proposals.clusters", "1.6.0",
+FURNIHOST_PLUGIN(furnihost::ClusterProposer, "proposals.clusters", "1.7.0",
                  "object proposals: ground, walls and ceiling removed, Euclidean clusters at radii scaled to the scan's "
                  "point spacing, long clusters split, floating ones extended to the ground")
