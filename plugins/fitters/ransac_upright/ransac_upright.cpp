@@ -110,7 +110,6 @@ struct RansacUprightOptions {
   float prior_floor = 0.003f;
   float completeness_exponent = 0.5f;
   float evidence_m2 = 0.1f;
-  float choice_shape_exponent = -1.f;
   float explained_exponent = 1.f;
   float agreement_exponent = 0.5f;
   std::map<std::string, float> thresholds;
@@ -291,10 +290,6 @@ const ParamBinding<RansacUprightOptions>& Binding() {
           .Number("evidence_m2", &O::evidence_m2, 0, 100, "m2",
                   "synthesis: the score is also multiplied by 1 - exp(-seen / evidence_m2): a few square centimetres "
                   "that a model explains fully are weak evidence of it (0 = off)")
-          .Number("choice_shape_exponent", &O::choice_shape_exponent, -1, 10, "",
-                  "synthesis: the joint choice takes the detections by max(recogniser score, prior_floor)^this x seen "
-                  "furniture surface x explained share x seen / (seen + free) (what each explains of the view); -1: "
-                  "by their scores")
           .NumberMap("thresholds", &O::thresholds, 0, std::nullopt, "",
                      "synthesis: operating score per detected class (accepted at or above)")
           .Number("default_threshold", &O::default_threshold, 0, std::nullopt, "",
@@ -664,7 +659,6 @@ class RansacUprightFitter : public Fitter {
       ExplainedPixels pixels;
       double explained_share = 0.0, own_area = 0.0, explained_area = 0.0;
       float prior = 0.f;
-      double order = 0.0;  // the joint choice's order
     };
     std::vector<Fitted> fit(order.size());
     tbb::parallel_for(size_t(0), order.size(), [&](size_t j) {
@@ -718,12 +712,6 @@ class RansacUprightFitter : public Fitter {
                         std::pow(agree, double(o_.agreement_exponent)) *
                         std::pow(complete, double(o_.completeness_exponent)) *
                         (o_.evidence_m2 > 0.f ? 1.0 - std::exp(-c.seen_object / double(o_.evidence_m2)) : 1.0);
-      // The joint choice takes the detections by how much of the view each explains well: its
-      // seen furniture surface, the share of its own points explained and its agreement with
-      // free space, weighed by the prior at choice_shape_exponent (what the views explain
-      // decides between readings of one object, the shape prior much less).
-      ft.order = std::pow(std::max(double(det.score), double(o_.prior_floor)), double(o_.choice_shape_exponent)) *
-                 c.seen_object * ft.explained_share * agree;
     });
     // The joint choice.
     std::vector<ExplainedPixels> chosen(order.size());
@@ -734,7 +722,6 @@ class RansacUprightFitter : public Fitter {
         const ModelPlacement& p = fit[j].r.pose;
         chosen[j].box = OrientedBox{p.Apply(b.center()), b.sizes().cwiseProduct(Eigen::Vector3f(p.sx, p.sy, p.sz)), p.yaw}.Aabb();
       }
-      if (o_.choice_shape_exponent >= 0.f) chosen[j].score = fit[j].order;
     }
     const std::vector<Choice> choice = ExplainAway(chosen, o_.min_new_share, o_.max_box_iou);
     std::vector<Detection> out;
