@@ -7,6 +7,9 @@
 //    "sensors": [{"position": [0.5, 0.5, 1.5], "yaw_deg": 45, "pitch_deg": 0}],
 //    "sensor_params": {"voxel_m": 0.03}}
 // x, y = where the model's bounding-box bottom centre stands; yaw about +z, counter-clockwise.
+// Objects may not overlap on the floor plan, except one marked "under": true (a chair pushed
+// under a table, whose seat passes below the top): the scene's author vouches that its mesh
+// clears the others.
 // Sensor pitch_deg turns about the sensor's y (left) axis, positive looks down. Without
 // "sensors": one pan-tilt scan from sensor_height_m at the room centre with a 360 deg sweep.
 //
@@ -49,6 +52,7 @@ constexpr float kOverlapTolerance = 0.005f;
 struct SceneObject {
   std::string model;
   float x = 0, y = 0, z = 0, yaw_deg = 0;
+  bool under = false;  // may overlap the others on the floor plan
 };
 struct SceneSensor {
   Eigen::Vector3f position = Eigen::Vector3f::Zero();
@@ -127,7 +131,7 @@ SceneSpec ParseScene(const json& j, const std::string& file) {
     for (size_t i = 0; i < j["objects"].size(); ++i) {
       const json& o = j["objects"][i];
       const std::string p = "/objects/" + std::to_string(i);
-      CheckKeys(o, {"model", "x", "y", "z", "yaw_deg"}, file, p);
+      CheckKeys(o, {"model", "x", "y", "z", "yaw_deg", "under"}, file, p);
       SceneObject so;
       if (!o.contains("model") || !o["model"].is_string())
         throw InputError(Ptr(file, p + "/model") + ": missing model id (a string)");
@@ -136,6 +140,10 @@ SceneSpec ParseScene(const json& j, const std::string& file) {
       so.y = Number(o, "y", file, p, std::nullopt, -1e4f, 1e4f);
       so.z = Number(o, "z", file, p, 0.f, -1e4f, 1e4f);
       so.yaw_deg = Number(o, "yaw_deg", file, p, 0.f, -3600.f, 3600.f);
+      if (o.contains("under")) {
+        if (!o["under"].is_boolean()) throw InputError(Ptr(file, p + "/under") + ": expected true or false");
+        so.under = o["under"].get<bool>();
+      }
       s.objects.push_back(so);
     }
   }
@@ -209,8 +217,9 @@ float Penetration(const Footprint& a, const Footprint& b) {
 // (cells doubling in size; each footprint on the finest level whose cells are at least its
 // size), and each is tested against those on its own and the coarser levels in the cells around
 // it: n log n for any layout (rows along x or y, grids, a few large among many small), where
-// all pairs took 106 s for 78,400 objects.
-std::optional<std::pair<size_t, size_t>> FirstOverlap(const std::vector<Footprint>& feet, float tolerance) {
+// all pairs took 106 s for 78,400 objects. Pairs with an object marked `under` are skipped.
+std::optional<std::pair<size_t, size_t>> FirstOverlap(const std::vector<Footprint>& feet, const std::vector<bool>& under,
+                                                     float tolerance) {
   const size_t n = feet.size();
   if (n < 2) return std::nullopt;
   std::vector<Eigen::AlignedBox2f> box(n);
@@ -238,6 +247,7 @@ std::optional<std::pair<size_t, size_t>> FirstOverlap(const std::vector<Footprin
   auto consider = [&](size_t a, size_t b) {
     const size_t lo = std::min(a, b), hi = std::max(a, b);
     if (best && (hi > best->second || (hi == best->second && lo >= best->first))) return;
+    if (under[a] || under[b]) return;  // an object marked "under" may overlap the others
     Eigen::AlignedBox2f grown = box[a];
     grown.min().array() -= tolerance;
     grown.max().array() += tolerance;
@@ -397,7 +407,9 @@ int RunSimulate(const std::vector<std::string>& args) {
                        Fmt(scene.height) + " m)");
     feet.push_back(f);
   }
-  if (const auto pair = FirstOverlap(feet, kOverlapTolerance)) {
+  std::vector<bool> under;
+  for (const auto& o : scene.objects) under.push_back(o.under);
+  if (const auto pair = FirstOverlap(feet, under, kOverlapTolerance)) {
     const auto [k, i] = *pair;
     throw InputError(scene_path + ": objects " + ObjectName(k, scene.objects[k]) + " and " +
                      ObjectName(i, scene.objects[i]) + " overlap (footprints intersect by " +
