@@ -59,13 +59,19 @@ FURNIHOST_API TrainedModel LoadModel(const std::string& path);
 FURNIHOST_API std::string Incompatibility(const TrainedModel& model, const GraphConfig& graph,
                                           const std::string& catalog_hash);
 
-// The stages of a graph, created once and reused for every scan.
+namespace graph {
+struct StageInstances;
+}
+
+// The stages of a graph, created once and reused for every scan. Not thread-safe: a Pipeline
+// runs one Detect or Train at a time (copies share its stages).
 class FURNIHOST_API Pipeline {
  public:
   Pipeline(const GraphConfig& graph, const Registry& registry);
   const GraphConfig& Graph() const { return graph_; }
 
-  bool HasDetectionChain() const { return !voters_.empty(); }
+  // Whether the graph has a stage that gives detections.
+  bool HasDetectionChain() const;
   std::vector<std::string> MissingStages() const;  // kinds absent from the detection chain
 
   TrainedModel Train(const Catalog& catalog, const RunContext& ctx);
@@ -80,14 +86,15 @@ class FURNIHOST_API Pipeline {
     float jitter_m = 0.f;
     uint64_t jitter_seed = 0;
   };
-  // With several stages of a kind, the fields below hold the first one's output (execution
-  // order); `detections` holds every sink's (GraphConfig::Sinks).
+  // The detections, and the outputs behind them: the fields below `scans` hold those of the
+  // stages the first sink takes, directly or not (of every stage when the graph has no sink),
+  // the first of each in execution order.
   struct Result {
     std::vector<Scan> scans;
     std::vector<Segmentation> segmentations;
-    std::vector<Proposals> proposals;     // one per scan when the graph has a proposer
-    std::vector<FeatureMatrix> features;  // normalised (for the first voter) when a model was given
-    size_t clamped_features = 0;
+    std::vector<Proposals> proposals;     // one per scan when the chain has a proposer
+    std::vector<FeatureMatrix> features;  // what its voter voted with (normalised), else raw
+    size_t clamped_features = 0;          // of every voter
     VoteResult votes;
     // Every sink's detections in execution order of the sinks; with several sinks each names
     // its sink in Detection::chain.
@@ -109,10 +116,6 @@ class FURNIHOST_API Pipeline {
   Result Detect(const std::vector<SceneInput>& scenes, const TrainedModel* model,
                 const Catalog* catalog, const RunContext& ctx, const std::function<void()>& before_stages = {});
 
-  // Calls `f` and rethrows any exception with the stage tag and type in front.
-  template <class F>
-  auto Call(const StageConfig& s, F&& f) -> decltype(f());
-
  private:
   // An ensemble's run after the first: each scan jittered as read, the noise drawn along the
   // axes of the first run's working frame of that scan (`reference`: the first run's scans).
@@ -124,24 +127,10 @@ class FURNIHOST_API Pipeline {
   // One run of the chain.
   Result DetectOnce(const std::vector<SceneInput>& scenes, const TrainedModel* model, const Catalog* catalog,
                     const RunContext& ctx, const std::function<void()>& before_stages, const RunJitter& run_jitter);
-  // One trained voter's plugin and the model id it has loaded.
-  struct VoterSlot {
-    std::shared_ptr<Voter> voter;
-    std::string loaded_model_id;
-  };
   GraphConfig graph_;
-  const StageConfig *input_cfg_ = nullptr, *train_cfg_ = nullptr;
-  std::shared_ptr<Sensor> input_, training_;
-  // Every other stage's plugin by tag (segmenters, proposers, features, fitters).
-  std::map<std::string, std::shared_ptr<Stage>> stages_;
-  std::map<std::string, VoterSlot> voters_;  // by voter tag
-  // The plugin of stage `s` as its kind's interface.
-  template <class T>
-  T& StageAs(const StageConfig& s) const;
-  // Typical box size [w, d, h] of each class (the median of its catalog models), for the boxes
-  // of detections no fitter gave a model.
-  std::map<std::string, Eigen::Vector3f> class_size_;
-  const Catalog* sized_catalog_ = nullptr;
+  std::shared_ptr<graph::StageInstances> stages_;
+  const StageConfig* input_ = nullptr;  // the detection sensor
+  int neighbours_ = 0;  // what the stages ask of each scan (StageNeeds::neighbours)
 };
 
 // Fuses the detections of several runs of one chain on (jittered copies of) one scan: per
@@ -157,9 +146,6 @@ class FURNIHOST_API Pipeline {
 // when no other check failed), evidence "ensemble_runs" counts the members. A
 // detection without a box joins none. Sorted by fused score (descending); deterministic.
 FURNIHOST_API std::vector<Detection> FuseDetections(const std::vector<std::vector<Detection>>& runs, double join_iou);
-
-// The median extents of each class's models in the catalog.
-FURNIHOST_API std::map<std::string, Eigen::Vector3f> TypicalClassSizes(const Catalog& catalog);
 
 // Resolves the model for a graph: loads the cache when compatible, otherwise trains and
 // writes it (atomically). `force` retrains.
