@@ -9,15 +9,6 @@ const Segmentation* Run::Parts(const StageConfig& s, size_t i) const {
   return seg ? &Of(*seg).segmentations.at(i) : nullptr;
 }
 
-void Run::Timed(const std::string& tag, double ms) {
-  for (auto& t : timings_ms)
-    if (t.first == tag) {
-      t.second += ms;
-      return;
-    }
-  timings_ms.emplace_back(tag, ms);
-}
-
 const std::map<std::string, Eigen::Vector3f>& Run::ClassSizes() {
   if (!class_sizes_) class_sizes_ = catalog ? TypicalClassSizes(*catalog) : std::map<std::string, Eigen::Vector3f>();
   return *class_sizes_;

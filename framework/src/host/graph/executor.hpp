@@ -82,7 +82,7 @@ class Run {
   bool log = true;                      // a line per scan and stage (detection; training is quiet)
   bool voted = false;                   // a voter ran
   size_t clamped_features = 0;          // features outside the training range, clamped
-  std::vector<std::pair<std::string, double>> timings_ms;  // stage tag -> ms, in order
+  StageTimes timings_ms;                                   // stage tag -> ms, in order
   std::map<std::string, FitContext> fit_contexts;          // by the chain (voter and proposer) fitters fit
 
   StageOutput& Out(const StageConfig& s) { return out_[s.tag]; }
@@ -90,7 +90,7 @@ class Run {
   bool Has(const StageConfig& s) const { return out_.count(s.tag) > 0; }
   // The segmentation of scan `i` that stage `s` sees, or null.
   const Segmentation* Parts(const StageConfig& s, size_t i) const;
-  void Timed(const std::string& tag, double ms);
+  void Timed(const std::string& tag, double ms) { AddTime(timings_ms, tag, ms); }
   // The typical catalog size of each class (TypicalClassSizes), computed once per run.
   const std::map<std::string, Eigen::Vector3f>& ClassSizes();
 

@@ -95,21 +95,15 @@ void RunVoter(const StageConfig& s, StageInstance& instance, Run& run) {
                               : " (model " + run.graph.model_cache + "; retrain with --retrain)";
   const TrainedModel& model = *run.model;
   const bool several = run.graph.Trained().size() > 1;
-  const Normaliser* norm = &model.normaliser;
-  const nlohmann::json* voter_model = &model.voter_model;
-  if (several || !model.voters.empty()) {
-    const TrainedVoter* tv = model.FindVoter(s.tag);
-    if (!tv) throw InputError("stage '" + s.tag + "' (" + s.type + "): the model has no model for this voter" + fix);
-    norm = &tv->normaliser;
-    voter_model = &tv->voter_model;
-  }
+  const TrainedVoter* trained = model.FindVoter(s.tag);
+  if (!trained) throw InputError("stage '" + s.tag + "' (" + s.type + "): the model has no model for this voter" + fix);
   const StageConfig* features = run.graph.Input(s, InputRole::Features);
   const StageConfig* proposals = run.graph.Input(s, InputRole::Proposals);
   StageOutput& o = run.Out(s);
   size_t clamped = 0;
   if (features) {
     o.features = run.Of(*features).features;  // normalised by this voter's model
-    for (auto& f : o.features) clamped += norm->Apply(f);
+    for (auto& f : o.features) clamped += trained->normaliser.Apply(f);
   }
   run.clamped_features += clamped;
   if (clamped)
@@ -122,7 +116,7 @@ void RunVoter(const StageConfig& s, StageInstance& instance, Run& run) {
     // whatever the plugin threw, with the way out in the message.
     try {
       CallStage(s, [&] {
-        voter.Load(*voter_model);
+        voter.Load(trained->voter_model);
         return 0;
       });
     } catch (const std::exception& e) {

@@ -114,13 +114,7 @@ TrainedModel TrainGraph(const GraphConfig& g, StageInstances& stages, const Cata
       return 0;
     });
     instance.loaded_model = m.catalog_hash + m.training_config.dump();
-    if (learners.size() == 1) {
-      m.voter_type = tvr.voter_type;
-      m.normaliser = tvr.normaliser;
-      m.voter_model = std::move(tvr.voter_model);
-    } else {
-      m.voters[l.stage->tag] = std::move(tvr);
-    }
+    m.voters[l.stage->tag] = std::move(tvr);
   }
   m.summary = {{"models", catalog.models.size()}, {"voters", per_voter}, {"time_ms", time_ms}};
   return m;
