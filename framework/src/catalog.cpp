@@ -577,4 +577,21 @@ Catalog LoadCatalog(const std::string& path, bool strict) {
   return cat;
 }
 
+std::map<std::string, Eigen::Vector3f> TypicalClassSizes(const Catalog& catalog) {
+  std::map<std::string, std::vector<Eigen::Vector3f>> by_class;
+  for (const auto& m : catalog.models) by_class[m.cls].push_back(m.size);
+  std::map<std::string, Eigen::Vector3f> out;
+  for (auto& [cls, sizes] : by_class) {
+    Eigen::Vector3f med;
+    for (int k = 0; k < 3; ++k) {
+      std::vector<float> v;
+      for (const auto& s : sizes) v.push_back(s[k]);
+      std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+      med[k] = v[v.size() / 2];
+    }
+    out[cls] = med;
+  }
+  return out;
+}
+
 }  // namespace furnihost

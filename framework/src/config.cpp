@@ -7,6 +7,7 @@
 #include <set>
 
 #include "furnihost/io.hpp"
+#include "host/graph/stage_kinds.hpp"
 #include "shown.hpp"
 
 namespace fs = std::filesystem;
@@ -127,32 +128,41 @@ const StageConfig* GraphConfig::InputOfKind(const StageConfig& s, StageKind kind
   return nullptr;
 }
 
-const StageConfig* GraphConfig::SegmenterOfVoter(const StageConfig& voter) const {
-  if (const StageConfig* f = InputOfKind(voter, StageKind::Features)) return InputOfKind(*f, StageKind::Segmenter);
-  if (const StageConfig* p = InputOfKind(voter, StageKind::Proposer)) return InputOfKind(*p, StageKind::Segmenter);
+const StageConfig* GraphConfig::Input(const StageConfig& s, InputRole role) const {
+  const graph::KindRule& rule = graph::RuleOf(s.kind);
+  for (const auto& in : s.inputs)
+    if (const StageConfig* c = Find(in))
+      if (const graph::Slot* slot = graph::SlotFor(rule, c->kind); slot && slot->role == role) return c;
   return nullptr;
 }
 
-const StageConfig* GraphConfig::DetectionsInput(const StageConfig& fitter) const {
-  if (const StageConfig* v = InputOfKind(fitter, StageKind::Voter)) return v;
-  return InputOfKind(fitter, StageKind::Fitter);
+const StageConfig* GraphConfig::SegmenterOf(const StageConfig& s) const {
+  return graph::SegmenterOf(s, [this](const std::string& tag) { return Find(tag); }, stages.size());
 }
 
-const StageConfig* GraphConfig::VoterOf(const StageConfig& s) const {
+const StageConfig* GraphConfig::ChainRoot(const StageConfig& s) const {
   const StageConfig* c = &s;
   // Validation refuses cycles; the bound only guards a graph built by hand.
-  for (size_t hops = 0; c && c->kind == StageKind::Fitter && hops <= stages.size(); ++hops) c = DetectionsInput(*c);
-  return c && c->kind == StageKind::Voter ? c : nullptr;
+  for (size_t hops = 0; c && hops <= stages.size(); ++hops)
+    if (const StageConfig* in = Input(*c, InputRole::Detections)) c = in;
+    else return graph::RuleOf(c->kind).detections ? c : nullptr;
+  return nullptr;
+}
+
+std::vector<const StageConfig*> GraphConfig::Trained() const {
+  std::vector<const StageConfig*> out;
+  for (const auto& s : stages)
+    if (graph::RuleOf(s.kind).trained) out.push_back(&s);
+  return out;
 }
 
 std::vector<const StageConfig*> GraphConfig::Sinks() const {
-  std::set<std::string> fed;  // stages some fitter takes
+  std::set<std::string> fed;  // stages some stage takes as its detections
   for (const auto& s : stages)
-    if (s.kind == StageKind::Fitter)
-      if (const StageConfig* in = DetectionsInput(s)) fed.insert(in->tag);
+    if (const StageConfig* in = Input(s, InputRole::Detections)) fed.insert(in->tag);
   std::vector<const StageConfig*> out;
   for (const auto& s : stages)
-    if ((s.kind == StageKind::Voter || s.kind == StageKind::Fitter) && !fed.count(s.tag)) out.push_back(&s);
+    if (graph::RuleOf(s.kind).detections && !fed.count(s.tag)) out.push_back(&s);
   return out;
 }
 
@@ -254,7 +264,7 @@ GraphConfig ValidateGraph(const std::string& path, const nlohmann::json& config,
       throw InputError(at + "/type: expected a plugin type name such as \"segmenters.region_growing\"");
     const std::string type = st["type"].get<std::string>();
     if (!KindFromTypeName(type))
-      throw InputError(at + "/type: '" + type + "' is not <kind>s.<name> with kind sensor, segmenter, features, voter or fitter");
+      throw InputError(at + "/type: '" + type + "' is not <kind>s.<name> (" + KindTypePrefixes() + " and a name)");
     if (!registry.Find(type)) {
       if (missing.empty()) first_missing_at = at + "/type";
       if (std::find(missing.begin(), missing.end(), type) == missing.end()) missing.push_back(type);
@@ -312,75 +322,7 @@ GraphConfig ValidateGraph(const std::string& path, const nlohmann::json& config,
     resolved["stages"][s.tag]["inputs"] = s.inputs;
     by_tag[s.tag] = s;
   }
-  auto expected_input = [](StageKind k) -> std::vector<StageKind> {
-    switch (k) {
-      case StageKind::Sensor: return {};
-      case StageKind::Segmenter: return {StageKind::Sensor};
-      case StageKind::Proposer: return {StageKind::Segmenter, StageKind::Sensor};
-      case StageKind::Features: return {StageKind::Segmenter};
-      case StageKind::Voter: return {StageKind::Features, StageKind::Proposer};
-      case StageKind::Fitter: return {StageKind::Voter, StageKind::Fitter, StageKind::Proposer};
-    }
-    return {};
-  };
-  for (auto& [tag, s] : by_tag) {
-    const std::string at = w + s.pointer + "/inputs";
-    auto want = expected_input(s.kind);
-    if (want.empty() && !s.inputs.empty()) throw InputError(at + ": a sensor takes no inputs");
-    // A voter takes part features, the proposals it recognises, or both.
-    // A fitter takes the detections of a voter or a fitter, and may take a proposer whose
-    // proposals it sees (instead of its voter's).
-    const size_t most = s.kind == StageKind::Voter || s.kind == StageKind::Fitter ? 2 : 1;
-    if (!want.empty() && (s.inputs.empty() || s.inputs.size() > most))
-      throw InputError(at + ": a " + std::string(ToString(s.kind)) + " takes " +
-                       (s.kind == StageKind::Voter    ? std::string("a features stage, a proposer, or one of each")
-                        : s.kind == StageKind::Fitter ? std::string("a voter or a fitter, and optionally a proposer")
-                                                      : std::string("exactly one input (a ") + ToString(want.front()) +
-                                                            (want.size() > 1 ? std::string(" or a ") + ToString(want[1])
-                                                                             : std::string()) +
-                                                            " stage)"));
-    if (s.kind == StageKind::Fitter) {
-      int detections = 0, proposers = 0, unknown = 0;
-      for (const auto& in : s.inputs) {
-        auto it = by_tag.find(in);
-        if (it == by_tag.end() || std::find(want.begin(), want.end(), it->second.kind) == want.end()) {
-          ++unknown;  // named below (unknown stage or kind mismatch)
-          continue;
-        }
-        detections += it->second.kind == StageKind::Voter || it->second.kind == StageKind::Fitter;
-        proposers += it->second.kind == StageKind::Proposer;
-      }
-      if (!unknown && (detections != 1 || proposers > 1))
-        throw InputError(at + ": fitter '" + tag +
-                         "' takes the detections of one voter or fitter, and optionally one proposer");
-    }
-    if (s.kind == StageKind::Voter) {
-      int features = 0, proposers = 0, unknown = 0;
-      for (const auto& in : s.inputs) {
-        auto it = by_tag.find(in);
-        if (it == by_tag.end()) {
-          ++unknown;  // named below
-          continue;
-        }
-        features += it->second.kind == StageKind::Features;
-        proposers += it->second.kind == StageKind::Proposer;
-      }
-      if (!unknown && (features > 1 || proposers > 1))
-        throw InputError(at + ": a voter takes at most one features stage and at most one proposer");
-    }
-    for (size_t i = 0; i < s.inputs.size(); ++i) {
-      auto in = by_tag.find(s.inputs[i]);
-      if (in == by_tag.end()) {
-        std::string tags;
-        for (const auto& [t, _] : by_tag) tags += (tags.empty() ? "" : ", ") + t;
-        throw InputError(at + "/" + std::to_string(i) + ": unknown stage '" + s.inputs[i] + "'; stages: " + tags);
-      }
-      if (std::find(want.begin(), want.end(), in->second.kind) == want.end())
-        throw InputError(at + "/" + std::to_string(i) + ": kind mismatch: " + ToString(s.kind) + " '" + tag +
-                         "' cannot take " + ToString(in->second.kind) + " '" + in->first + "' (" +
-                         in->second.type + ")");
-    }
-  }
+  for (auto& [tag, s] : by_tag) graph::CheckInputs(s, by_tag, w + s.pointer + "/inputs");
 
   // Topological order; a cycle can only run through fitters but is checked generally.
   std::map<std::string, int> state;  // 0 new, 1 visiting, 2 done
@@ -426,31 +368,12 @@ GraphConfig ValidateGraph(const std::string& path, const nlohmann::json& config,
     throw InputError(w + "/stages/" + sensors[1]->tag + ": more than one sensor stage (" + sensors[0]->tag + ", " +
                      sensors[1]->tag + "); a graph reads its scans through one sensor (plus an optional training "
                      "sensor named by /training/sensor)");
-  // A voter's features and proposals index the parts of one segmentation.
-  for (const auto* v : g.AllOfKind(StageKind::Voter)) {
-    const StageConfig* f = g.InputOfKind(*v, StageKind::Features);
-    const StageConfig* p = g.InputOfKind(*v, StageKind::Proposer);
-    const StageConfig* fs = f ? g.InputOfKind(*f, StageKind::Segmenter) : nullptr;
-    const StageConfig* ps = p ? g.InputOfKind(*p, StageKind::Segmenter) : nullptr;
-    if (fs && ps && fs != ps)
-      throw InputError(w + v->pointer + "/inputs: voter '" + v->tag + "' takes features '" + f->tag +
-                       "' (parts of segmenter '" + fs->tag + "') and proposer '" + p->tag + "' (parts of segmenter '" +
-                       ps->tag + "'); both must come from one segmenter");
-  }
-  for (const auto* f : g.AllOfKind(StageKind::Fitter)) {
-    const StageConfig* p = g.InputOfKind(*f, StageKind::Proposer);
-    const StageConfig* v = g.VoterOf(*f);
-    if (!p || !v) continue;
-    const StageConfig* ps = g.InputOfKind(*p, StageKind::Segmenter);
-    const StageConfig* vs = g.SegmenterOfVoter(*v);
-    if (ps != vs)
-      throw InputError(w + f->pointer + "/inputs: fitter '" + f->tag + "' takes proposer '" + p->tag + "' (" +
-                       (ps ? "parts of segmenter '" + ps->tag + "'" : std::string("no parts")) + ") after voter '" +
-                       v->tag + "' (" + (vs ? "parts of segmenter '" + vs->tag + "'" : std::string("no parts")) +
-                       "); both must come from one segmenter");
-  }
-  if (g.catalog.empty() && g.FirstOfKind(StageKind::Voter))
-    throw InputError(w + "/catalog: missing (the catalog.json the voter is trained from)");
+  for (const auto& s : g.stages)
+    graph::CheckParts(s, [&g](const std::string& tag) { return g.Find(tag); }, g.stages.size(),
+                      w + s.pointer + "/inputs");
+  if (const auto trained = g.Trained(); g.catalog.empty() && !trained.empty())
+    throw InputError(w + "/catalog: missing (the catalog.json " + ToString(trained.front()->kind) + " '" +
+                     trained.front()->tag + "' is trained from)");
   g.resolved = resolved;
   return g;
 }

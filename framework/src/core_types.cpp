@@ -45,29 +45,4 @@ Eigen::AlignedBox3f Mesh::Bounds() const {
   return b;
 }
 
-const char* ToString(StageKind k) {
-  switch (k) {
-    case StageKind::Sensor: return "sensor";
-    case StageKind::Segmenter: return "segmenter";
-    case StageKind::Proposer: return "proposer";
-    case StageKind::Features: return "features";
-    case StageKind::Voter: return "voter";
-    case StageKind::Fitter: return "fitter";
-  }
-  return "?";
-}
-
-std::optional<StageKind> KindFromTypeName(const std::string& type) {
-  auto dot = type.find('.');
-  if (dot == std::string::npos || dot + 1 >= type.size()) return std::nullopt;
-  const std::string prefix = type.substr(0, dot);
-  if (prefix == "sensors") return StageKind::Sensor;
-  if (prefix == "segmenters") return StageKind::Segmenter;
-  if (prefix == "proposals") return StageKind::Proposer;
-  if (prefix == "features") return StageKind::Features;
-  if (prefix == "voters") return StageKind::Voter;
-  if (prefix == "fitters") return StageKind::Fitter;
-  return std::nullopt;
-}
-
 }  // namespace furnihost

@@ -1,5 +1,9 @@
-// FuseDetections: the detections of an ensemble's runs (Pipeline::Detect, EnsembleOptions) made one.
+// The ensemble (EnsembleOptions): Pipeline::Detect's runs on the scans as read and on jittered
+// copies, and FuseDetections, which makes their detections one.
+#include "furnihost/ensemble.hpp"
+
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <cmath>
@@ -7,6 +11,8 @@
 #include <utility>
 
 #include "furnihost/evaluation.hpp"
+#include "furnihost/hash.hpp"
+#include "furnihost/log.hpp"
 #include "furnihost/pipeline.hpp"
 
 namespace furnihost {
@@ -91,6 +97,35 @@ std::vector<Detection> FuseDetections(const std::vector<std::vector<Detection>>&
   }
   std::stable_sort(out.begin(), out.end(), [](const Detection& a, const Detection& b) { return a.score > b.score; });
   return out;
+}
+
+Pipeline::Result Pipeline::Detect(const std::vector<SceneInput>& scenes, const TrainedModel* model,
+                                  const Catalog* catalog, const RunContext& ctx,
+                                  const std::function<void()>& before_stages) {
+  const EnsembleOptions& e = graph_.ensemble;
+  Result first = DetectOnce(scenes, model, catalog, ctx, before_stages, {});
+  if (e.runs <= 1) return first;
+  std::vector<std::vector<Detection>> runs;
+  runs.push_back(std::move(first.detections));
+  for (int k = 1; k < e.runs; ++k) {
+    Result rk = DetectOnce(scenes, model, catalog, ctx, {},
+                           {float(e.jitter_m), SplitMix64(ctx.seed ^ 0x656e73656d626c65ull) + uint64_t(k), &first.scans});
+    // Each run's world is its first scan's working frame, estimated anew on its jittered points:
+    // its detections are moved into the first run's (both frames are z up: an upright move).
+    const Eigen::Isometry3f to_first = first.world_to_user.inverse() * rk.world_to_user;
+    if (!to_first.isApprox(Eigen::Isometry3f::Identity()))
+      for (auto& d : rk.detections) d = TransformDetection(std::move(d), to_first);
+    for (const auto& [tag, ms] : rk.timings_ms)
+      for (auto& t : first.timings_ms)
+        if (t.first == tag) t.second += ms;
+    runs.push_back(std::move(rk.detections));
+    spdlog::info("ensemble: run {} of {} (jitter {:.2f} mm): {} detections", k + 1, e.runs, e.jitter_m * 1000.0,
+                 runs.back().size());
+  }
+  Stopwatch sf;
+  first.detections = FuseDetections(runs, e.join_iou);
+  first.timings_ms.emplace_back("ensemble", sf.Ms());
+  return first;
 }
 
 }  // namespace furnihost

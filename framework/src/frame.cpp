@@ -240,9 +240,9 @@ struct CloudAdaptor {
 using CloudTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, CloudAdaptor>, CloudAdaptor, 3, uint32_t>;
 }  // namespace
 
-Eigen::Isometry3d EstimateCanonicalFrame(const Points& upright) { return EstimateCanonicalFrame(upright, nullptr); }
+Eigen::Isometry3d EstimateCanonicalFrame(const Points& upright) { return EstimateCanonicalFrame(upright, nullptr, 0); }
 
-Eigen::Isometry3d EstimateCanonicalFrame(const Points& upright, ScanNeighbours* neighbours) {
+Eigen::Isometry3d EstimateCanonicalFrame(const Points& upright, ScanNeighbours* neighbours, int keep_k) {
   if (neighbours) *neighbours = ScanNeighbours();
   std::vector<uint32_t> finite;
   finite.reserve(upright.size());
@@ -257,18 +257,19 @@ Eigen::Isometry3d EstimateCanonicalFrame(const Points& upright, ScanNeighbours* 
   std::vector<uint32_t> which;  // the distinct position of each sampled point
   sample = GroupEqualPoints(sample, &which);  // the first of equal points kept
   // Every point sampled: its neighbours are the scan's, kept for the stages (ScanNeighbours).
-  const bool keep = neighbours && stride == 1 && finite.size() == upright.size() && sample.size() >= 20;
+  const bool keep = neighbours && keep_k > 0 && keep_k <= kMaxScanNeighbours && stride == 1 &&
+                    finite.size() == upright.size() && sample.size() >= 20;
   // Azimuths of the vertical surfaces' normals (plane fits over 12 neighbours), as 4 x angle.
   double C = 0, S = 0, W = 0;
   if (sample.size() >= 20) {
     CloudAdaptor ad{sample};
     CloudTree tree(3, ad, nanoflann::KDTreeSingleIndexAdaptorParams(16));  // built by its constructor
     const size_t k = 12;
-    // With `keep`, kScanNeighbours are searched: a k-d tree's search for more neighbours visits
+    // With `keep`, max(keep_k, 12) are searched: a k-d tree's search for more neighbours visits
     // the same leaves in the same order and more, so its first 12 are the 12 (ties included).
-    const size_t searched = keep ? size_t(kScanNeighbours) : k;
+    const size_t searched = keep ? std::max(size_t(keep_k), k) : k;
     if (keep) {
-      neighbours->k = kScanNeighbours;
+      neighbours->k = int(searched);
       neighbours->nearest.assign(sample.size() * searched, 0);
       neighbours->count.assign(sample.size(), 0);
     }
@@ -440,8 +441,8 @@ void ToWorkingFrame(Scan& scan, const FrameOptions& o) {
       for (size_t i = 0; i < upright.size(); ++i) upright[i] = tf * scan.points[i];
       u = &upright;
     }
-    auto nb = o.neighbours ? std::make_shared<ScanNeighbours>() : nullptr;
-    scan.frame.canonical = EstimateCanonicalFrame(*u, nb.get());
+    auto nb = o.neighbours > 0 ? std::make_shared<ScanNeighbours>() : nullptr;
+    scan.frame.canonical = EstimateCanonicalFrame(*u, nb.get(), o.neighbours);
     // The working frame is a turn and a shift of the z-up one: the same neighbours.
     scan.neighbours = nb && nb->k > 0 ? std::move(nb) : nullptr;
     const Eigen::Isometry3d& c = scan.frame.canonical;

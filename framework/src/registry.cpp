@@ -1,6 +1,8 @@
 // The only file of the host that includes Boost.DLL's loader.
 #include "furnihost/registry.hpp"
 
+#include "furnihost/config.hpp"  // the kinds' names
+
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -158,8 +160,7 @@ bool Registry::Load(const std::string& path) const {
     auto* create = &lib->get_alias<PluginCreateFn>("furnihost_plugin_create");
     auto kind = KindFromTypeName(info.type);
     if (!kind)
-      return refuse("type name '" + info.type +
-                    "' does not start with sensors., segmenters., features., voters. or fitters.");
+      return refuse("type name '" + info.type + "' does not start with one of " + KindTypePrefixes());
     if (auto* other = FindLoaded(info.type))
       return refuse("duplicate type " + info.type + " (already loaded from " + other->path + ")");
     // Accepted plugins stay mapped until the process ends (RTLD_NODELETE, set on the already

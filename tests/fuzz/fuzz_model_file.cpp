@@ -10,9 +10,11 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     furnihost::GraphConfig g;
     g.path = "fuzz.json";
     (void)furnihost::Incompatibility(m, g, "0123456789abcdef");
-    furnihost::FeatureMatrix f;
-    f.values.setConstant(2, static_cast<Eigen::Index>(m.normaliser.min.size()), 0.5f);
-    m.normaliser.Apply(f);
+    for (const auto& [tag, voter] : m.voters) {
+      furnihost::FeatureMatrix f;
+      f.values.setConstant(2, static_cast<Eigen::Index>(voter.normaliser.min.size()), 0.5f);
+      voter.normaliser.Apply(f);
+    }
   } catch (const furnihost::InputError&) {
   }
   return 0;

@@ -497,7 +497,7 @@ def main():
     write("scan_readers/ply_be", b"\x01" + ply_binary(GOOD, endian=">", fmt="binary_big_endian"), SEEDS)
     write("scan_readers/xyz", b"\x02" + b"0 0 0\n1,2,3\n# c\n4;5;6 7\n", SEEDS)
     write("model_file/good", good, SEEDS)
-    write("model_file/wrong_version", model(format_version=2), SEEDS)
+    write("model_file/wrong_version", model(format_version=3), SEEDS)
     write("graph_config/chain",
           '{"seed": 3, "catalog": "c.json", "model_cache": "m.fhm", "limits": {"max_points": 100},\n'
           ' "training": {"sensor": "sim"}, "stages": {"sim": {"type": "sensors.simulated_laser"},\n'

@@ -364,7 +364,7 @@ void PrepareStep(const std::string& step, const Paths& p) {
   } else if (step == "tamper_voter") {
     // A well-formed model file for this very graph whose voter part is not a model.
     auto m = furnihost::LoadModel(t + "/model.fhm");
-    m.voter_model = {{"tampered", true}};
+    for (auto& [tag, voter] : m.voters) voter.voter_model = {{"tampered", true}};
     furnihost::SaveModel(t + "/model.fhm", m);
   } else if (step.rfind("model:", 0) == 0) {
     fs::copy_file(kCorpus + "/" + step.substr(6), t + "/model.fhm");

@@ -4,6 +4,7 @@
 // Meshes are read with assimp, triangulated, turned z up, scaled to metres and placed with
 // their bounding-box bottom centre at the origin.
 #pragma once
+#include <map>
 #include <string>
 #include <vector>
 
@@ -25,6 +26,9 @@ struct FURNIHOST_API Catalog {
   const CatalogModel* Find(const std::string& id) const;
   std::vector<std::string> Classes() const;  // sorted, unique
 };
+
+// The median extents of each class's models in the catalog (per axis).
+FURNIHOST_API std::map<std::string, Eigen::Vector3f> TypicalClassSizes(const Catalog& catalog);
 
 // strict: the first invalid entry throws InputError "<catalog>: model <id>: <reason>";
 // otherwise invalid entries are skipped, listed in `skipped` and logged as warnings.

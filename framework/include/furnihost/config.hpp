@@ -25,19 +25,22 @@
 // The stages form a graph: each stage gets the outputs of the stages its `inputs` name, and
 // one output may feed several stages (a proposer feeding a voter and a fitter, a voter feeding
 // two fitter chains, two segmenters side by side on the one input sensor, each with its own
-// features and voter). Connections by kind:
+// features and voter). What each kind takes is its rule in the kinds' table
+// (framework/src/host/graph/stage_kinds.cpp):
 //   sensor    -> (none)                 the one detection sensor (plus the training sensor)
 //   segmenter -> sensor
 //   proposer  -> sensor or segmenter
 //   features  -> segmenter
-//   voter     -> features, proposer or one of each (from the same segmenter, if any)
+//   voter     -> features, proposer or one of each
 //   fitter    -> voter or fitter        (a chain; fitters may fan out), and optionally a
 //                proposer whose proposals it sees instead of its voter's
-// Every voter or fitter that no fitter takes is a sink; the detections are those of every
-// sink, each naming its sink ("chain") when there are several. Training trains every voter
-// on the views of the training sensor through its own segmenter and features.
+// The inputs of a stage that see parts see those of one segmenter. Every voter or fitter that
+// no fitter takes is a sink; the detections are those of every sink, each naming its sink
+// ("chain") when there are several. Training trains every voter on the views of the training
+// sensor through its own segmenter and features.
 #pragma once
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -45,6 +48,22 @@
 #include "furnihost/registry.hpp"
 
 namespace furnihost {
+
+// The kinds' names: "segmenter" for StageKind::Segmenter; the kind of a plugin type name
+// ("segmenters.x" -> Segmenter, "proposals.x" -> Proposer), nullopt for another prefix; the
+// prefixes in words ("sensors., segmenters., ...") for messages.
+FURNIHOST_API const char* ToString(StageKind kind);
+FURNIHOST_API std::optional<StageKind> KindFromTypeName(const std::string& type);
+FURNIHOST_API std::string KindTypePrefixes();
+
+// What a stage reads from one of its inputs (the slots of its kind's rule).
+enum class InputRole {
+  Scan,        // the scans, as the sensor gave them
+  Parts,       // a segmentation of each scan
+  Features,    // a feature matrix per scan
+  Proposals,   // object proposals per scan
+  Detections,  // the detections of a voter or fitter
+};
 
 // Test-time ensembling ("ensemble" key): Pipeline::Detect runs the chain on the scan as read and
 // on `runs` - 1 copies jittered by `jitter_m` (Gaussian, JitterPoints), and fuses the runs'
@@ -90,14 +109,16 @@ struct FURNIHOST_API GraphConfig {
   std::vector<const StageConfig*> AllOfKind(StageKind kind) const;
   // The stage of kind `kind` among the inputs of `s` (a stage takes at most one of each), or null.
   const StageConfig* InputOfKind(const StageConfig& s, StageKind kind) const;
-  // The segmenter whose parts a voter sees: its features' segmenter, else its proposer's, or null.
-  const StageConfig* SegmenterOfVoter(const StageConfig& voter) const;
-  // The voter or fitter whose detections a fitter takes, or null.
-  const StageConfig* DetectionsInput(const StageConfig& fitter) const;
-  // The voter at the root of a fitter chain (a voter is its own root).
-  const StageConfig* VoterOf(const StageConfig& s) const;
-  // The stages whose detections are the graph's output, in execution order: every voter and
-  // fitter that no fitter takes as input.
+  // The stage in the slot `role` of the inputs of `s` (the first when the slot holds several), or null.
+  const StageConfig* Input(const StageConfig& s, InputRole role) const;
+  // The segmenter whose parts `s` sees (itself for a segmenter), or null.
+  const StageConfig* SegmenterOf(const StageConfig& s) const;
+  // The stage at the root of the chain of detections `s` is on (a voter is its own root).
+  const StageConfig* ChainRoot(const StageConfig& s) const;
+  // The stages that learn from the catalog (voters), in execution order.
+  std::vector<const StageConfig*> Trained() const;
+  // The stages whose detections are the graph's output, in execution order: every stage that
+  // gives detections and that no stage takes as its detections.
   std::vector<const StageConfig*> Sinks() const;
 };
 

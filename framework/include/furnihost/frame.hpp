@@ -28,10 +28,10 @@ struct FrameOptions {
   // tilts are left to the ground model (a reconstruction's warped floor, a view a few degrees
   // off).
   bool level = false;
-  // With the canonical frame: keep the points' nearest neighbours its estimate searches, as
-  // Scan::neighbours (ScanNeighbours), for the stages that need them (the pipeline asks when
-  // its graph has a proposer). A few more neighbours per point to search (17 against 12).
-  bool neighbours = false;
+  // With the canonical frame: > 0 keeps this many nearest neighbours per point of the ones its
+  // estimate searches, as Scan::neighbours (ScanNeighbours), for the stages that ask for them
+  // (StageNeeds::neighbours). The estimate's own plane fits use the first 12 whatever is kept.
+  int neighbours = 0;
 };
 constexpr double kLevelMinDeg = 8.0, kLevelMaxDeg = 35.0;
 
@@ -79,11 +79,12 @@ FURNIHOST_API std::optional<Eigen::Vector3d> EstimateUpAxis(const Points& points
 // points up to rounding (and, for turns of a quarter, up to that quarter turn).
 // Identity for fewer than 10 finite points.
 FURNIHOST_API Eigen::Isometry3d EstimateCanonicalFrame(const Points& upright);
-// The same, and when the sample is every point (at most ~60k finite points), the points'
-// kScanNeighbours nearest positions (the 12 the normals are fitted to are the first 12 of them,
-// so the frame is the same) into *neighbours; otherwise *neighbours is left empty (k = 0).
-constexpr int kScanNeighbours = 17;
-FURNIHOST_API Eigen::Isometry3d EstimateCanonicalFrame(const Points& upright, ScanNeighbours* neighbours);
+// The same, and when the sample is every point (at most ~60k finite points), the points' `k`
+// nearest positions (at most kMaxScanNeighbours; the first 12 of them are those the normals are
+// fitted to, so the frame is the same) into *neighbours; otherwise *neighbours is left empty
+// (k = 0).
+constexpr int kMaxScanNeighbours = 255;
+FURNIHOST_API Eigen::Isometry3d EstimateCanonicalFrame(const Points& upright, ScanNeighbours* neighbours, int k);
 
 // Applies the frame options to a scan just read (its points and origin are in the file's frame,
 // shifted): turns them into the z-up frame and then into the canonical one (unless

@@ -289,6 +289,8 @@ class ClusterProposer : public Proposer {
  public:
   static ParamSchema Schema() { return Binding().Schema(); }
   explicit ClusterProposer(const nlohmann::json& p) : o_(Binding().Parse(p)) {}
+  // Each point's k nearest neighbours besides itself, when the host finds them with the frame.
+  StageNeeds Needs() const override { return {o_.neighbours + 1}; }
 
   Proposals Propose(const Scan& scan, const Segmentation*, const RunContext& ctx) override {
     const size_t n = scan.points.size();
