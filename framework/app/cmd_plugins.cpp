@@ -2,7 +2,7 @@
 
 #include "cli_common.hpp"
 #include "commands.hpp"
-#include "furnihost/registry.hpp"
+#include "furnihost/host/registry.hpp"
 
 namespace furnihost::app {
 

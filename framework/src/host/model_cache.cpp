@@ -1,11 +1,11 @@
-#include "furnihost/model_cache.hpp"
+#include "furnihost/host/model_cache.hpp"
 
 #include <spdlog/spdlog.h>
 
 #include <filesystem>
 
 #include "furnihost/log.hpp"
-#include "furnihost/pipeline.hpp"
+#include "furnihost/host/pipeline.hpp"
 
 namespace fs = std::filesystem;
 
