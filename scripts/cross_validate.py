@@ -60,7 +60,7 @@ def load(path):
         return json.load(f)
 
 
-# ---- matching and AP (as framework/src/eval_matching.cpp, eval_metrics.cpp) -----------------------
+# ---- matching and AP (as framework/src/eval/matching.cpp, metrics.cpp) -----------------------
 def box_iou(a, b):
     """a, b: (lo, hi) triples of 3 numbers."""
     inter = 1.0

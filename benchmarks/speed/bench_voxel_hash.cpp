@@ -26,10 +26,10 @@
 #include <string>
 #include <vector>
 
-#include "furnihost/frame.hpp"
+#include "furnihost/host/frame.hpp"
 #include "furnihost/geometry.hpp"
 #include "furnihost/hash.hpp"
-#include "furnihost/io.hpp"
+#include "furnihost/host/io.hpp"
 #include "shape/shape.hpp"
 
 namespace {

@@ -11,11 +11,11 @@
 #include "cancel_on_unwind.hpp"
 #include "cli_common.hpp"
 #include "commands.hpp"
-#include "furnihost/catalog.hpp"
+#include "furnihost/host/catalog.hpp"
 #include "furnihost/geometry.hpp"
-#include "furnihost/io.hpp"
+#include "furnihost/host/io.hpp"
 #include "furnihost/log.hpp"
-#include "furnihost/pipeline.hpp"
+#include "furnihost/host/pipeline.hpp"
 #if __has_include("birdseye.hpp")
 #include "birdseye.hpp"
 #define FURNIHOST_HAVE_BIRDSEYE 1

@@ -20,11 +20,11 @@
 
 #include "cli_common.hpp"
 #include "commands.hpp"
-#include "furnihost/catalog.hpp"
-#include "furnihost/evaluation.hpp"
-#include "furnihost/io.hpp"
+#include "furnihost/host/catalog.hpp"
+#include "furnihost/host/evaluation.hpp"
+#include "furnihost/host/io.hpp"
 #include "furnihost/log.hpp"
-#include "furnihost/pipeline.hpp"
+#include "furnihost/host/pipeline.hpp"
 #include "plots.hpp"
 
 namespace fs = std::filesystem;

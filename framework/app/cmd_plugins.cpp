@@ -2,8 +2,8 @@
 
 #include "cli_common.hpp"
 #include "commands.hpp"
-#include "furnihost/io.hpp"
-#include "furnihost/registry.hpp"
+#include "furnihost/host/io.hpp"
+#include "furnihost/host/registry.hpp"
 
 namespace furnihost::app {
 

@@ -32,11 +32,11 @@
 
 #include "cli_common.hpp"
 #include "commands.hpp"
-#include "furnihost/catalog.hpp"
+#include "furnihost/host/catalog.hpp"
 #include "furnihost/geometry.hpp"
-#include "furnihost/io.hpp"
+#include "furnihost/host/io.hpp"
 #include "furnihost/log.hpp"
-#include "furnihost/registry.hpp"
+#include "furnihost/host/registry.hpp"
 
 namespace fs = std::filesystem;
 using nlohmann::json;

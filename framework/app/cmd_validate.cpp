@@ -2,8 +2,8 @@
 
 #include "cli_common.hpp"
 #include "commands.hpp"
-#include "furnihost/config.hpp"
-#include "furnihost/pipeline.hpp"
+#include "furnihost/host/config.hpp"
+#include "furnihost/host/pipeline.hpp"
 
 namespace furnihost::app {
 

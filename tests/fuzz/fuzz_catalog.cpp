@@ -8,7 +8,7 @@
 #include <filesystem>
 
 #include "fuzz_common.hpp"
-#include "furnihost/catalog.hpp"
+#include "furnihost/host/catalog.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const auto parts = furnihost::fuzz::Split(data, size);

@@ -5,9 +5,9 @@
 // `gap --sensor NAME=PARAMS` (resolved against the training sensor's schema) and as `simulate
 // --sensor-params`. Anything but InputError (or a StageError of bad input) is a finding.
 #include "fuzz_common.hpp"
-#include "furnihost/config.hpp"
-#include "furnihost/io.hpp"
-#include "furnihost/pipeline.hpp"
+#include "furnihost/host/config.hpp"
+#include "furnihost/host/io.hpp"
+#include "furnihost/host/pipeline.hpp"
 
 namespace {
 const furnihost::Registry& Reg() {

@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "furnihost/catalog.hpp"
+#include "furnihost/host/catalog.hpp"
 
 namespace furnihost::fuzz {
 

@@ -7,7 +7,7 @@
 #include <cstdlib>
 
 #include "fuzz_common.hpp"
-#include "furnihost/catalog.hpp"
+#include "furnihost/host/catalog.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   static const bool no_cache = [] {  // CacheFolder: none of the three set -> nothing cached

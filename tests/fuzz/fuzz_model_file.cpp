@@ -1,7 +1,7 @@
 // libFuzzer target: LoadModel (magic line + CBOR) on arbitrary bytes, then the checks the
 // host runs on a loaded model. Anything but InputError is a finding.
 #include "fuzz_common.hpp"
-#include "furnihost/pipeline.hpp"
+#include "furnihost/host/pipeline.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string path = furnihost::fuzz::Write("model.fhm", reinterpret_cast<const char*>(data), size);

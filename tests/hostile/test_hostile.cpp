@@ -18,8 +18,8 @@
 #include <set>
 #include <sstream>
 
-#include "furnihost/io.hpp"
-#include "furnihost/pipeline.hpp"
+#include "furnihost/host/io.hpp"
+#include "furnihost/host/pipeline.hpp"
 #include "test_support.hpp"
 
 namespace fs = std::filesystem;

@@ -8,9 +8,9 @@
 #include <fstream>
 #include <map>
 
-#include "furnihost/catalog.hpp"
+#include "furnihost/host/catalog.hpp"
 #include "furnihost/geometry.hpp"
-#include "furnihost/io.hpp"
+#include "furnihost/host/io.hpp"
 #include "test_support.hpp"
 
 namespace furnihost {

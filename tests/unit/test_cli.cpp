@@ -7,7 +7,7 @@
 #include <functional>
 #include <fstream>
 
-#include "furnihost/io.hpp"
+#include "furnihost/host/io.hpp"
 #include "furnihost/scan_reader.hpp"
 #include "test_support.hpp"
 

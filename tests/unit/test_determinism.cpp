@@ -11,10 +11,10 @@
 #include <fstream>
 #include <set>
 
-#include "furnihost/catalog.hpp"
+#include "furnihost/host/catalog.hpp"
 #include "furnihost/geometry.hpp"
-#include "furnihost/io.hpp"
-#include "furnihost/pipeline.hpp"
+#include "furnihost/host/io.hpp"
+#include "furnihost/host/pipeline.hpp"
 #include "furnihost/scan_reader.hpp"
 #include "test_support.hpp"
 

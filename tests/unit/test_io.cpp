@@ -5,7 +5,7 @@
 #include <random>
 
 #include "furnihost/geometry.hpp"
-#include "furnihost/io.hpp"
+#include "furnihost/host/io.hpp"
 #include "test_support.hpp"
 
 namespace fs = std::filesystem;

@@ -6,7 +6,7 @@
 #include <filesystem>
 #include <fstream>
 
-#include "furnihost/pipeline.hpp"
+#include "furnihost/host/pipeline.hpp"
 #include "test_support.hpp"
 
 namespace fs = std::filesystem;

@@ -10,7 +10,7 @@
 #include <fstream>
 #include <limits>
 
-#include "furnihost/io.hpp"
+#include "furnihost/host/io.hpp"
 #include "test_support.hpp"
 
 using namespace furnihost;

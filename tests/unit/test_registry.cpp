@@ -6,8 +6,8 @@
 #include <filesystem>
 #include <fstream>
 
-#include "furnihost/config.hpp"
-#include "furnihost/io.hpp"
+#include "furnihost/host/config.hpp"
+#include "furnihost/host/io.hpp"
 #include "test_support.hpp"
 
 namespace fs = std::filesystem;

@@ -8,7 +8,7 @@
 #include <cmath>
 #include <filesystem>
 
-#include "furnihost/io.hpp"
+#include "furnihost/host/io.hpp"
 #include "test_support.hpp"
 
 namespace fs = std::filesystem;

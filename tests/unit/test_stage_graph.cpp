@@ -10,8 +10,8 @@
 #include <filesystem>
 #include <fstream>
 
-#include "furnihost/io.hpp"
-#include "furnihost/pipeline.hpp"
+#include "furnihost/host/io.hpp"
+#include "furnihost/host/pipeline.hpp"
 #include "test_support.hpp"
 
 namespace fs = std::filesystem;

@@ -5,7 +5,7 @@
 // frame give the shape a k-d tree of the working points gives.
 #include "shape/shape.hpp"
 
-#include "furnihost/frame.hpp"
+#include "furnihost/host/frame.hpp"
 
 #include <gtest/gtest.h>
 

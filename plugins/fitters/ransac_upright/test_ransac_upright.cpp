@@ -11,6 +11,7 @@
 #include <random>
 
 #include "furnihost/stage.hpp"
+#include "furnihost/host/ground_estimation.hpp"
 #include "synthetic_scene.hpp"
 #include "test_support.hpp"
 

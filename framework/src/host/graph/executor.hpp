@@ -10,9 +10,9 @@
 #include <utility>
 #include <vector>
 
-#include "furnihost/catalog.hpp"
-#include "furnihost/config.hpp"
-#include "furnihost/pipeline.hpp"
+#include "furnihost/host/catalog.hpp"
+#include "furnihost/host/config.hpp"
+#include "furnihost/host/pipeline.hpp"
 #include "furnihost/stage.hpp"
 
 namespace furnihost::graph {

@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "furnihost/config.hpp"
+#include "furnihost/host/config.hpp"
 
 namespace furnihost::graph {
 

@@ -1,7 +1,7 @@
 // The only file of the host that includes Boost.DLL's loader.
-#include "furnihost/registry.hpp"
+#include "furnihost/host/registry.hpp"
 
-#include "furnihost/config.hpp"  // the kinds' names
+#include "furnihost/host/config.hpp"  // the kinds' names
 
 #include <spdlog/spdlog.h>
 

@@ -1,4 +1,4 @@
-#include "furnihost/detections.hpp"
+#include "furnihost/host/detections.hpp"
 
 #include <cmath>
 

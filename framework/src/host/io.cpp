@@ -1,4 +1,4 @@
-#include "furnihost/io.hpp"
+#include "furnihost/host/io.hpp"
 
 #include <unistd.h>
 

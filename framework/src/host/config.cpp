@@ -1,4 +1,4 @@
-#include "furnihost/config.hpp"
+#include "furnihost/host/config.hpp"
 
 #include <algorithm>
 #include <filesystem>
@@ -6,9 +6,9 @@
 #include <map>
 #include <set>
 
-#include "furnihost/io.hpp"
+#include "furnihost/host/io.hpp"
 #include "host/graph/stage_kinds.hpp"
-#include "shown.hpp"
+#include "sdk/shown.hpp"
 
 namespace fs = std::filesystem;
 

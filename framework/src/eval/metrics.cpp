@@ -1,11 +1,11 @@
 // Figures of matched detections: precision-recall curves, average precision, operating
 // points, error statistics, verification figures and per-object records (Evaluate).
-#include "furnihost/evaluation.hpp"
+#include "furnihost/host/evaluation.hpp"
 
 #include <algorithm>
 #include <map>
 
-#include "eval_internal.hpp"
+#include "eval/internal.hpp"
 
 namespace furnihost {
 

@@ -12,15 +12,15 @@
 #include <string>
 #include <vector>
 
-#include "furnihost/catalog.hpp"
-#include "furnihost/config.hpp"
-#include "furnihost/detections.hpp"
-#include "furnihost/ensemble.hpp"
-#include "furnihost/frame.hpp"
-#include "furnihost/model_cache.hpp"
-#include "furnihost/model_file.hpp"
-#include "furnihost/registry.hpp"
-#include "furnihost/scan_input.hpp"
+#include "furnihost/host/catalog.hpp"
+#include "furnihost/host/config.hpp"
+#include "furnihost/host/detections.hpp"
+#include "furnihost/host/ensemble.hpp"
+#include "furnihost/host/frame.hpp"
+#include "furnihost/host/model_cache.hpp"
+#include "furnihost/host/model_file.hpp"
+#include "furnihost/host/registry.hpp"
+#include "furnihost/host/scan_input.hpp"
 #include "furnihost/stage.hpp"
 
 namespace furnihost {

@@ -1,4 +1,4 @@
-#include "furnihost/pipeline.hpp"
+#include "furnihost/host/pipeline.hpp"
 
 #include <algorithm>
 

@@ -1,9 +1,9 @@
 // Matching detections with ground truth: the paper's centre-distance rule and the ScanNet box-IoU rule.
-#include "furnihost/evaluation.hpp"
+#include "furnihost/host/evaluation.hpp"
 
 #include <algorithm>
 
-#include "eval_internal.hpp"
+#include "eval/internal.hpp"
 
 namespace furnihost {
 

@@ -9,7 +9,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "furnihost/normaliser.hpp"
+#include "furnihost/host/normaliser.hpp"
 
 namespace furnihost {
 

@@ -9,7 +9,7 @@
 #include <optional>
 #include <string>
 
-#include "furnihost/io.hpp"
+#include "furnihost/host/io.hpp"
 #include "furnihost/types.hpp"
 
 namespace furnihost {

@@ -1,11 +1,11 @@
-#include "furnihost/scan_input.hpp"
+#include "furnihost/host/scan_input.hpp"
 
 #include <spdlog/spdlog.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
 #include "furnihost/geometry.hpp"
-#include "furnihost/ground.hpp"
+#include "furnihost/host/ground_estimation.hpp"
 #include "furnihost/hash.hpp"
 #include "furnihost/log.hpp"
 #include "host/graph/executor.hpp"

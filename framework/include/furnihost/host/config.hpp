@@ -44,8 +44,8 @@
 #include <string>
 #include <vector>
 
-#include "furnihost/ground.hpp"
-#include "furnihost/registry.hpp"
+#include "furnihost/host/ground_estimation.hpp"
+#include "furnihost/host/registry.hpp"
 
 namespace furnihost {
 

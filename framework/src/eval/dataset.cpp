@@ -1,5 +1,5 @@
 // Dataset manifests (LoadDataset), their class map and their content hash.
-#include "furnihost/evaluation.hpp"
+#include "furnihost/host/evaluation.hpp"
 
 #include <algorithm>
 #include <cstdio>
@@ -7,7 +7,7 @@
 #include <fstream>
 #include <set>
 
-#include "furnihost/io.hpp"
+#include "furnihost/host/io.hpp"
 
 namespace fs = std::filesystem;
 using nlohmann::json;

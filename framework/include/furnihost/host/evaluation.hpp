@@ -27,7 +27,7 @@
 #include <utility>
 #include <vector>
 
-#include "furnihost/frame.hpp"
+#include "furnihost/host/frame.hpp"
 #include "furnihost/hash.hpp"
 #include "furnihost/types.hpp"
 

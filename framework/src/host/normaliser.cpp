@@ -1,4 +1,4 @@
-#include "furnihost/normaliser.hpp"
+#include "furnihost/host/normaliser.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -10,8 +10,8 @@
 #include <utility>
 #include <vector>
 
-#include "furnihost/config.hpp"
-#include "furnihost/frame.hpp"
+#include "furnihost/host/config.hpp"
+#include "furnihost/host/frame.hpp"
 #include "furnihost/stage.hpp"
 
 namespace furnihost {

@@ -1,9 +1,9 @@
-// Helpers shared by the evaluation sources (eval_*.cpp); not installed, not part of any API.
+// Helpers shared by the evaluation sources (src/eval/); not installed, not part of any API.
 #pragma once
 #include <Eigen/Core>
 #include <cmath>
 
-#include "furnihost/evaluation.hpp"
+#include "furnihost/host/evaluation.hpp"
 
 namespace furnihost::eval_detail {
 

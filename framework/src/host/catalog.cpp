@@ -9,7 +9,7 @@
 // y up. We therefore pin the importer properties that change axes or units to their default
 // values and never request aiProcess_GlobalScale, so an assimp configuration elsewhere in the
 // process cannot silently change what a catalog entry means.
-#include "furnihost/catalog.hpp"
+#include "furnihost/host/catalog.hpp"
 
 #include <dlfcn.h>
 #include <spdlog/spdlog.h>
@@ -33,7 +33,7 @@
 #include <string>
 
 #include "furnihost/hash.hpp"
-#include "furnihost/io.hpp"
+#include "furnihost/host/io.hpp"
 
 namespace fs = std::filesystem;
 

@@ -1,6 +1,6 @@
 // The ensemble (EnsembleOptions): Pipeline::Detect's runs on the scans as read and on jittered
 // copies, and FuseDetections, which makes their detections one.
-#include "furnihost/ensemble.hpp"
+#include "furnihost/host/ensemble.hpp"
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -10,10 +10,10 @@
 #include <map>
 #include <utility>
 
-#include "furnihost/evaluation.hpp"
+#include "furnihost/host/evaluation.hpp"
 #include "furnihost/hash.hpp"
 #include "furnihost/log.hpp"
-#include "furnihost/pipeline.hpp"
+#include "furnihost/host/pipeline.hpp"
 
 namespace furnihost {
 

@@ -1,9 +1,9 @@
-#include "furnihost/model_file.hpp"
+#include "furnihost/host/model_file.hpp"
 
 #include <fstream>
 #include <iterator>
 
-#include "furnihost/io.hpp"
+#include "furnihost/host/io.hpp"
 
 namespace furnihost {
 

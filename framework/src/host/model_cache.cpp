@@ -1,4 +1,4 @@
-#include "furnihost/model_cache.hpp"
+#include "furnihost/host/model_cache.hpp"
 
 #include <spdlog/spdlog.h>
 
@@ -9,7 +9,7 @@
 #include <fstream>
 
 #include "furnihost/log.hpp"
-#include "furnihost/pipeline.hpp"
+#include "furnihost/host/pipeline.hpp"
 
 namespace fs = std::filesystem;
 

@@ -1,4 +1,4 @@
-#include "furnihost/frame.hpp"
+#include "furnihost/host/frame.hpp"
 
 #include <spdlog/spdlog.h>
 

@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "furnihost/io.hpp"
+#include "furnihost/host/io.hpp"
 
 namespace furnihost {
 

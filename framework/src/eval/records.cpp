@@ -1,10 +1,10 @@
 // Run records: metrics and run figures to JSON and back (summary.json, run_<name>.json,
 // `furnihost compare`), and their flat figures by key.
-#include "furnihost/evaluation.hpp"
+#include "furnihost/host/evaluation.hpp"
 
 #include <numeric>
 
-#include "eval_internal.hpp"
+#include "eval/internal.hpp"
 
 using nlohmann::json;
 

@@ -4,9 +4,9 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "furnihost/catalog.hpp"
-#include "furnihost/config.hpp"
-#include "furnihost/model_file.hpp"
+#include "furnihost/host/catalog.hpp"
+#include "furnihost/host/config.hpp"
+#include "furnihost/host/model_file.hpp"
 
 namespace furnihost {
 
