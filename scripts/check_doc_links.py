@@ -70,13 +70,26 @@ def check(md):
     return problems
 
 
+SKIP = re.compile(r"^(build.*|\.git|runs|furnihost-out|_deps)$")
+
+
+def project_files(pattern):
+    """The tracked files matching `pattern` (git ls-files), or, outside a git checkout, the files
+    under the project root but in build folders, run folders and .git."""
+    try:
+        listed = subprocess.run(["git", "-C", str(ROOT), "ls-files", pattern], capture_output=True,
+                                text=True, check=True).stdout.split()
+        return [ROOT / f for f in listed]
+    except (OSError, subprocess.CalledProcessError):
+        return [f for f in ROOT.rglob(pattern)
+                if not any(SKIP.match(part) for part in f.relative_to(ROOT).parts[:-1])]
+
+
 def main(argv):
     if argv:
         files = [pathlib.Path(a).resolve() for a in argv]
     else:
-        listed = subprocess.run(["git", "-C", str(ROOT), "ls-files", "*.md"], capture_output=True,
-                                text=True, check=True).stdout.split()
-        files = [ROOT / f for f in listed]
+        files = project_files("*.md")
     problems = [p for f in files if f.exists() for p in check(f)]
     for p in problems:
         print(p)
