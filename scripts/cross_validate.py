@@ -43,13 +43,13 @@ GRIDS = {
 }
 # g6 and whether a class's models may hang above the floor (kitchen wall cabinets; 0 = they stand on it).
 GRIDS["g6w"] = dict(GRIDS["g6"], wall_mount=[0, 3])
-# g6 and the spread of a footprint wider than the model's (stop 39: chairs and tables 0.2 -> 0.4 in scannet.json).
+# g6 and the spread of a footprint wider than the model's (real seats and desks vary in width more than a catalog's models).
 GRIDS["g7"] = dict(GRIDS["g6"], sig_short_big=[0.2, 0.4])
 # g7 and, for chairs only, the spread of more open floor seen under a proposal than under the model.
 GRIDS["g8"] = dict(GRIDS["g7"], sig_floor_more=[0.2, 0.4])
 # Keys a grid varies for some classes only: the other classes keep the key's first value (the
 # recogniser's default), i.e. choose among the points that have it.
-# Whether cabinets may hang on a wall, and how low (stop 41; the graph's other spreads kept).
+# Whether cabinets may hang on a wall, and how low (the graph's other spreads kept).
 GRIDS["wall"] = {"wall_mount": [0, 1.5, 2, 3], "wall_mount_bottom_m": [0, 1.2]}
 CLASS_ONLY = {"g8": {"sig_floor_more": {"chair"}},
               "wall": {"wall_mount": {"cabinet"}, "wall_mount_bottom_m": {"cabinet"}}}

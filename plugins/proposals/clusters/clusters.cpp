@@ -3,7 +3,7 @@
 // scan's point spacing, long clusters split where two objects meet, clusters floating above
 // the ground extended down to the supports under them.
 //
-// Why each step (measured on the ScanNet dev rooms; figures in docs/configs.md):
+// Why each step (measured on the ScanNet dev rooms; figures in docs/experiments/):
 // - Radii in units of the scan's median point spacing: ScanNet's 50k-point rooms range from
 //   1.4 to 3.3 cm spacing; a fixed 5 cm radius shatters the sparse ones.
 // - Walls: every large vertical plane ("all" rule: > 1 m tall and > 0.8 m long, or > 1.5 m2;
@@ -25,9 +25,8 @@
 //   0.75; rgbd_view.json uses it). wall_normals "both" makes a second set of removals from the
 //   blocks' walls, whose proposals carry the rule names "all_blocks", "segs_blocks" (and
 //   "fronts_blocks"), so a recogniser can score each class on the walls that suit it (ScanNet dev,
-//   held out: chairs and cabinets on the blocks' walls, tables and sofas on the points' own gain
-//   chair AP25 0.517 -> 0.558 and cabinet 0.084 -> 0.111 at ~+0.1 s a 50k-point room; not in
-//   scannet.json, docs/configs.md).
+//   held out, the blocks' walls suit cabinets; scannet.json scores its cabinets on them,
+//   docs/configs.md).
 // - Splits: two armchairs side by side or a chair against a table end form one cluster longer
 //   than any catalog chair; it is cut at the sparsest slice near the middle, but only where the
 //   top-view height profile has a gap, valley or ridge (not across a flat seat or table top),
@@ -43,9 +42,9 @@
 //   point twice made every dev room propose nothing (AP 0); a second pass 2 mm off did too.
 //   `thin_spacing_m` proposes a scan denser than that on a seeded random subset about that far
 //   apart (scannet.json: 1.3 cm, just under its densest dev room): a density, not a count, so a
-//   space four ScanNet rooms large at their density keeps every point (`max_points` 50000,
-//   stop 44's way, gave it chair / table AP25 0.272 / 0.303 against 0.553 / 0.464; a second
-//   pass 2 mm off: 0.196 / 0.262 unthinned, 0.315 / 0.295 thinned; docs/configs.md).
+//   space several ScanNet rooms large at their density keeps every point, where a cap on the
+//   point count would thin it below any room the settings were chosen on
+//   (docs/experiments/2026-12-05-jitter-and-large-spaces.md).
 //
 // Frames: the scan's working frame (z up); heights above Scan::ground. Points are referenced
 // by index into Scan::points.
@@ -85,7 +84,7 @@ constexpr float kSpacingPerNn4 = 0.45f;
 // The "all" rule's walls: a plane's inliers more than this apart along its line [m] are separate
 // stretches, each a wall only if large enough itself. A doorway leaves its lintel; two rooms of a
 // space on one line are metres apart; furniture on a wall's line a metre past the room's corner
-// keeps its back (1 m against 2 m: ScanNet dev held out, docs/configs.md "Wall stretches").
+// keeps its back (docs/experiments/2026-12-05-wall-stretches.md).
 constexpr float kWallRunGap = 1.0f;
 // thin_spacing_m measures a large scan's spacing on every point of random cells of kSpacingCell
 // [m] holding about kSpacingSample of them: small cells, so that they come from all over the
@@ -850,8 +849,8 @@ class ClusterProposer : public Proposer {
 
   // Iterative (theta, rho) Hough over the vertical-normal points: 2 deg x 4 cm bins, 3x3
   // smoothed; each peak's bin members give a line (PCA), its inliers (within 5 cm, normal
-  // within 25 deg) leave the pool. Up to 400 peaks (40 until stop 45: a space of several rooms
-  // has more walls than one room), planes of >= 100 inliers.
+  // within 25 deg) leave the pool. Up to 400 peaks (a space of several rooms has more walls
+  // than one room), planes of >= 100 inliers.
   std::vector<VPlane> VerticalPlanes(const Points& P, const Points& normals, const std::vector<float>& hz,
                                      float) const {
     const size_t n = P.size();
