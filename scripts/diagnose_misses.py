@@ -73,6 +73,44 @@ def boxes(folder, stem, evaluated):
     return out
 
 
+def scene_causes(pts, gts, final, props, allp, cls):
+    """Per ground-truth object of `cls` in one scene: (class, box, centre, cause, best fitted
+    candidate by IoU). pts: the scan's points; gts: [(class, (lo, hi), centre, radius)]; final,
+    props, allp: candidates as boxes() gives them (allp None: causes a, not a0 / a1)."""
+    # True positives of the final stage at its own operating points (verified detections only).
+    acc = [d for d in final if d["verified"] and d["cls"] is not None]
+    tp = match_scene([(d["score"], d["cls"], d["box"], d["center"]) for d in acc], gts, "iou")
+    tp_boxes = [d["box"] for d, t in zip(acc, tp) if t and d["cls"] == cls]
+
+    def proposes(box, own):
+        n_in = sum(1 for p in pts if inside(p, box))
+        n_both = sum(1 for p in own if inside(p, box))
+        return bool(own) and n_both >= 0.5 * len(own) and n_in > 0 and n_both >= 0.5 * n_in
+
+    out = []
+    for gc, gbox, gctr, _ in gts:
+        if gc != cls:
+            continue
+        own = [p for p in pts if inside(p, gbox)]
+        if not any(proposes(d["box"], own) for d in props):
+            cause = "a"
+            if allp is not None:
+                cause = "a1" if any(proposes(d["box"], own) for d in allp) else "a0"
+        else:
+            over = [d for d in final if box_iou(d["box"], gbox) >= 0.25]
+            if not over:
+                cause = "b"
+            elif not any(d["cls"] == cls for d in over):
+                cause = "d"
+            elif any(box_iou(b, gbox) >= 0.25 for b in tp_boxes):
+                cause = "ok"
+            else:
+                cause = "c"
+        best = max(final, key=lambda d: box_iou(d["box"], gbox), default=None)
+        out.append((gc, gbox, gctr, cause, best))
+    return out
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--dataset", required=True)
@@ -109,40 +147,11 @@ def main():
         final = boxes(a.final, stem, evaluated)
         props = boxes(a.proposals, stem, evaluated)
         allp = boxes(a.all_proposals, stem, evaluated) if a.all_proposals else None
-        # True positives of the final stage at its own operating points (verified detections only).
-        acc = [d for d in final if d["verified"] and d["cls"] is not None]
-        tp = match_scene([(d["score"], d["cls"], d["box"], d["center"]) for d in acc], gts, "iou")
-        tp_boxes = [d["box"] for d, t in zip(acc, tp) if t and d["cls"] == a.cls]
-
-        def proposes(box, own):
-            n_in = sum(1 for p in pts if inside(p, box))
-            n_both = sum(1 for p in own if inside(p, box))
-            return own and n_both >= 0.5 * len(own) and n_in and n_both >= 0.5 * n_in
-
-        for gc, gbox, gctr, _ in gts:
-            if gc != a.cls:
-                continue
-            own = [p for p in pts if inside(p, gbox)]
-            if not any(proposes(d["box"], own) for d in props):
-                cause = "a"
-                if allp is not None:
-                    cause = "a1" if any(proposes(d["box"], own) for d in allp) else "a0"
-            else:
-                over = [d for d in final if box_iou(d["box"], gbox) >= 0.25]
-                mine = [d for d in over if d["cls"] == a.cls]
-                if not over:
-                    cause = "b"
-                elif not mine:
-                    cause = "d"
-                elif any(box_iou(b, gbox) >= 0.25 for b in tp_boxes):
-                    cause = "ok"
-                else:
-                    cause = "c"
+        for gc, gbox, gctr, cause, best in scene_causes(pts, gts, final, props, allp, a.cls):
             tally[group][cause] += 1
             if a.verbose:
-                best = max(final, key=lambda d: box_iou(d["box"], gbox), default=None)
                 bi = box_iou(best["box"], gbox) if best else 0.0
-                print(f"{stem} {a.cls} at ({gctr[0]:.2f},{gctr[1]:.2f}) {len(own)} pts: {cause}; best fit "
+                print(f"{stem} {a.cls} at ({gctr[0]:.2f},{gctr[1]:.2f}): {cause}; best fit "
                       f"{best['cls'] if best else '-'} IoU {bi:.2f} score {best['score'] if best else 0:.4f} "
                       f"{best['rejection'] if best else ''}")
     total = Counter()
