@@ -2,7 +2,9 @@
 """Where each ground-truth object of one class is lost on its way through a graph with a fit stage.
 
 For every ground-truth object of --cls in the dataset (the points of its scan inside its box are
-the object's seen points), one cause, the first that applies:
+the object's seen points; the box is axis-aligned, as the evaluation's, so for an object turned far
+from the axes it also holds points of its neighbours and the floor, and (a) may then be counted for
+an object that was proposed), one cause, the first that applies:
   a  no proposal: no candidate of the recogniser stage (any class; its box is its proposal's box)
      holds >= 50 % of the object's seen points with >= 50 % of the points in that box being the
      object's. With --all-proposals: split into a0 (no such proposal at all) and a1 (there is one,
