@@ -31,6 +31,7 @@ import struct
 import sys
 from collections import Counter, defaultdict
 
+sys.dont_write_bytecode = True  # no __pycache__ left in scripts/ by the import below
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from cross_validate import box_iou, load, match_scene  # noqa: E402
 
