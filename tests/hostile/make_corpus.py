@@ -419,6 +419,12 @@ def main():
     write("catalogs/gltf_face_index/catalog.json", catalog([entry("bad.gltf")]))
     write("catalogs/dae_face_index/bad.dae", dae("0 1 99"))
     write("catalogs/dae_face_index/catalog.json", catalog([entry("bad.dae")]))
+    # A byte in a COLLADA index list that is neither a digit nor a blank: assimp's list reader
+    # never consumes it and appends zeros until memory runs out (fuzz_mesh: 12 GB, 4 minutes).
+    write("catalogs/dae_index_letter/bad.dae", dae("0 1 x2"))
+    write("catalogs/dae_index_letter/catalog.json", catalog([entry("bad.dae")]))
+    write("catalogs/dae_index_latin1/bad.dae", dae("\u00d0\u00df\u00ce\u00df2"))
+    write("catalogs/dae_index_latin1/catalog.json", catalog([entry("bad.dae")]))
     # The same, well-formed: the checks refuse only what is broken.
     write("catalogs/gltf_good/good.gltf", gltf((0, 1, 2))[0])
     write("catalogs/gltf_good/catalog.json", catalog([entry("good.gltf")]))
