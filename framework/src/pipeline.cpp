@@ -109,7 +109,7 @@ nlohmann::json TrainingKey(const GraphConfig& g) {
   return key;
 }
 
-void SaveModel(const std::string& path, const TrainedModel& m) {
+std::string ModelBytes(const TrainedModel& m) {
   nlohmann::json j = {{"format_version", m.format_version}, {"training_config", m.training_config},
                       {"catalog_hash", m.catalog_hash},     {"voter_type", m.voter_type},
                       {"normaliser", m.normaliser.ToJson()}, {"voter_model", m.voter_model},
@@ -119,10 +119,16 @@ void SaveModel(const std::string& path, const TrainedModel& m) {
     for (const auto& [tag, v] : m.voters) j["voters"][tag] = VoterModelJson(v.voter_type, v.normaliser, v.voter_model);
   }
   const std::vector<uint8_t> cbor = nlohmann::json::to_cbor(j);
+  std::string bytes(kMagic, sizeof(kMagic) - 1);
+  bytes.append(reinterpret_cast<const char*>(cbor.data()), cbor.size());
+  return bytes;
+}
+
+void SaveModel(const std::string& path, const TrainedModel& m) {
+  const std::string bytes = ModelBytes(m);
   AtomicWrite(path, [&](const std::string& tmp) {
     std::ofstream out(tmp, std::ios::binary);
-    out.write(kMagic, sizeof(kMagic) - 1);
-    out.write(reinterpret_cast<const char*>(cbor.data()), cbor.size());
+    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
     out.flush();
     if (!out) throw InputError(tmp + ": write failed");
   });
@@ -132,6 +138,10 @@ TrainedModel LoadModel(const std::string& path) {
   RequireRegularFile(path, "model file");
   std::ifstream in(path, std::ios::binary);
   std::string data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  return ModelFromBytes(data, path);
+}
+
+TrainedModel ModelFromBytes(const std::string& data, const std::string& path) {
   const size_t ml = sizeof(kMagic) - 1;
   if (data.size() < ml || data.compare(0, ml, kMagic) != 0)
     throw InputError(path + ": not a furnihost model file (bad magic)");
@@ -242,102 +252,142 @@ std::vector<std::string> Pipeline::MissingStages() const {
   return m;
 }
 
-TrainedModel Pipeline::Train(const Catalog& catalog, const RunContext& ctx) {
-  if (!training_) throw InputError(graph_.path + ":/training/sensor: the graph names no training sensor");
-  const auto voter_cfgs = graph_.AllOfKind(StageKind::Voter);
-  if (voter_cfgs.empty()) throw InputError(graph_.path + ": training needs a voter stage");
-  if (catalog.models.empty()) throw InputError(catalog.path + ": no usable models to train from");
-  // Each voter learns through its own branch: a voter of part features needs the parts of every
-  // view (its features' segmenter); a recogniser of whole proposals (no features input) learns
-  // from the views' points alone.
-  struct Branch {
-    const StageConfig *voter, *seg, *feat;
-    std::vector<TrainingView> views;
-    std::map<std::string, std::pair<int, int>> per_class;  // class -> (views, parts)
-  };
-  std::vector<Branch> branches;
-  for (const auto* v : voter_cfgs) {
+// Each voter learns through its own branch: a voter of part features needs the parts of every
+// view (its features' segmenter); a recogniser of whole proposals (no features input) learns
+// from the views' points alone.
+std::vector<Pipeline::TrainingBranch> Pipeline::TrainingBranches() const {
+  std::vector<TrainingBranch> branches;
+  for (const auto* v : graph_.AllOfKind(StageKind::Voter)) {
     const StageConfig* feat = graph_.InputOfKind(*v, StageKind::Features);
-    branches.push_back({v, feat ? graph_.InputOfKind(*feat, StageKind::Segmenter) : nullptr, feat, {}, {}});
+    branches.push_back({v, feat ? graph_.InputOfKind(*feat, StageKind::Segmenter) : nullptr, feat});
   }
-  double t_sim = 0, t_seg = 0, t_feat = 0;
-  Progress progress("train: scanning models", catalog.models.size());
-  for (const auto& model : catalog.models) {
-    SensorRequest req;
-    req.objects.push_back({&model, Eigen::Isometry3f::Identity()});
-    Stopwatch sw;
-    std::vector<Scan> scans = Call(*train_cfg_, [&] { return training_->Acquire(req, ctx); });
-    t_sim += sw.Ms();
-    for (size_t v = 0; v < scans.size(); ++v) {
-      if (scans[v].points.size() < 3) continue;
-      // Each segmenter and features stage runs once per view, whichever voters share it.
-      std::map<std::string, Segmentation> segs;
-      std::map<std::string, FeatureMatrix> feats;
-      for (size_t b = 0; b < branches.size(); ++b) {
-        Branch& br = branches[b];
-        TrainingView tv;
-        tv.cls = model.cls;
-        tv.model_id = model.id;
-        tv.view = static_cast<int>(v);
-        tv.object_size = model.size;
-        tv.model = &model;
-        tv.scan = b + 1 == branches.size() ? std::move(scans[v]) : scans[v];
-        Eigen::Vector3d c = Eigen::Vector3d::Zero();
-        for (const auto& p : tv.scan.points) c += p.cast<double>();
-        tv.object_centroid = (c / static_cast<double>(tv.scan.points.size())).cast<float>();
-        if (br.feat) {
-          if (!segs.count(br.seg->tag)) {
-            Stopwatch s2;
-            segs[br.seg->tag] = Call(*br.seg, [&] { return StageAs<Segmenter>(*br.seg).Segment(tv.scan, ctx); });
-            t_seg += s2.Ms();
-          }
-          tv.segmentation = segs[br.seg->tag];
-          if (!feats.count(br.feat->tag)) {
-            Stopwatch s3;
-            feats[br.feat->tag] =
-                Call(*br.feat, [&] { return StageAs<Features>(*br.feat).Compute(tv.scan, tv.segmentation, ctx); });
-            t_feat += s3.Ms();
-          }
-          tv.features = feats[br.feat->tag];
-          if (tv.features.values.rows() != static_cast<Eigen::Index>(tv.segmentation.parts.size()))
-            throw StageError("stage '" + br.feat->tag + "': returned " + std::to_string(tv.features.values.rows()) +
-                                 " rows for " + std::to_string(tv.segmentation.parts.size()) + " parts",
-                             false);
+  return branches;
+}
+
+ModelViews Pipeline::ScanModel(const Catalog& catalog, size_t index, const RunContext& ctx) {
+  if (!training_) throw InputError(graph_.path + ":/training/sensor: the graph names no training sensor");
+  const CatalogModel& model = catalog.models.at(index);
+  const std::vector<TrainingBranch> branches = TrainingBranches();
+  ModelViews out;
+  out.branches.resize(branches.size());
+  SensorRequest req;
+  req.objects.push_back({&model, Eigen::Isometry3f::Identity()});
+  Stopwatch sw;
+  std::vector<Scan> scans = Call(*train_cfg_, [&] { return training_->Acquire(req, ctx); });
+  out.simulate_ms += sw.Ms();
+  for (size_t v = 0; v < scans.size(); ++v) {
+    if (scans[v].points.size() < 3) continue;
+    // Each segmenter and features stage runs once per view, whichever voters share it.
+    std::map<std::string, Segmentation> segs;
+    std::map<std::string, FeatureMatrix> feats;
+    for (size_t b = 0; b < branches.size(); ++b) {
+      const TrainingBranch& br = branches[b];
+      TrainingView tv;
+      tv.cls = model.cls;
+      tv.model_id = model.id;
+      tv.view = static_cast<int>(v);
+      tv.object_size = model.size;
+      tv.model = &model;
+      tv.scan = b + 1 == branches.size() ? std::move(scans[v]) : scans[v];
+      Eigen::Vector3d c = Eigen::Vector3d::Zero();
+      for (const auto& p : tv.scan.points) c += p.cast<double>();
+      tv.object_centroid = (c / static_cast<double>(tv.scan.points.size())).cast<float>();
+      if (br.feat) {
+        if (!segs.count(br.seg->tag)) {
+          Stopwatch s2;
+          segs[br.seg->tag] = Call(*br.seg, [&] { return StageAs<Segmenter>(*br.seg).Segment(tv.scan, ctx); });
+          out.segment_ms += s2.Ms();
         }
-        br.per_class[model.cls].first++;
-        br.per_class[model.cls].second += static_cast<int>(tv.segmentation.parts.size());
-        br.views.push_back(std::move(tv));
+        tv.segmentation = segs[br.seg->tag];
+        if (!feats.count(br.feat->tag)) {
+          Stopwatch s3;
+          feats[br.feat->tag] =
+              Call(*br.feat, [&] { return StageAs<Features>(*br.feat).Compute(tv.scan, tv.segmentation, ctx); });
+          out.features_ms += s3.Ms();
+        }
+        tv.features = feats[br.feat->tag];
+        if (tv.features.values.rows() != static_cast<Eigen::Index>(tv.segmentation.parts.size()))
+          throw StageError("stage '" + br.feat->tag + "': returned " + std::to_string(tv.features.values.rows()) +
+                               " rows for " + std::to_string(tv.segmentation.parts.size()) + " parts",
+                           false);
       }
+      out.branches[b].push_back(std::move(tv));
     }
+  }
+  return out;
+}
+
+TrainedModel Pipeline::Train(const Catalog& catalog, const RunContext& ctx) {
+  CheckTraining(catalog);
+  std::vector<ModelViews> views;
+  Progress progress("train: scanning models", catalog.models.size());
+  for (size_t i = 0; i < catalog.models.size(); ++i) {
+    views.push_back(ScanModel(catalog, i, ctx));
     progress.Tick();
   }
   progress.Done();
+  return TrainFromViews(catalog, std::move(views), ctx);
+}
+
+void Pipeline::CheckTraining(const Catalog& catalog) const {
+  if (!training_) throw InputError(graph_.path + ":/training/sensor: the graph names no training sensor");
+  if (graph_.AllOfKind(StageKind::Voter).empty()) throw InputError(graph_.path + ": training needs a voter stage");
+  if (catalog.models.empty()) throw InputError(catalog.path + ": no usable models to train from");
+}
+
+TrainedModel Pipeline::TrainFromViews(const Catalog& catalog, std::vector<ModelViews> scanned, const RunContext& ctx) {
+  CheckTraining(catalog);
+  if (scanned.size() != catalog.models.size())
+    throw std::logic_error("TrainFromViews: " + std::to_string(scanned.size()) + " models scanned of " +
+                           std::to_string(catalog.models.size()));
+  const std::vector<TrainingBranch> branches = TrainingBranches();
+  struct Branch {
+    std::vector<TrainingView> views;
+    std::map<std::string, std::pair<int, int>> per_class;  // class -> (views, parts)
+  };
+  std::vector<Branch> learned(branches.size());
+  double t_sim = 0, t_seg = 0, t_feat = 0;
+  for (size_t i = 0; i < scanned.size(); ++i) {
+    ModelViews& mv = scanned[i];
+    if (mv.branches.size() != branches.size()) throw std::logic_error("TrainFromViews: branches differ");
+    t_sim += mv.simulate_ms, t_seg += mv.segment_ms, t_feat += mv.features_ms;
+    for (size_t b = 0; b < branches.size(); ++b)
+      for (TrainingView& tv : mv.branches[b]) {
+        tv.model = &catalog.models[i];  // the views of another process point at this catalog
+        learned[b].per_class[tv.cls].first++;
+        learned[b].per_class[tv.cls].second += static_cast<int>(tv.segmentation.parts.size());
+        learned[b].views.push_back(std::move(tv));
+      }
+    mv.branches.clear();
+  }
   TrainedModel m;
   m.training_config = TrainingKey(graph_);
   m.catalog_hash = catalog.hash;
   double t_vote = 0;
   nlohmann::json per_voter = nlohmann::json::object();
-  for (Branch& br : branches) {
+  for (size_t b = 0; b < branches.size(); ++b) {
+    const TrainingBranch& br = branches[b];
+    Branch& lb = learned[b];
     TrainedVoter tvr;
     tvr.voter_type = br.voter->type;
     if (br.feat) {
       std::vector<const FeatureMatrix*> fm;
-      for (const auto& v : br.views) fm.push_back(&v.features);
+      for (const auto& v : lb.views) fm.push_back(&v.features);
       tvr.normaliser = Normaliser::Fit(fm);
       if (tvr.normaliser.min.size() == 0)
         throw StageError("training produced no parts: check the parameters of segmenter '" + br.seg->tag + "'", true);
-      for (auto& v : br.views) tvr.normaliser.Apply(v.features);
+      for (auto& v : lb.views) tvr.normaliser.Apply(v.features);
     }
     Voter& voter = *voters_.at(br.voter->tag).voter;
     Stopwatch sv;
-    tvr.voter_model = Call(*br.voter, [&] { return voter.Train(br.views, ctx); });
+    tvr.voter_model = Call(*br.voter, [&] { return voter.Train(lb.views, ctx); });
     t_vote += sv.Ms();
-    br.views.clear();
-    br.views.shrink_to_fit();
+    lb.views.clear();
+    lb.views.shrink_to_fit();
     nlohmann::json classes = nlohmann::json::object();
     size_t parts = 0;
     size_t views = 0;
-    for (const auto& [c, vp] : br.per_class) {
+    for (const auto& [c, vp] : lb.per_class) {
       classes[c] = {{"views", vp.first}, {"parts", vp.second}};
       parts += vp.second;
       views += vp.first;
@@ -354,13 +404,15 @@ TrainedModel Pipeline::Train(const Catalog& catalog, const RunContext& ctx) {
       m.voters[br.voter->tag] = std::move(tvr);
     }
   }
-  const nlohmann::json time_ms = {{"simulate", t_sim}, {"segment", t_seg}, {"features", t_feat}, {"voter", t_vote}};
+  // The summary describes what was learned; the times go to `timings_ms` (not saved), so the same
+  // inputs give the same model file byte for byte.
+  m.timings_ms = {{"simulate", t_sim}, {"segment", t_seg}, {"features", t_feat}, {"voter", t_vote}};
   if (branches.size() == 1) {
     const nlohmann::json& only = per_voter.begin().value();
     m.summary = {{"models", catalog.models.size()}, {"views", only["views"]}, {"parts", only["parts"]},
-                 {"classes", only["classes"]}, {"time_ms", time_ms}};
+                 {"classes", only["classes"]}};
   } else {
-    m.summary = {{"models", catalog.models.size()}, {"voters", per_voter}, {"time_ms", time_ms}};
+    m.summary = {{"models", catalog.models.size()}, {"voters", per_voter}};
   }
   return m;
 }
@@ -687,7 +739,8 @@ TrainedModel EnsureModel(Pipeline& p, const Catalog& catalog, const RunContext& 
   spdlog::info("model: training from {} ({} models)", catalog.path, catalog.models.size());
   Stopwatch sw;
   TrainedModel m = p.Train(catalog, ctx);
-  spdlog::info("model: trained in {:.1f} s: {}", sw.Ms() / 1000.0, m.summary.dump());
+  spdlog::info("model: trained in {:.1f} s: {}, time per step [ms] {}", sw.Ms() / 1000.0, m.summary.dump(),
+               m.timings_ms.dump());
   if (!cache.empty()) {
     SaveModel(cache, m);
     spdlog::info("model: written to {}", cache);

@@ -38,7 +38,10 @@ struct TrainedModel {
   nlohmann::json voter_model;
   // A graph with several voters: each one's model by voter tag (the fields above stay empty).
   std::map<std::string, TrainedVoter> voters;
-  nlohmann::json summary;  // models, views, parts per class, time per stage
+  nlohmann::json summary;  // models, views, parts per class
+  // Time per training step [ms] of the training that made it; not saved in the model file (the
+  // same inputs give the same file), so empty for a loaded model.
+  nlohmann::json timings_ms;
 
   // The model of the voter `tag`, or null when the file has none for it.
   const TrainedVoter* FindVoter(const std::string& tag) const;
@@ -55,6 +58,18 @@ FURNIHOST_API nlohmann::json TrainingKey(const GraphConfig& graph);
 FURNIHOST_API void SaveModel(const std::string& path, const TrainedModel& model);
 // InputError on a missing/corrupt file or another format version (says what to do).
 FURNIHOST_API TrainedModel LoadModel(const std::string& path);
+// The bytes SaveModel writes, and the model from such bytes (errors name `what`): what MPI
+// ranks hand each other.
+FURNIHOST_API std::string ModelBytes(const TrainedModel& model);
+FURNIHOST_API TrainedModel ModelFromBytes(const std::string& bytes, const std::string& what);
+
+// What training learns from one catalog model: its training sensor's views, each segmented and
+// described for every voter of the graph (branches[b]: the views of voter b, in the graph's
+// voter order, through its segmenter and features), and the time each step took [ms].
+struct ModelViews {
+  std::vector<std::vector<TrainingView>> branches;
+  double simulate_ms = 0, segment_ms = 0, features_ms = 0;
+};
 // "" when compatible, else one line saying what differs.
 FURNIHOST_API std::string Incompatibility(const TrainedModel& model, const GraphConfig& graph,
                                           const std::string& catalog_hash);
@@ -68,7 +83,13 @@ class FURNIHOST_API Pipeline {
   bool HasDetectionChain() const { return !voters_.empty(); }
   std::vector<std::string> MissingStages() const;  // kinds absent from the detection chain
 
+  // Training in two steps, so that processes can share the models (furnihost train / eval
+  // under MPI): ScanModel, the per-model part, for each catalog model (any order, anywhere: it
+  // depends on the model, the graph and the seed only), then TrainFromViews with every model's
+  // views in catalog order. Train does both here.
   TrainedModel Train(const Catalog& catalog, const RunContext& ctx);
+  ModelViews ScanModel(const Catalog& catalog, size_t index, const RunContext& ctx);
+  TrainedModel TrainFromViews(const Catalog& catalog, std::vector<ModelViews> scanned, const RunContext& ctx);
 
   struct SceneInput {
     std::string path;
@@ -129,6 +150,13 @@ class FURNIHOST_API Pipeline {
     std::shared_ptr<Voter> voter;
     std::string loaded_model_id;
   };
+  // Each voter's training branch: the voter, and the segmenter and features it learns through
+  // (null for a recogniser of whole proposals).
+  struct TrainingBranch {
+    const StageConfig *voter, *seg, *feat;
+  };
+  std::vector<TrainingBranch> TrainingBranches() const;
+  void CheckTraining(const Catalog& catalog) const;  // InputError when the graph or catalog cannot train
   GraphConfig graph_;
   const StageConfig *input_cfg_ = nullptr, *train_cfg_ = nullptr;
   std::shared_ptr<Sensor> input_, training_;

@@ -1,0 +1,104 @@
+#include "mpi_train.hpp"
+
+#include <filesystem>
+#include <optional>
+
+#include "furnihost/log.hpp"
+#include "mpi_jobs.hpp"
+#include "wire.hpp"
+
+namespace fs = std::filesystem;
+
+namespace furnihost::app {
+
+namespace {
+
+std::string Encode(const ModelViews& mv) {
+  wire::Writer w;
+  w.Pod(mv.simulate_ms);
+  w.Pod(mv.segment_ms);
+  w.Pod(mv.features_ms);
+  w.Pod(uint64_t(mv.branches.size()));
+  for (const auto& views : mv.branches) {
+    w.Pod(uint64_t(views.size()));
+    for (const auto& v : views) wire::Put(w, v);
+  }
+  return w.Take();
+}
+
+ModelViews Decode(const std::string& bytes, const std::string& what) {
+  wire::Reader r(bytes, what);
+  ModelViews mv;
+  mv.simulate_ms = r.Pod<double>();
+  mv.segment_ms = r.Pod<double>();
+  mv.features_ms = r.Pod<double>();
+  mv.branches.resize(r.Count(sizeof(uint64_t)));
+  for (auto& views : mv.branches) {
+    views.resize(r.Count(sizeof(uint64_t)));
+    for (auto& v : views) v = wire::GetTrainingView(r);
+  }
+  r.End();
+  return mv;
+}
+
+}  // namespace
+
+TrainedModel TrainShared(const World& world, Pipeline& p, const Catalog& catalog, const RunContext& ctx) {
+  if (!world.Shared()) return p.Train(catalog, ctx);
+  Progress progress("train: scanning models (rank " + std::to_string(world.Rank()) + ")", catalog.models.size());
+  const std::vector<std::string> scanned = ShareJobs(
+      world, catalog.models.size(),
+      [&](size_t i) {
+        const std::string bytes = Encode(p.ScanModel(catalog, i, ctx));
+        progress.Tick();
+        return bytes;
+      },
+      [&](size_t i) { return "training on catalog model " + catalog.models[i].id + " of " + catalog.path; });
+  progress.Done();
+  std::optional<TrainedModel> trained;  // rank 0's, with its timings
+  const std::string bytes = FromRoot(world, [&] {
+    std::vector<ModelViews> views;
+    views.reserve(scanned.size());
+    for (size_t i = 0; i < scanned.size(); ++i) views.push_back(Decode(scanned[i], "the views of " + catalog.models[i].id));
+    trained = p.TrainFromViews(catalog, std::move(views), ctx);
+    return ModelBytes(*trained);
+  });
+  return trained ? std::move(*trained) : ModelFromBytes(bytes, "the model from rank 0");
+}
+
+TrainedModel EnsureModelShared(const World& world, Pipeline& p, const Catalog& catalog, const RunContext& ctx,
+                               bool force) {
+  if (!world.Shared()) return EnsureModel(p, catalog, ctx, force);
+  const std::string cache = p.Graph().model_cache;
+  // Rank 0 decides: "1" + the cached model, or "0": train.
+  const std::string cached = FromRoot(world, [&]() -> std::string {
+    if (force || cache.empty() || !fs::exists(cache)) return "0";
+    try {
+      TrainedModel m = LoadModel(cache);
+      const std::string why = Incompatibility(m, p.Graph(), catalog.hash);
+      if (why.empty()) {
+        spdlog::info("model: using cached {}", cache);
+        return "1" + ModelBytes(m);
+      }
+      spdlog::warn("model: cached {} is stale: {}; retraining", cache, why);
+    } catch (const InputError& e) {
+      spdlog::warn("model: {}; retraining", e.what());
+    }
+    return "0";
+  });
+  if (cached[0] == '1') return ModelFromBytes(cached.substr(1), "the cached model from rank 0");
+  if (world.Root())
+    spdlog::info("model: training from {} ({} models) on {} ranks", catalog.path, catalog.models.size(), world.Size());
+  Stopwatch sw;
+  TrainedModel m = TrainShared(world, p, catalog, ctx);
+  if (world.Root()) {
+    spdlog::info("model: trained in {:.1f} s: {}", sw.Ms() / 1000.0, m.summary.dump());
+    if (!cache.empty()) {
+      SaveModel(cache, m);
+      spdlog::info("model: written to {}", cache);
+    }
+  }
+  return m;
+}
+
+}  // namespace furnihost::app
