@@ -2,7 +2,6 @@
 
 #include "cli_common.hpp"
 #include "commands.hpp"
-#include "furnihost/catalog.hpp"
 #include "furnihost/config.hpp"
 #include "furnihost/pipeline.hpp"
 
@@ -12,13 +11,10 @@ int RunValidate(const std::vector<std::string>& args) {
   CLI::App app{"Validate a graph config against the plugins found and construct its stages (nothing runs).", "validate"};
   CommonOptions common;
   std::string graph;
-  bool print = false, catalog = false;
+  bool print = false;
   common.Add(app, false);
   app.add_option("--graph,-g", graph, "graph config (JSON)")->required();
   app.add_flag("--print", print, "print the resolved config (extends applied, every default filled)");
-  app.add_flag("--catalog", catalog,
-               "also load the graph's catalog and print its models as imported: id, class, mesh and size [m] "
-               "(x = width, y = depth, z = height; JSON)");
   if (auto rc = Parse(app, args)) return *rc;
   common.Apply();
   auto reg = common.MakeRegistry();
@@ -31,14 +27,7 @@ int RunValidate(const std::vector<std::string>& args) {
     throw InputError(graph + ": " + e.what());
   }
   if (print) std::cout << g.resolved.dump(2) << "\n";
-  else if (!catalog) std::cout << graph << ": valid (" << g.stages.size() << " stages)\n";
-  if (catalog) {
-    const Catalog c = LoadCatalog(g.catalog, false);
-    nlohmann::json models = nlohmann::json::array();
-    for (const auto& m : c.models)
-      models.push_back({{"id", m.id}, {"class", m.cls}, {"mesh", m.mesh_path}, {"size", {m.size.x(), m.size.y(), m.size.z()}}});
-    std::cout << nlohmann::json{{"catalog", c.path}, {"models", models}}.dump(1) << "\n";
-  }
+  else std::cout << graph << ": valid (" << g.stages.size() << " stages)\n";
   return 0;
 }
 

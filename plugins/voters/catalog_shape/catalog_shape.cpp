@@ -37,7 +37,6 @@
 
 #include <algorithm>
 #include <array>
-#include <atomic>
 #include <cmath>
 #include <map>
 #include <set>
@@ -49,7 +48,6 @@
 #include "furnihost/geometry.hpp"
 #include "furnihost/hash.hpp"
 #include "furnihost/plugin.hpp"
-#include "catalog_index/catalog_index.hpp"
 #include "shape/shape.hpp"
 
 namespace furnihost {
@@ -102,7 +100,6 @@ struct Options {
   float tall_class = 1.2f;
   bool floor_term = true;
   bool view_profiles = false;  // single views (scans with a sensor origin): also the models' one-eye profiles
-  bool index = true;           // search the models through catalog_index (same results), else score every one
   float edge_band_deg = 1.5f;  // a point this close to its row's end of the view lies at the view's edge
 
   const ClassParams& Of(const std::string& c) const {
@@ -202,12 +199,6 @@ const ParamBinding<Options>& Binding() {
                 "on scans with a sensor origin (single views), also compare the proposal's top-view profile with "
                 "the model's as each single eye around it sees it, and take the closest (one view sees one side: "
                 "an armrest hides the seat behind it); reconstructions are always compared with the fused profile")
-          .DetectionOnly()
-          .Bool("index", &O::index,
-                "find each proposal's best model of a class through an index of the models' sizes and profiles "
-                "(catalog_index: only the models whose lower bound of the energy does not exceed the best one found "
-                "are scored; the same best model and score as scoring every model, in time that grows with the "
-                "models close to the proposal, not with the catalog); false: score every model")
           .DetectionOnly()
           .Bool("floor_term", &O::floor_term,
                 "compare the floor seen under the proposal with the model's open floor (under a table or chair "
@@ -532,13 +523,11 @@ class CatalogShapeVoter : public Voter {
       if (fresh) order.push_back(v.model_id);
       it->second.second.push_back(&v);
     }
-    // Each model's shape on its own (in parallel: the mesh's samples and eyes are most of a
-    // training's cost), the model list then in the views' order.
-    std::vector<MeshShape> shapes(order.size());
-    tbb::parallel_for(size_t(0), order.size(), size_t(1), [&](size_t k) {
-      const auto& [first, vs] = by_model.at(order[k]);
+    nlohmann::json models = nlohmann::json::array();
+    for (const auto& id : order) {
+      const auto& [first, vs] = by_model.at(id);
       const Eigen::Vector3f s = first->object_size;
-      MeshShape& ms = shapes[k];
+      MeshShape ms;
       if (first->model && !first->model->mesh.triangles.empty()) {
         ms = FromMesh(*first->model, o_.cell);
       } else {  // views without their mesh: what the views saw, fused and one by one
@@ -558,13 +547,6 @@ class CatalogShapeVoter : public Voter {
         ms.profile = shape::TopViewProfile(xy, h, s.z(), o_.cell);
         ms.open = OpenFloor(vs, s);
       }
-    });
-    nlohmann::json models = nlohmann::json::array();
-    for (size_t k = 0; k < order.size(); ++k) {
-      const std::string& id = order[k];
-      const TrainingView* first = by_model.at(id).first;
-      const Eigen::Vector3f s = first->object_size;
-      const MeshShape& ms = shapes[k];
       const shape::Profile& prof = ms.profile;
       models.push_back({{"id", id},
                         {"class", first->cls},
@@ -624,24 +606,6 @@ class CatalogShapeVoter : public Voter {
     classes_.clear();
     for (const auto& md : models_)
       if (std::find(classes_.begin(), classes_.end(), md.cls) == classes_.end()) classes_.push_back(md.cls);
-    // Each class's models indexed by size and profile (Vote's `index`).
-    index_.clear();
-    for (const auto& c : classes_) {
-      ClassIndex& ci = index_[c];
-      std::vector<catalog_index::Item> items;
-      for (size_t m = 0; m < models_.size(); ++m) {
-        const Model& md = models_[m];
-        if (md.cls != c) continue;
-        catalog_index::Item it;
-        it.size = {md.length, md.width, md.height};
-        it.extra = md.open;
-        it.histograms.emplace_back(md.profile.begin(), md.profile.end());
-        for (const auto& v : md.views) it.histograms.emplace_back(v.begin(), v.end());
-        items.push_back(std::move(it));
-        ci.models.push_back(int(m));
-      }
-      ci.index = catalog_index::Index(items, shape::kProfileBins);
-    }
     // Which proposals each class is scored on.
     source_.clear();
     for (const auto& c : classes_) {
@@ -685,7 +649,6 @@ class CatalogShapeVoter : public Voter {
       std::vector<shape::Footprint> foot(n);
       // Each proposal's footprint, profile and scores are its own: scored in parallel (in
       // order when tracing, so the trace reads as before).
-      std::atomic<size_t> scored{0}, pairs{0}, class_models{0};  // models scored; proposal-class pairs; their models
       auto score_one = [&](size_t i) {
         const Proposal& p = items[i];
         if (p.indices.size() < 10) return;
@@ -706,15 +669,13 @@ class CatalogShapeVoter : public Voter {
         if (!at_edge.empty())
           for (int k : p.indices) edge_points += at_edge[size_t(k)];
         const float cut = edge_points >= 3 ? 1.f : 0.f;
-        std::array<float, shape::kProfileBins> prof_cdf;
-        catalog_index::Cumulative(prof.data(), shape::kProfileBins, prof_cdf.data());
         for (size_t c = 0; c < C; ++c) {
           const ClassParams& cp = o_.Of(classes_[c]);
           float best = INFINITY;
           std::array<float, 6> terms{};  // of the best model: length, width, top, bottom, profile, floor
-          // Model m's energy; the best is the lowest, the first model of the lowest on a tie.
-          auto consider = [&](size_t m) {
+          for (size_t m = 0; m < models_.size(); ++m) {
             const Model& md = models_[m];
+            if (md.cls != classes_[c]) continue;
             const float emd = shape::ProfileDistance(prof, md.profile);
             std::array<float, 6> t = {Pen(std::log(L / md.length), cp.long_small, cp.long_big),
                                       Pen(std::log(W / md.width), cp.short_small, cp.short_big),
@@ -739,40 +700,7 @@ class CatalogShapeVoter : public Voter {
               const float El = tl[0] + tl[1] + tl[2] + tl[3] + tl[4] + tl[5];
               if (El < E) E = El, t = tl;
             }
-            if (E < best || (E == best && int(m) < best_model[c][i])) best = E, best_model[c][i] = int(m), terms = t;
-            return E;
-          };
-          const ClassIndex& ci = index_.at(classes_[c]);
-          pairs.fetch_add(1, std::memory_order_relaxed);
-          class_models.fetch_add(ci.models.size(), std::memory_order_relaxed);
-          if (o_.index) {
-            // A lower bound of the energy over a node's models (each term at the end of its
-            // interval nearest the proposal's value, the profile distance to the envelope of
-            // the models' profiles), with a margin for the rounding of the logarithms.
-            const float bottom = 0.5f * (B / cp.bottom) * (B / cp.bottom);
-            const float lift = std::max(T - B, 0.02f);
-            auto near = [](float x, float lo, float hi) { return std::clamp(x, lo, hi); };
-            scored += ci.index.Search(
-                [&](const catalog_index::Bounds& b) {
-                  const float l = Pen(std::log(L / near(L, b.size_lo[0], b.size_hi[0])), cp.long_small, cp.long_big);
-                  const float w = Pen(std::log(W / near(W, b.size_lo[1], b.size_hi[1])), cp.short_small, cp.short_big);
-                  const float top = Pen(std::log(T / near(T, b.size_lo[2], b.size_hi[2])), cp.top_small, cp.top_big);
-                  const float emd = catalog_index::EmdLowerBound(prof_cdf.data(), views ? b.any_lo : b.first_lo,
-                                                                 views ? b.any_hi : b.first_hi);
-                  const float floor_lb =
-                      o_.floor_term ? Pen(seen - near(seen, b.extra_lo, b.extra_hi), cp.floor_under, cp.floor_over) : 0.f;
-                  float lb = l + w + top + bottom + emd * emd / (2 * cp.profile * cp.profile) + floor_lb;
-                  if (cp.wall_mount > 0.f)
-                    lb = std::min(lb, l + w +
-                                          Pen(std::log(lift / near(lift, b.size_lo[2], b.size_hi[2])), cp.top_small,
-                                              cp.top_big) +
-                                          cp.wall_mount + Hung(B, cp));
-                  return lb * (1.f - 1e-5f) - 1e-6f;
-                },
-                [&](size_t k) { return consider(size_t(ci.models[k])); });
-          } else {
-            for (int m : ci.models) consider(size_t(m));
-            scored += ci.models.size();
+            if (E < best) best = E, best_model[c][i] = int(m), terms = t;
           }
           score[c][i] = std::exp(-best - p.surround / cp.surround - cut * cp.view_edge);
           evidence[c][i] = {{"length_m", L},          {"width_m", W},         {"top_m", T},
@@ -812,11 +740,6 @@ class CatalogShapeVoter : public Voter {
             score[c][i] = score[c][j], best_model[c][i] = best_model[c][j], evidence[c][i] = evidence[c][j];
         }
       }
-      if (pairs > 0)
-        spdlog::debug("catalog_shape: {} models scored for {} proposal-class pairs: {:.1f} per pair of the {:.1f} models of "
-                      "its class (index {})",
-                      scored.load(), pairs.load(), double(scored) / double(pairs), double(class_models) / double(pairs),
-                      o_.index ? "on" : "off");
       // Class competition within each group (the variants of one cluster are one object).
       std::map<int, float> group_best;
       std::vector<float> best_of(n, 0.f);
@@ -860,12 +783,6 @@ class CatalogShapeVoter : public Voter {
   Options o_;
   std::vector<Model> models_;
   std::vector<std::string> classes_;
-  // Per output class: its models (indices into models_) and their index.
-  struct ClassIndex {
-    std::vector<int> models;
-    catalog_index::Index index;
-  };
-  std::map<std::string, ClassIndex> index_;
   std::map<std::string, std::string> source_;
 };
 

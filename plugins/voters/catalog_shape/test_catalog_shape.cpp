@@ -6,7 +6,6 @@
 
 #include <cmath>
 #include <optional>
-#include <random>
 #include <set>
 
 #include "furnihost/ground.hpp"
@@ -455,78 +454,6 @@ TEST(CatalogShape, ViewEdgeCostsProposalsTheViewCuts) {
   EXPECT_GT(measured, 0);
   scan.origin.reset();
   for (const auto& h : with->Vote({parts}, ctx).hypotheses) EXPECT_EQ(h.evidence.count("e_view_edge"), 0u);
-}
-
-}  // namespace
-}  // namespace furnihost
-
-namespace furnihost {
-namespace {
-
-// The catalog index (`index`, on by default) scores only the models that can be a proposal's
-// best, and must give every hypothesis of scoring every model: the same class, score, model and
-// evidence. A catalog of 400 models (the two trained ones and variants of them: sizes scaled
-// and stretched, profiles and open floor perturbed), a room scan and a single view (view
-// profiles), cabinets that may hang on a wall (the hanging energy's bound), the floor term on.
-TEST(CatalogShape, IndexGivesTheHypothesesOfScoringEveryModel) {
-  const CatalogModel table = Table(), cabinet = Cabinet();
-  RunContext ctx;
-  json model = Make<Voter>("voters.catalog_shape")->Train(Views({&table, &cabinet}), ctx);
-  std::mt19937_64 rng(4);
-  std::uniform_real_distribution<float> u(0.8f, 1.25f), p(0.9f, 1.1f), o(0.f, 1.f);
-  const json trained = model["models"];
-  for (int v = 0; v < 199; ++v)
-    for (const json& m : trained) {
-      json c = m;
-      c["id"] = m["id"].get<std::string>() + "_v" + std::to_string(v);
-      const float s = u(rng);
-      for (int a = 0; a < 3; ++a) c["size"][a] = m["size"][a].get<float>() * (v % 2 ? s : u(rng));
-      std::vector<float> prof = m["profile"].get<std::vector<float>>();
-      float sum = 0.f;
-      for (float& x : prof) sum += x *= p(rng);
-      for (float& x : prof) x /= sum;
-      c["profile"] = prof;
-      c["open"] = std::clamp(m["open"].get<float>() + 0.2f * (o(rng) - 0.5f), 0.f, 1.f);
-      model["models"].push_back(c);
-    }
-  ASSERT_EQ(model["models"].size(), 400u);
-  const json params = {{"min_score", 1e-6}, {"nms_iou", 1.0}, {"view_profiles", true},
-                       {"class_params", {{"cabinet", {{"wall_mount", 3}, {"wall_mount_bottom_m", 0.5}}}}}};
-  json off = params;
-  off["index"] = false;
-  auto with = Make<Voter>("voters.catalog_shape", params), without = Make<Voter>("voters.catalog_shape", off);
-  with->Load(model);
-  without->Load(model);
-
-  Eigen::Isometry3f tp = Eigen::Isometry3f::Identity(), cp = Eigen::Isometry3f::Identity();
-  cp.translation() = Eigen::Vector3f(2.0f, 0.3f, 0.f);
-  cp.linear() = Eigen::AngleAxisf(0.6f, Eigen::Vector3f::UnitZ()).toRotationMatrix();
-  SensorRequest req;
-  req.objects = {{&table, tp}, {&cabinet, cp}};
-  AddBox(req.extra, {-3.f, -3.f, -0.02f}, {5.f, 3.f, 0.f});
-  Eigen::Isometry3f eye = Eigen::Isometry3f::Identity();
-  eye.linear() = Eigen::AngleAxisf(0.2f, Eigen::Vector3f::UnitZ()).toRotationMatrix();
-  eye.translation() = Eigen::Vector3f(-1.5f, -0.5f, 1.4f);
-  const std::vector<Scan> scans = {ScanRoom({{&table, tp}, {&cabinet, cp}}, 0.f, ctx),
-                                   ScanOneView(req, eye, {{"horizontal_fov_deg", 90}}, ctx)};
-  size_t compared = 0;
-  for (const Scan& scan : scans) {
-    const Proposals props = Make<Proposer>("proposals.clusters")->Propose(scan, nullptr, ctx);
-    SceneParts parts;
-    parts.scan = &scan;
-    parts.proposals = &props;
-    const auto a = with->Vote({parts}, ctx).hypotheses, b = without->Vote({parts}, ctx).hypotheses;
-    ASSERT_EQ(a.size(), b.size());
-    for (size_t i = 0; i < a.size(); ++i) {
-      EXPECT_EQ(a[i].cls, b[i].cls);
-      EXPECT_EQ(a[i].proposal, b[i].proposal);
-      EXPECT_EQ(a[i].score, b[i].score);
-      EXPECT_EQ(a[i].model, b[i].model);
-      EXPECT_EQ(a[i].evidence, b[i].evidence);
-      ++compared;
-    }
-  }
-  EXPECT_GT(compared, 20u);
 }
 
 }  // namespace
