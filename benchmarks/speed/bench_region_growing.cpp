@@ -55,7 +55,7 @@
 #include <vector>
 
 #include "furnihost/hash.hpp"
-#include "furnihost/io.hpp"
+#include "furnihost/host/io.hpp"
 #include "furnihost/log.hpp"
 #include "furnihost/voxel_index.hpp"
 #include "parallel/tbb_for.hpp"

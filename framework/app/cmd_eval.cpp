@@ -26,13 +26,14 @@
 #include <thread>
 
 #include "cli_common.hpp"
+#include "git_info.hpp"
 #include "commands.hpp"
-#include "furnihost/catalog.hpp"
-#include "furnihost/evaluation.hpp"
+#include "furnihost/host/catalog.hpp"
+#include "furnihost/host/evaluation.hpp"
 #include "furnihost/hash.hpp"
-#include "furnihost/io.hpp"
+#include "furnihost/host/io.hpp"
 #include "furnihost/log.hpp"
-#include "furnihost/pipeline.hpp"
+#include "furnihost/host/pipeline.hpp"
 #include "mpi_jobs.hpp"
 #include "mpi_train.hpp"
 #include "plots.hpp"
@@ -84,36 +85,13 @@ double PeakRssMb(bool reset_ok) {
   return static_cast<double>(u.ru_maxrss) / 1024.0;  // Linux: kilobytes
 }
 
-std::string Shell(const std::string& cmd) {
-  std::string out;
-  if (FILE* p = ::popen(cmd.c_str(), "r")) {
-    char buf[256];
-    while (std::fgets(buf, sizeof(buf), p)) out += buf;
-    if (::pclose(p) != 0) return "";
-  }
-  while (!out.empty() && std::isspace(static_cast<unsigned char>(out.back()))) out.pop_back();
-  return out;
-}
-
-std::string Quote(const std::string& s) {
-  std::string q = "'";
-  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
-
 // Git revision of the source checkout: $FURNIHOST_SOURCE_DIR, else the folder of the first
-// graph (configs/ lives in the checkout).
+// graph (configs/ lives in the checkout). Read from its files, never by running git.
 json GitInfo(const std::string& near) {
   std::vector<std::string> dirs;
   if (const char* s = std::getenv("FURNIHOST_SOURCE_DIR")) dirs.push_back(s);
   dirs.push_back(fs::absolute(fs::path(near)).parent_path().string());
-  for (const auto& d : dirs) {
-    const std::string rev = Shell("git -C " + Quote(d) + " rev-parse HEAD 2>/dev/null");
-    if (rev.size() != 40) continue;
-    const std::string dirty = Shell("git -C " + Quote(d) + " status --porcelain --untracked-files=no 2>/dev/null");
-    return {{"revision", rev}, {"dirty", !dirty.empty()}, {"dir", d}};
-  }
-  return {{"revision", "unknown"}, {"dirty", nullptr}};
+  return app::GitInfo(dirs);
 }
 
 json MachineInfo() {
@@ -147,16 +125,11 @@ std::string UtcNow() {
   return buf;
 }
 
-std::string FileSafe(const std::string& s) {
-  std::string o;
-  for (char c : s) o += (std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.') ? c : '_';
-  return o.empty() ? "_" : o;
-}
-
 // ---- one config ----------------------------------------------------------------------------
 
 struct Loaded {
-  std::string name;
+  std::string name;  // the label (--name, or the graph's stem)
+  std::string file;  // the name of its files: run_<file>.json, detections/<file>/ (UniqueSafeNames)
   GraphConfig graph;
   std::optional<Catalog> catalog;
   std::optional<TrainedModel> model;
@@ -174,7 +147,8 @@ struct RunInput {
   const std::vector<std::vector<GroundTruthObject>>* truth;
   WidthConvention width;
   int jobs;  // 0 = auto
-  std::string detections_dir;  // when set: each scene's detections as <dir>/<config>/<seed>/<scan stem>.json
+  std::string detections_dir;  // when set: each scene's detections as <dir>/<config>/<seed>/<scene>.json
+  std::vector<std::string> scene_files;  // <scene>: each scan's stem, made safe and distinct
   double jitter_m = 0;  // --jitter: noise added to each scene's points, drawn from the seed and the scan's path
   const World* world = nullptr;  // several ranks: the scenes are shared among them (mpi_jobs.hpp)
 };
@@ -212,6 +186,7 @@ SceneOutcome RunScene(Pipeline& p, const Loaded& cfg, const RunContext& ctx, con
   Pipeline::SceneInput si;
   si.path = scene.scan;
   si.origin = scene.origin;
+  si.origin_name = in.dataset->path + ":/scenes/" + std::to_string(i) + "/origin";
   si.frame = scene.frame;
   si.jitter_m = float(in.jitter_m);
   si.jitter_seed = SplitMix64(ctx.seed) ^ Fnv1a(scene.scan);
@@ -330,7 +305,7 @@ RunFigures Figures(const Loaded& cfg, const RunContext& ctx, const RunInput& in,
       json j = {{"scan", scenes[i].scan}, {"seed", ctx.seed}, {"detections", json::array()}};
       const Scan* frame = outcomes[i].frame ? &*outcomes[i].frame : nullptr;
       for (const auto& d : evals[i].detections) j["detections"].push_back(DetectionToJson(d, frame));
-      WriteJson((fs::path(in.detections_dir) / cfg.name / std::to_string(ctx.seed) / (evals[i].name + ".json")).string(), j);
+      WriteJson((fs::path(in.detections_dir) / cfg.file / std::to_string(ctx.seed) / (in.scene_files[i] + ".json")).string(), j);
     }
   f.metrics = Evaluate(evals, in.dataset->classes, in.width);
   f.peak_rss_mb = PeakRssMb(reset_ok);
@@ -482,6 +457,7 @@ std::vector<std::string> IgnoredNotes(const std::vector<ConfigSummary>& configs)
 std::vector<std::string> WritePlots(const std::string& dir, const std::vector<ConfigSummary>& configs,
                                     const std::vector<std::string>& classes) {
   std::vector<std::string> files;
+  const std::vector<std::string> class_files = UniqueSafeNames(classes);
   // The paper's rule (pr_<class>) and the ScanNet rule, box IoU >= 0.25 (pr25_<class>).
   for (const bool iou : {false, true})
   for (const auto& cls : classes) {
@@ -508,7 +484,7 @@ std::vector<std::string> WritePlots(const std::string& dir, const std::vector<Co
         series.push_back(std::move(s));
       }
     }
-    const std::string stem = (iou ? "pr25_" : "pr_") + FileSafe(cls);
+    const std::string stem = (iou ? "pr25_" : "pr_") + class_files[size_t(&cls - classes.data())];
     WritePrPlot((fs::path(dir) / stem).string(),
                 cls + (iou ? ": recall vs 1 - precision, box IoU >= 0.25" : ": recall vs 1 - precision, paper rule"),
                 series);
@@ -569,9 +545,10 @@ int RunEval(const std::vector<std::string>& args) {
   for (const auto& s : dataset.scenes) truth.push_back(ReadGroundTruth(s.gt));
   const std::string hash = HashDataset(dataset);
   const std::vector<std::string> config_names = Names(graphs, names);
+  const std::vector<std::string> config_files = UniqueSafeNames(config_names);
   std::vector<Loaded> configs;
   for (size_t i = 0; i < graphs.size(); ++i) {
-    configs.push_back({config_names[i], common.LoadGraph(graphs[i], *reg), {}, {}});
+    configs.push_back({config_names[i], config_files[i], common.LoadGraph(graphs[i], *reg), {}, {}});
     ground_cli.ApplyGround(configs.back().graph);
   }
   spdlog::info("eval: {} configs x {} seeds on {} ({} scenes, {})", configs.size(), seeds, dataset_path,
@@ -579,7 +556,7 @@ int RunEval(const std::vector<std::string>& args) {
 
   const json git = GitInfo(graphs.front());
   const json machine = MachineInfo();
-  // After the git query (a fork): under mpirun the ranks share the scenes and the training.
+  // Under mpirun the ranks share the scenes and the training.
   const World& world = World::Get();
   const json dataset_json = {{"path", dataset_path},
                              {"hash", hash},
@@ -590,8 +567,10 @@ int RunEval(const std::vector<std::string>& args) {
                                 for (const auto& [k, v] : dataset.classes.map) m[k] = v ? json(*v) : json(nullptr);
                                 return m;
                               }()}};
+  std::vector<std::string> scene_stems;
+  for (const auto& s : dataset.scenes) scene_stems.push_back(fs::path(s.scan).stem().string());
   const RunInput run_in{&dataset, &truth, width, jobs, save_detections ? (fs::path(out) / "detections").string() : "",
-                        jitter, &world};
+                        UniqueSafeNames(scene_stems), jitter, &world};
   std::vector<ConfigSummary> summaries;
   for (auto& cfg : configs) {
     ConfigSummary summary;
@@ -676,7 +655,7 @@ int RunEval(const std::vector<std::string>& args) {
                    {"machine", machine},
                    {"figures", ToJson(summary)}};
     if (reproducible) Unmeasured(record);
-    WriteJson((fs::path(out) / ("run_" + FileSafe(cfg.name) + ".json")).string(), record);
+    WriteJson((fs::path(out) / ("run_" + cfg.file + ".json")).string(), record);
     summaries.push_back(std::move(summary));
     cfg.model.reset();  // free the model before the next config
     cfg.catalog.reset();
@@ -701,9 +680,9 @@ int RunEval(const std::vector<std::string>& args) {
   info.measurements = !reproducible;
   const std::string report = RenderReport(summaries, info);
   json configs_json = json::array();
-  for (const auto& s : summaries) {
-    json c = ToJson(s);
-    c["run_record"] = "run_" + FileSafe(s.name) + ".json";
+  for (size_t i = 0; i < summaries.size(); ++i) {
+    json c = ToJson(summaries[i]);
+    c["run_record"] = "run_" + configs[i].file + ".json";
     configs_json.push_back(c);
   }
   json summary_json = {{"dataset", dataset_json},

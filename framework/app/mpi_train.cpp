@@ -15,9 +15,8 @@ namespace {
 
 std::string Encode(const ModelViews& mv) {
   wire::Writer w;
-  w.Pod(mv.simulate_ms);
-  w.Pod(mv.segment_ms);
-  w.Pod(mv.features_ms);
+  w.Pod(uint64_t(mv.time_ms.size()));
+  for (const auto& [tag, ms] : mv.time_ms) w.Str(tag), w.Pod(ms);
   w.Pod(uint64_t(mv.branches.size()));
   for (const auto& views : mv.branches) {
     w.Pod(uint64_t(views.size()));
@@ -29,9 +28,10 @@ std::string Encode(const ModelViews& mv) {
 ModelViews Decode(const std::string& bytes, const std::string& what) {
   wire::Reader r(bytes, what);
   ModelViews mv;
-  mv.simulate_ms = r.Pod<double>();
-  mv.segment_ms = r.Pod<double>();
-  mv.features_ms = r.Pod<double>();
+  for (uint64_t k = 0, n = r.Count(sizeof(uint64_t)); k < n; ++k) {
+    std::string tag = r.Str();
+    mv.time_ms[tag] = r.Pod<double>();
+  }
   mv.branches.resize(r.Count(sizeof(uint64_t)));
   for (auto& views : mv.branches) {
     views.resize(r.Count(sizeof(uint64_t)));
@@ -72,6 +72,7 @@ TrainedModel EnsureModelShared(const World& world, Pipeline& p, const Catalog& c
   const std::string cache = p.Graph().model_cache;
   // Rank 0 decides: "1" + the cached model, or "0": train.
   const std::string cached = FromRoot(world, [&]() -> std::string {
+    if (!cache.empty()) CheckModelCacheTarget(cache, p.Graph().path + ":/model_cache: ");
     if (force || cache.empty() || !fs::exists(cache)) return "0";
     try {
       TrainedModel m = LoadModel(cache);
@@ -92,7 +93,8 @@ TrainedModel EnsureModelShared(const World& world, Pipeline& p, const Catalog& c
   Stopwatch sw;
   TrainedModel m = TrainShared(world, p, catalog, ctx);
   if (world.Root()) {
-    spdlog::info("model: trained in {:.1f} s: {}", sw.Ms() / 1000.0, m.summary.dump());
+    spdlog::info("model: trained in {:.1f} s: {}, time per stage [ms] {}", sw.Ms() / 1000.0, m.summary.dump(),
+                 m.timings_ms.dump());
     if (!cache.empty()) {
       SaveModel(cache, m);
       spdlog::info("model: written to {}", cache);

@@ -4,7 +4,7 @@
 // writes the model; every rank gets the model. The model is the one process's byte for byte:
 // a model's views depend on the model, the graph and the seed only, whichever rank scans them.
 #pragma once
-#include "furnihost/pipeline.hpp"
+#include "furnihost/host/pipeline.hpp"
 #include "mpi_world.hpp"
 
 namespace furnihost::app {

@@ -7,7 +7,7 @@
 #include <functional>
 #include <fstream>
 
-#include "furnihost/io.hpp"
+#include "furnihost/host/io.hpp"
 #include "furnihost/scan_reader.hpp"
 #include "test_support.hpp"
 
@@ -251,6 +251,29 @@ TEST(Cli, SimulatePerSensorGroundTruthInTheSensorsFrame) {
   const auto bad = Furnihost(sim + " --out " + dir + "/x.ply --sensor-frame");
   EXPECT_EQ(bad.code, 2);
   EXPECT_NE(bad.err.find("--per-sensor"), std::string::npos) << bad.err;
+}
+
+// Objects may not overlap on a scene's floor plan, unless one is marked "under" (a chair pushed
+// under a table): then both are placed and scanned. A bad "under" is an error naming it.
+TEST(Cli, SimulateRefusesOverlapsUnlessAnObjectIsUnder) {
+  const std::string dir = furnihost::testing::TempDir("cli_sim_under");
+  const std::string corpus = furnihost::testing::SourceDir() + "/tests/hostile/corpus/catalogs";
+  auto scene = [&](const std::string& under) {
+    furnihost::AtomicWriteText(dir + "/scene.json", R"({"room": {"size_m": [4, 4], "height_m": 2.5},
+      "objects": [{"model": "cube", "x": 1.5, "y": 2}, {"model": "cube", "x": 1.6, "y": 2.1)" + under + R"(}],
+      "sensor_params": {"angular_resolution_deg": 2, "tilt_resolution_deg": 2, "noise_a": 0, "noise_b": 0}})");
+    return Furnihost("simulate -q --catalog " + corpus + "/tiny/catalog.json --scene " + dir + "/scene.json --out " + dir +
+                     "/room.ply");
+  };
+  auto r = scene("");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("overlap (footprints intersect"), std::string::npos) << r.err;
+  r = scene(R"(, "under": true)");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(furnihost::ReadJson(dir + "/room.gt.json").at("objects").size(), 2u);
+  r = scene(R"(, "under": "yes")");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("/objects/1/under: expected true or false"), std::string::npos) << r.err;
 }
 
 // detect loads the catalog and the model on a worker while the scan is read, framed and

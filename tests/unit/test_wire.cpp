@@ -5,7 +5,7 @@
 
 #include <cstring>
 
-#include "furnihost/pipeline.hpp"
+#include "furnihost/host/pipeline.hpp"
 #include "wire.hpp"
 
 namespace {
@@ -183,14 +183,16 @@ TEST(Wire, ModelBytesAreTheModelFile) {
   TrainedModel m;
   m.training_config = {{"seed", 42}};
   m.catalog_hash = "abc";
-  m.voter_type = "voters.catalog_shape";
-  m.voter_model = {{"format", "x"}};
+  m.voters["recognise"].voter_type = "voters.catalog_shape";
+  m.voters["recognise"].voter_model = {{"format", "x"}};
   m.summary = {{"models", 1}};
   m.timings_ms = {{"voter", 12.5}};
   const std::string bytes = ModelBytes(m);
   const TrainedModel back = ModelFromBytes(bytes, "bytes");
   EXPECT_EQ(back.catalog_hash, "abc");
   EXPECT_EQ(back.summary, m.summary);
+  ASSERT_NE(back.FindVoter("recognise"), nullptr);
+  EXPECT_EQ(back.FindVoter("recognise")->voter_model, m.voters["recognise"].voter_model);
   EXPECT_TRUE(back.timings_ms.is_null());  // not in the file
   EXPECT_EQ(ModelBytes(back), bytes);
   EXPECT_THROW(ModelFromBytes(bytes.substr(0, bytes.size() / 2), "half"), InputError);

@@ -12,7 +12,7 @@
 #include <set>
 #include <tuple>
 
-#include "furnihost/ground.hpp"
+#include "furnihost/host/ground_estimation.hpp"
 #include "furnihost/stage.hpp"
 #include "test_stages.hpp"
 
@@ -67,7 +67,7 @@ Room MakeRoom(const json& sensor_params = {{"voxel_m", 0.015}}) {
   // the "segs" rule, not to the "fronts" rule (shorter than 1.3 m).
   r.wardrobe = Box({-3.f, -2.5f, 0.f}, {-2.4f, -1.5f, 2.0f});
   AddBox(m.mesh, r.wardrobe.min(), r.wardrobe.max());
-  // A table top whose legs stop 20 cm under it (disconnected clusters).
+  // A table top whose legs end 20 cm under it (disconnected clusters).
   r.top = Box({1.5f, 1.f, 0.7f}, {2.5f, 1.6f, 0.75f});
   AddBox(m.mesh, r.top.min(), r.top.max());
   for (float x : {1.55f, 2.4f})

@@ -3,7 +3,7 @@
 // height and whose top-view height profile the proposal matches best gives the class score;
 // one detection per proposal and plausible class, the proposal's box, non-maximum suppressed.
 //
-// Why size and top view (measured on the ScanNet dev rooms, docs/configs.md): the metric size
+// Why size and top view (measured on the ScanNet dev rooms, docs/experiments/): the metric size
 // of an object survives the gap between simulated CAD views and real reconstructions, which
 // part features and global descriptors do not (ESF on real segments: 45 % correct, size and
 // height alone: 66-71 %); the top-view height profile (the distribution of each floor column's

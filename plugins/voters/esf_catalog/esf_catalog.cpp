@@ -28,9 +28,9 @@
 // same outline look alike; the metric size survives the gap between simulated and real views
 // (issue 20: on the dev scans' ground-truth segments ESF 1-NN 45 % correct, size alone 66-71 %).
 //
-// Measured (ScanNet dev, docs/configs.md#scannet_esfjson, `furnihost eval --graph
+// Measured (ScanNet dev, docs/experiments/2026-12-02-esf-baseline.md, `furnihost eval --graph
 // configs/scannet.json --graph configs/scannet_esf.json --dataset benchmarks/scannet_dev.json`):
-// see the figures there; in short this baseline ranks far below voters.catalog_shape.
+// this baseline ranks far below voters.catalog_shape.
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
