@@ -1,13 +1,10 @@
 #include "mpi_train.hpp"
 
-#include <filesystem>
 #include <optional>
 
 #include "furnihost/log.hpp"
 #include "mpi_jobs.hpp"
 #include "wire.hpp"
-
-namespace fs = std::filesystem;
 
 namespace furnihost::app {
 
@@ -72,20 +69,8 @@ TrainedModel EnsureModelShared(const World& world, Pipeline& p, const Catalog& c
   const std::string cache = p.Graph().model_cache;
   // Rank 0 decides: "1" + the cached model, or "0": train.
   const std::string cached = FromRoot(world, [&]() -> std::string {
-    if (!cache.empty()) CheckModelCacheTarget(cache, p.Graph().path + ":/model_cache: ");
-    if (force || cache.empty() || !fs::exists(cache)) return "0";
-    try {
-      TrainedModel m = LoadModel(cache);
-      const std::string why = Incompatibility(m, p.Graph(), catalog.hash);
-      if (why.empty()) {
-        spdlog::info("model: using cached {}", cache);
-        return "1" + ModelBytes(m);
-      }
-      spdlog::warn("model: cached {} is stale: {}; retraining", cache, why);
-    } catch (const InputError& e) {
-      spdlog::warn("model: {}; retraining", e.what());
-    }
-    return "0";
+    const std::optional<TrainedModel> m = CachedModel(p, catalog, force);
+    return m ? "1" + ModelBytes(*m) : "0";
   });
   if (cached[0] == '1') return ModelFromBytes(cached.substr(1), "the cached model from rank 0");
   if (world.Root())
