@@ -22,6 +22,12 @@ usage: scripts/cross_validate.py --graph configs/scannet.json --dataset benchmar
            [--group 'scene(\\d{4})'] [--stage recognise] [--grid g8] [--out runs/cv] [--set TAG.PARAM=VALUE ...]
 On 2 cores, g8 on the 18 ScanNet dev scans takes ~10 min for scannet.json and ~50 min for
 scannet_ensemble.json (5 runs a detection).
+
+Over MPI (python3-mpi4py): `mpirun -n N python3 scripts/cross_validate.py ... [--threads T]` shares
+the grid points and then the folds among the N ranks (each runs its `furnihost eval` as one
+process, with T threads); rank 0 gathers the detections and prints and writes what one process
+does, byte for byte. Without mpi4py, or outside a launcher, it runs as one process. A rank whose
+eval fails stops the run (MPI_Abort) after naming itself and its grid point or fold.
 The AP rules are those of `furnihost eval` (VoteNet's 3D IoU matching; the paper's centre rule);
 tests/scripts/test_cross_validate.py checks them against hand-worked cases.
 """
@@ -189,12 +195,69 @@ def detections_of(folder, stem, ds):
     return out
 
 
+# ---- ranks of an MPI launch ----------------------------------------------------------------------
+LAUNCHER_VARS = ("OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK")
+
+
+def mpi_world():
+    """(comm, rank, size): the MPI world when an MPI launcher started several ranks and mpi4py is
+    installed, else (None, 0, 1). Launched as several ranks without mpi4py, the ranks other than 0
+    exit at once and rank 0 works alone."""
+    if not any(k in os.environ for k in LAUNCHER_VARS):
+        return None, 0, 1
+    try:
+        from mpi4py import MPI
+    except ImportError:
+        rank = int(os.environ.get("OMPI_COMM_WORLD_RANK", os.environ.get("PMI_RANK", os.environ.get("PMIX_RANK", "0"))))
+        if rank != 0:
+            sys.exit(0)
+        print("cross_validate: launched as several ranks, but mpi4py is missing (python3-mpi4py): rank 0 runs alone",
+              file=sys.stderr)
+        return None, 0, 1
+    comm = MPI.COMM_WORLD
+    return (comm, comm.Get_rank(), comm.Get_size()) if comm.Get_size() > 1 else (None, 0, 1)
+
+
+def share(world, jobs, run, describe):
+    """run(job) for every job, the jobs dealt round-robin over the ranks; rank 0 gets every result in
+    job order (the other ranks None). A job that fails stops every rank after naming the rank and
+    the job."""
+    comm, rank, size = world
+    mine = {}
+    for i in range(rank, len(jobs), size):
+        try:
+            mine[i] = run(jobs[i])
+        except (SystemExit, Exception) as e:  # noqa: BLE001 (any failure ends the run)
+            if comm is None:
+                raise
+            print(f"cross_validate: rank {rank} of {size}: {describe(jobs[i])} failed: {e}", file=sys.stderr)
+            sys.stderr.flush()
+            comm.Abort(2)
+    if comm is None:
+        return [mine[i] for i in range(len(jobs))]
+    gathered = comm.gather(mine, root=0)
+    if rank != 0:
+        return None
+    merged = {}
+    for part in gathered:
+        merged.update(part)
+    return [merged[i] for i in range(len(jobs))]
+
+
+def child_env():
+    """The environment of a furnihost child: without the launcher's variables, so that it runs as
+    one process under an MPI rank."""
+    return {k: v for k, v in os.environ.items() if not k.startswith(("OMPI_", "PMIX_", "PMI_"))}
+
+
 def run_eval(args, overrides, dataset, out):
     cmd = [args.furnihost, "eval", "--graph", args.graph, "--dataset", dataset, "--out", out, "-q",
            "--save-detections", "--name", "cv"]
+    if getattr(args, "threads", None):
+        cmd += ["--threads", str(args.threads)]
     for o in list(getattr(args, "set", [])) + list(overrides):
         cmd += ["--set", o]
-    r = subprocess.run(cmd, capture_output=True, text=True)
+    r = subprocess.run(cmd, capture_output=True, text=True, env=child_env())
     if r.returncode != 0:
         sys.stderr.write(r.stderr)
         raise SystemExit("cross_validate: furnihost eval failed: " + " ".join(cmd))
@@ -205,7 +268,8 @@ def run_eval(args, overrides, dataset, out):
 def graph_class_params(args):
     """The graph's own per-class parameters of the recogniser (after extends): the keys a grid point does
     not set keep these values."""
-    r = subprocess.run([args.furnihost, "validate", "--graph", args.graph, "--print"], capture_output=True, text=True)
+    r = subprocess.run([args.furnihost, "validate", "--graph", args.graph, "--print"], capture_output=True, text=True,
+                       env=child_env())
     if r.returncode != 0:
         sys.stderr.write(r.stderr)
         raise SystemExit("cross_validate: furnihost validate failed for " + args.graph)
@@ -233,6 +297,23 @@ def ds_gt(ds, stem):
     return []
 
 
+def run_fold(args, ds, fold):
+    """One held-out group: furnihost eval on its scans with the fold's class parameters; its detections."""
+    base = load(args.dataset)
+    sub = dict(base)
+    sub["scenes"] = [sc for sc in base["scenes"] if os.path.splitext(os.path.basename(sc["scan"]))[0] in fold["test"]]
+    for sc in sub["scenes"]:  # paths relative to the original manifest
+        for k in ("scan", "gt"):
+            sc[k] = os.path.abspath(os.path.join(os.path.dirname(os.path.abspath(args.dataset)), sc[k]))
+    mpath = os.path.join(args.out, f"fold_{fold['group']}.json")
+    os.makedirs(args.out, exist_ok=True)
+    with open(mpath, "w") as f:
+        json.dump(sub, f)
+    folder = run_eval(args, [f"{args.stage}.class_params={json.dumps(fold['class_params'])}"], mpath,
+                      os.path.join(args.out, f"fold_{fold['group']}"))
+    return {s: detections_of(folder, s, ds) for s in fold["test"]}
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--graph", required=True)
@@ -245,7 +326,10 @@ def main():
     ap.add_argument("--min-precision", type=float, default=0.75)
     ap.add_argument("--set", action="append", default=[], metavar="TAG.PARAM=VALUE",
                     help="passed to every furnihost eval (e.g. ensemble.runs=3)")
+    ap.add_argument("--threads", type=int, help="passed to every furnihost eval (under MPI: threads per rank)")
     args = ap.parse_args()
+    world = mpi_world()
+    root = world[1] == 0
 
     ds = Dataset(args.dataset)
     stems = [s for s, _ in ds.scenes]
@@ -268,29 +352,39 @@ def main():
     def with_fixed(choice):
         """class -> grid point, over the graph's own per-class parameters."""
         return {c: {**fixed.get(c, {}), **pt} for c, pt in choice.items()}
-    print(f"cross_validate: {len(points)} grid points x {len(stems)} scans, {len(groups)} groups", file=sys.stderr)
+    if root:
+        print(f"cross_validate: {len(points)} grid points x {len(stems)} scans, {len(groups)} groups"
+              + (f", {world[2]} ranks" if world[2] > 1 else ""), file=sys.stderr)
 
     # 1. every grid point, every class set to it. The grid "none" sets nothing (the graph as it is,
     # whatever its recogniser: any graph, paper.json's Hough voter too) and its folds reuse these
     # detections, their parameters being the same.
     grid_free = not GRIDS[args.grid]
-    per_point = []
-    for i, pt in enumerate(points):
-        cp = with_fixed({c: pt for c in ds.classes})
+
+    def grid_point(i):
+        cp = with_fixed({c: points[i] for c in ds.classes})
         folder = run_eval(args, [] if grid_free else [f"{args.stage}.class_params={json.dumps(cp)}"], args.dataset,
                           os.path.join(args.out, f"grid_{i:03d}"))
-        per_point.append({s: detections_of(folder, s, ds) for s in stems})
         print(f"  grid point {i + 1}/{len(points)}", file=sys.stderr)
+        return {s: detections_of(folder, s, ds) for s in stems}
+    per_point = share(world, list(range(len(points))), grid_point, lambda i: f"grid point {i + 1} of {len(points)}")
+    if not root:
+        # The folds: rank 0 chooses, every rank runs its share (none when they reuse the grid's).
+        if not grid_free:
+            share(world, world[0].bcast(None, root=0), lambda f: run_fold(args, ds, f),
+                  lambda f: f"fold {f['group']}")
+        return
 
     def ap25(i, cls, scenes):
         sc, n = class_figures(ds, per_point[i], scenes, cls)
         return average_precision(sc["iou25"], n)
 
-    # 2. leave one group out: choose per class, run the mixed choice on the held-out group
+    # 2. leave one group out: choose per class (on the other groups), run the mixed choice on the
+    # held-out group
     held = {c: {"iou25": [], "iou50": [], "paper": []} for c in ds.classes}
     npos = defaultdict(int)
     op = {c: [0, 0] for c in ds.classes}  # tp, fp at the training-fold threshold
-    base = load(args.dataset)
+    folds = []
     for g in groups:
         test = [s for s in stems if group[s] == g]
         train = [s for s in stems if group[s] != g]
@@ -302,21 +396,15 @@ def main():
             choice[c] = points[i]
             sc, n = class_figures(ds, per_point[i], train, c)
             thr[c] = operating_threshold(sc["iou25"], n, args.min_precision)
-        sub = dict(base)
-        sub["scenes"] = [sc for sc in base["scenes"] if os.path.splitext(os.path.basename(sc["scan"]))[0] in test]
-        for sc in sub["scenes"]:  # paths relative to the original manifest
-            for k in ("scan", "gt"):
-                sc[k] = os.path.abspath(os.path.join(os.path.dirname(os.path.abspath(args.dataset)), sc[k]))
-        mpath = os.path.join(args.out, f"fold_{g}.json")
-        os.makedirs(args.out, exist_ok=True)
-        with open(mpath, "w") as f:
-            json.dump(sub, f)
-        if grid_free:
-            dets = {s: per_point[0][s] for s in test}
-        else:
-            folder = run_eval(args, [f"{args.stage}.class_params={json.dumps(with_fixed(choice))}"], mpath,
-                              os.path.join(args.out, f"fold_{g}"))
-            dets = {s: detections_of(folder, s, ds) for s in test}
+        folds.append({"group": g, "test": test, "choice": choice, "class_params": with_fixed(choice), "thr": thr})
+    if grid_free:
+        fold_dets = [{s: per_point[0][s] for s in f["test"]} for f in folds]
+    else:
+        if world[0] is not None:
+            world[0].bcast(folds, root=0)
+        fold_dets = share(world, folds, lambda f: run_fold(args, ds, f), lambda f: f"fold {f['group']}")
+    for f, dets in zip(folds, fold_dets):
+        test, thr = f["test"], f["thr"]
         for c in ds.classes:
             sc, n = class_figures(ds, dets, test, c)
             npos[c] += n
@@ -325,7 +413,7 @@ def main():
             for s, t in sc["iou25"]:
                 if s >= thr[c]:
                     op[c][0 if t else 1] += 1
-        print(f"  fold {g}: {json.dumps(choice)}", file=sys.stderr)
+        print(f"  fold {f['group']}: {json.dumps(f['choice'])}", file=sys.stderr)
 
     print("\nleave-one-group-out (held-out detections pooled), AP25 / AP50 / paper-rule AP, P / R at the "
           f"training folds' thresholds (precision >= {args.min_precision}):")

@@ -12,7 +12,14 @@
 //   build/bin/bench_region_growing [--benchmark_filter=...]
 //   build/bin/bench_region_growing --scan=room=room.pcd,paper.json [--scan=...]
 //       [--ours_iterations=3] [--pcl_iterations=1] [--summary_json=FILE] [--max_normal_points=K]
+//       [--peers=mls,omp]
+//   build/bin/bench_region_growing --hash --scan=NAME=FILE[,PRESET] [--scan=...]
 //
+// --hash times nothing: per scan it prints FNV-1a hashes of our normals and curvature, parts
+// and paper24 features (their bytes), so two builds can be shown to give the same results bit
+// for bit on any number of scans (e.g. before and after a speed change).
+// --peers picks the PCL peers of the --scan clouds (default both): MLS takes minutes on
+// clouds of millions of points (benchmarks/speed/dense.py times NormalEstimationOMP alone).
 // PRESET: paper (Sect. III radii, the default without --scan), paper.json (configs/paper.json's
 // segmenter: 8 cm normals; features.paper24 defaults) or scannet (radii for ScanNet spacing).
 //
@@ -47,6 +54,7 @@
 #include <string>
 #include <vector>
 
+#include "furnihost/hash.hpp"
 #include "furnihost/host/io.hpp"
 #include "furnihost/log.hpp"
 #include "furnihost/voxel_index.hpp"
@@ -62,6 +70,8 @@ using furnihost::Scan;
 constexpr int kThreads = 2;
 // --max_normal_points=K: segmenters.region_growing's density switch (-1: its default).
 int g_max_normal_points = -1;
+// --peers: which PCL peers the --scan clouds are timed against.
+bool g_peer_mls = true, g_peer_omp = true;
 constexpr double kPi = 3.14159265358979323846;
 
 // ---- procedural room ---------------------------------------------------------------------
@@ -425,9 +435,9 @@ constexpr Getter kFileGetters[kMaxFiles] = {GetFile<0>, GetFile<1>, GetFile<2>, 
                                             GetFile<4>, GetFile<5>, GetFile<6>, GetFile<7>};
 
 void PrintSummary() {
-  std::printf("\n%-16s %8s | %8s %8s %8s %8s %8s %6s | %8s %8s %8s %6s | %8s %8s %8s %6s | %6s %6s %6s\n", "data",
+  std::printf("\n%-16s %8s | %8s %8s %8s %8s %8s %6s | %8s %8s %8s %6s | %8s %8s %8s %6s | %6s %6s %6s %6s\n", "data",
               "points", "normals", "growing", "features", "ours", "cpu", "parts", "MLS", "RG", "MLS+RG", "parts",
-              "OMP", "RG", "OMP+RG", "parts", "x MLS", "x OMP", "cpu x");
+              "OMP", "RG", "OMP+RG", "parts", "x MLS", "x OMP", "cpu x", "cpu x");
   auto dash = [](int n) { for (int i = 0; i < n; ++i) std::printf(" %8s", "-"); };
   for (const auto& [key, r] : g_rows) {
     std::printf("%-16s %8zu |", key.c_str(), r.points);
@@ -449,11 +459,12 @@ void PrintSummary() {
     ratio(r.mls, r.mls.total, r.ours.total);
     ratio(r.omp, r.omp.total, r.ours.total);
     ratio(r.mls, r.mls.cpu, r.ours.cpu);
+    ratio(r.omp, r.omp.cpu, r.ours.cpu);
     std::printf("\n");
   }
   std::printf("ms of the fastest timed run, wall clock unless 'cpu' (process CPU time, all threads); ours = normals + growing +\n"
               "paper24 features; PCL = normals (MovingLeastSquares order 2 | NormalEstimationOMP) +\n"
-              "RegionGrowing; %d threads; 'x' = PCL / ours (wall; 'cpu x' for MLS+RG)\n", kThreads);
+              "RegionGrowing; %d threads; 'x' = PCL / ours (wall; 'cpu x': CPU time of MLS+RG, OMP+RG)\n", kThreads);
 }
 
 void WriteSummaryJson(const std::string& path) {
@@ -494,12 +505,37 @@ bool ParseScan(const std::string& v) {
       return false;
     }
   }
-  if (g_files.size() == kMaxFiles) {
-    std::fprintf(stderr, "--scan: at most %zu scans\n", kMaxFiles);
-    return false;
-  }
   g_files.push_back(f);
   return true;
+}
+
+// --hash: our normals + curvature, parts and features of every --scan, as FNV-1a hashes.
+int PrintHashes() {
+  for (const FileScan& f : g_files) {
+    const Scan scan = furnihost::ReadScan(f.path);
+    furnihost::rg::RegionGrowingOptions o;
+    o.normal_radius_m = f.params.normal_radius;
+    o.distance_m = f.params.distance;
+    if (g_max_normal_points >= 0) o.max_normal_points = g_max_normal_points;
+    furnihost::parts::PartFeatureOptions fo;
+    fo.boundary_radius_m = f.params.boundary_radius;
+    fo.voxel_m = f.params.voxel;
+    const auto seg = furnihost::rg::Segment(scan, o);
+    const auto feat = furnihost::parts::ComputePaper24(scan, seg, fo);
+    uint64_t hn = furnihost::Fnv1a(seg.normals.data(), seg.normals.size() * sizeof(seg.normals[0]));
+    hn = furnihost::Fnv1a(seg.curvature.data(), seg.curvature.size() * sizeof(float), hn);
+    uint64_t hp = furnihost::kFnvOffset;
+    for (const auto& part : seg.parts) {
+      hp = furnihost::Fnv1a(part.indices.data(), part.indices.size() * sizeof(int), hp);
+      hp = furnihost::Fnv1a(part.centroid.data(), sizeof(float) * 3, hp);
+    }
+    const uint64_t hf = furnihost::Fnv1a(feat.values.data(), size_t(feat.values.size()) * sizeof(float));
+    std::printf("%s %zu points: normals %016llx parts %016llx (%zu) features %016llx\n", f.name.c_str(),
+                scan.points.size(), (unsigned long long)hn, (unsigned long long)hp, seg.parts.size(),
+                (unsigned long long)hf);
+    std::fflush(stdout);
+  }
+  return 0;
 }
 
 }  // namespace
@@ -507,6 +543,7 @@ bool ParseScan(const std::string& v) {
 int main(int argc, char** argv) {
   // Our flags first; the rest goes to Google Benchmark.
   std::string summary_json;
+  bool hash = false;
   int ours_iterations = 0, pcl_iterations = 0;  // 0: the built-in defaults
   std::vector<char*> rest{argv[0]};
   for (int a = 1; a < argc; ++a) {
@@ -517,6 +554,8 @@ int main(int argc, char** argv) {
     };
     if (const char* v = value("--scan=")) {
       if (!ParseScan(v)) return 2;
+    } else if (arg == "--hash") {
+      hash = true;
     } else if (const char* v = value("--summary_json=")) {
       summary_json = v;
     } else if (const char* v = value("--ours_iterations=")) {
@@ -525,6 +564,14 @@ int main(int argc, char** argv) {
       pcl_iterations = std::max(1, std::atoi(v));
     } else if (const char* v = value("--max_normal_points=")) {
       g_max_normal_points = std::max(0, std::atoi(v));
+    } else if (const char* v = value("--peers=")) {
+      const std::string list = std::string(",") + v + ",";
+      g_peer_mls = list.find(",mls,") != std::string::npos;
+      g_peer_omp = list.find(",omp,") != std::string::npos;
+      if (list != ",," && !g_peer_mls && !g_peer_omp) {
+        std::fprintf(stderr, "--peers=%s: expected a comma-separated list of mls, omp\n", v);
+        return 2;
+      }
     } else {
       rest.push_back(argv[a]);
     }
@@ -534,6 +581,11 @@ int main(int argc, char** argv) {
 
   tbb::global_control threads(tbb::global_control::max_allowed_parallelism, kThreads);
   spdlog::set_level(spdlog::level::warn);
+  if (hash) return PrintHashes();
+  if (g_files.size() > kMaxFiles) {
+    std::fprintf(stderr, "--scan: at most %zu scans (without --hash)\n", kMaxFiles);
+    return 2;
+  }
   using benchmark::RegisterBenchmark;
   const auto ms = benchmark::kMillisecond;
   auto ours = [&](const std::string& name, const std::string& key, Getter get, Params p, int iterations) {
@@ -542,10 +594,12 @@ int main(int argc, char** argv) {
   };
   auto pcl = [&](const std::string& name, const std::string& key, Getter get, Params p, int iterations) {
     const int n = pcl_iterations ? pcl_iterations : iterations;
-    RegisterBenchmark(("pcl_mls_rg/" + name).c_str(), BM_Pcl, key, get, p, PclNormals::kMls)
-        ->Unit(ms)->Iterations(n)->UseRealTime();
-    RegisterBenchmark(("pcl_omp_rg/" + name).c_str(), BM_Pcl, key, get, p, PclNormals::kOmp)
-        ->Unit(ms)->Iterations(n)->UseRealTime();
+    if (g_peer_mls)
+      RegisterBenchmark(("pcl_mls_rg/" + name).c_str(), BM_Pcl, key, get, p, PclNormals::kMls)
+          ->Unit(ms)->Iterations(n)->UseRealTime();
+    if (g_peer_omp)
+      RegisterBenchmark(("pcl_omp_rg/" + name).c_str(), BM_Pcl, key, get, p, PclNormals::kOmp)
+          ->Unit(ms)->Iterations(n)->UseRealTime();
   };
   if (!g_files.empty()) {
     for (size_t i = 0; i < g_files.size(); ++i) {

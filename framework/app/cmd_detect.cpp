@@ -10,6 +10,7 @@
 
 #include "cancel_on_unwind.hpp"
 #include "cli_common.hpp"
+#include "mpi_train.hpp"
 #include "commands.hpp"
 #include "furnihost/host/catalog.hpp"
 #include "furnihost/geometry.hpp"
@@ -212,8 +213,12 @@ int RunTrain(const std::vector<std::string>& args) {
   if (g.model_cache.empty()) throw InputError(graph + ":/model_cache: missing (or pass --out)");
   Catalog catalog = LoadCatalog(g.catalog, strict);
   Pipeline p(g, *reg);
-  TrainedModel m = EnsureModel(p, catalog, common.Context(g.seed), true);
-  std::cout << "trained " << g.model_cache << ": " << m.summary.dump() << "\n";
+  // Under mpirun the ranks share the catalog's models; rank 0 writes the model.
+  const World& world = World::Get();
+  TrainedModel m = EnsureModelShared(world, p, catalog, common.Context(g.seed), true);
+  if (world.Root())
+    std::cout << "trained " << g.model_cache << ": " << m.summary.dump() << ", time per step [ms] "
+              << m.timings_ms.dump() << "\n";
   return 0;
 }
 

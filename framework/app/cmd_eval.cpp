@@ -34,8 +34,11 @@
 #include "furnihost/host/io.hpp"
 #include "furnihost/log.hpp"
 #include "furnihost/host/pipeline.hpp"
+#include "mpi_jobs.hpp"
+#include "mpi_train.hpp"
 #include "plots.hpp"
 #include "report.hpp"
+#include "wire.hpp"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -147,6 +150,7 @@ struct RunInput {
   std::string detections_dir;  // when set: each scene's detections as <dir>/<config>/<seed>/<scene>.json
   std::vector<std::string> scene_files;  // <scene>: each scan's stem, made safe and distinct
   double jitter_m = 0;  // --jitter: noise added to each scene's points, drawn from the seed and the scan's path
+  const World* world = nullptr;  // several ranks: the scenes are shared among them (mpi_jobs.hpp)
 };
 
 // Ground-truth boxes (file frame) in a scan's z-up frame: centres mapped, sizes the extents
@@ -164,65 +168,160 @@ std::vector<GroundTruthObject> ToUpright(std::vector<GroundTruthObject> truth, c
   return truth;
 }
 
+// What the evaluation keeps of one scene's detection: the detections (in the scan's z-up
+// frame), whether a fitter ran and a voter voted, its record, the voter's centres before a
+// fitter moved them, the ground truth in the z-up frame when the file's frame differs, and with
+// --save-detections its frame, pose and ground (no points), so that its detections are written
+// in the file's frame like detect's detections.json.
+struct SceneOutcome {
+  Pipeline::Result result;
+  SceneRecord record;
+  std::vector<Eigen::Vector3f> voter_centres;
+  std::optional<std::vector<GroundTruthObject>> truth_working;
+  std::optional<Scan> frame;
+};
+
+SceneOutcome RunScene(Pipeline& p, const Loaded& cfg, const RunContext& ctx, const RunInput& in, size_t i) {
+  const auto& scene = in.dataset->scenes[i];
+  Pipeline::SceneInput si;
+  si.path = scene.scan;
+  si.origin = scene.origin;
+  si.origin_name = in.dataset->path + ":/scenes/" + std::to_string(i) + "/origin";
+  si.frame = scene.frame;
+  si.jitter_m = float(in.jitter_m);
+  si.jitter_seed = SplitMix64(ctx.seed) ^ Fnv1a(scene.scan);
+  Stopwatch sw;
+  Pipeline::Result r;
+  // Name the scene: the stage's message alone does not say which of many scans failed.
+  try {
+    r = p.Detect({si}, cfg.model ? &*cfg.model : nullptr, cfg.catalog ? &*cfg.catalog : nullptr, ctx);
+  } catch (const InputError& e) {
+    throw InputError(scene.scan + ": " + e.what());
+  } catch (const StageError& e) {
+    throw StageError(scene.scan + ": " + e.what(), e.IsInputError());
+  }
+  SceneOutcome o;
+  o.record.scan = scene.scan;
+  o.record.total_ms = sw.Ms();
+  o.record.detections = static_cast<int>(r.detections.size());
+  o.record.timings_ms = r.timings_ms;
+  // Keep only what the evaluation needs: scans and features of every scene would add up.
+  // Compared in the scan's z-up frame: the detections from the working frame, the ground
+  // truth from the file's.
+  for (const auto& h : r.votes.hypotheses) o.voter_centres.push_back(r.world_to_user * h.center);
+  for (auto& d : r.detections) d = TransformDetection(d, r.world_to_user);
+  if (!r.scans.empty()) {
+    const ScanFrame& fr = r.scans.front().frame;
+    if (!fr.shift.isZero() || !fr.to_upright.matrix().isIdentity()) o.truth_working = ToUpright((*in.truth)[i], fr);
+  }
+  if (!in.detections_dir.empty() && !r.scans.empty()) {
+    Scan& f = o.frame.emplace();
+    f.frame = r.scans.front().frame;
+    f.pose = r.world_to_user * r.scans.front().pose;  // the detections are in the z-up frame now
+    f.ground = r.scans.front().ground;
+  }
+  o.result.detections = std::move(r.detections);
+  o.result.fitted = r.fitted;
+  o.result.voted = r.voted;
+  return o;
+}
+
+// A scene's outcome as bytes (a rank's job in a shared eval), and back.
+std::string EncodeScene(const SceneOutcome& o) {
+  wire::Writer w;
+  wire::Put(w, o.result.detections);
+  w.Pod(o.result.fitted);
+  w.Pod(o.result.voted);
+  w.Pod(o.record.total_ms);
+  w.Pod(o.record.detections);
+  w.Pod(uint64_t(o.record.timings_ms.size()));
+  for (const auto& [tag, ms] : o.record.timings_ms) w.Str(tag), w.Pod(ms);
+  w.Pod(uint64_t(o.voter_centres.size()));
+  for (const auto& c : o.voter_centres) w.Pod(c.x()), w.Pod(c.y()), w.Pod(c.z());
+  w.Pod(uint8_t(o.truth_working.has_value()));
+  if (o.truth_working) {
+    w.Pod(uint64_t(o.truth_working->size()));
+    for (const auto& g : *o.truth_working) wire::Put(w, g);
+  }
+  w.Pod(uint8_t(o.frame.has_value()));
+  if (o.frame) wire::Put(w, *o.frame);
+  return w.Take();
+}
+
+SceneOutcome DecodeScene(const std::string& bytes, const std::string& scan) {
+  wire::Reader in(bytes, "the outcome of " + scan);
+  SceneOutcome o;
+  o.result.detections = wire::GetDetections(in);
+  o.result.fitted = in.Pod<bool>();
+  o.result.voted = in.Pod<bool>();
+  o.record.scan = scan;
+  o.record.total_ms = in.Pod<double>();
+  o.record.detections = in.Pod<int>();
+  for (uint64_t k = 0, m = in.Count(sizeof(uint64_t)); k < m; ++k) {
+    std::string tag = in.Str();
+    o.record.timings_ms.emplace_back(std::move(tag), in.Pod<double>());
+  }
+  o.voter_centres.resize(in.Count(3 * sizeof(float)));
+  for (auto& c : o.voter_centres) {
+    const float x = in.Pod<float>(), y = in.Pod<float>(), z = in.Pod<float>();
+    c = Eigen::Vector3f(x, y, z);
+  }
+  if (in.Pod<uint8_t>()) {
+    o.truth_working.emplace(in.Count(sizeof(uint64_t)));
+    for (auto& g : *o.truth_working) g = wire::GetGroundTruthObject(in);
+  }
+  if (in.Pod<uint8_t>()) o.frame = wire::GetScan(in);
+  in.End();
+  return o;
+}
+
+// The figures of one run from its scenes' outcomes (run by this process or gathered from the
+// ranks): the evaluation, the records, and with --save-detections each scene's detections.
+RunFigures Figures(const Loaded& cfg, const RunContext& ctx, const RunInput& in, double wall_ms, int jobs, bool reset_ok,
+                   std::vector<SceneOutcome>& outcomes) {
+  const auto& scenes = in.dataset->scenes;
+  const size_t n = scenes.size();
+  RunFigures f;
+  f.seed = ctx.seed;
+  f.wall_ms = wall_ms;
+  f.jobs = jobs;
+  std::vector<SceneEval> evals(n);
+  for (size_t i = 0; i < n; ++i) {
+    SceneOutcome& o = outcomes[i];
+    evals[i].detections = std::move(o.result.detections);
+    evals[i].truth = o.truth_working ? *o.truth_working : (*in.truth)[i];
+    evals[i].fitted = o.result.fitted;
+    evals[i].name = fs::path(scenes[i].scan).stem().string();
+    evals[i].voter_centres = std::move(o.voter_centres);
+    for (const auto& [tag, ms] : o.record.timings_ms) {
+      auto it = std::find_if(f.stage_ms.begin(), f.stage_ms.end(), [&](const auto& t) { return t.first == tag; });
+      if (it == f.stage_ms.end()) f.stage_ms.emplace_back(tag, ms);
+      else it->second += ms;
+    }
+    f.scenes.push_back(std::move(o.record));
+  }
+  if (!in.detections_dir.empty())
+    for (size_t i = 0; i < n; ++i) {
+      json j = {{"scan", scenes[i].scan}, {"seed", ctx.seed}, {"detections", json::array()}};
+      const Scan* frame = outcomes[i].frame ? &*outcomes[i].frame : nullptr;
+      for (const auto& d : evals[i].detections) j["detections"].push_back(DetectionToJson(d, frame));
+      WriteJson((fs::path(in.detections_dir) / cfg.file / std::to_string(ctx.seed) / (in.scene_files[i] + ".json")).string(), j);
+    }
+  f.metrics = Evaluate(evals, in.dataset->classes, in.width);
+  f.peak_rss_mb = PeakRssMb(reset_ok);
+  return f;
+}
+
 RunFigures RunOne(Loaded& cfg, const Registry& reg, const RunContext& ctx, const RunInput& in) {
   const auto& scenes = in.dataset->scenes;
   const size_t n = scenes.size();
   const bool reset_ok = ResetPeakRss();
-  std::vector<Pipeline::Result> results(n);
-  std::vector<SceneRecord> records(n);
-  std::vector<std::vector<Eigen::Vector3f>> voter_centres(n);  // before a fitter moved them
-  std::vector<std::optional<std::vector<GroundTruthObject>>> truth_working(n);
-  // With --save-detections: each scene's frame, pose and ground (no points), so its detections
-  // are written in the file's frame like detect's detections.json.
-  std::vector<std::optional<Scan>> frame_of(n);
+  std::vector<SceneOutcome> outcomes(n);
   std::vector<std::unique_ptr<Pipeline>> pipelines;
   pipelines.push_back(std::make_unique<Pipeline>(cfg.graph, reg));
   Progress progress("eval " + cfg.name + " seed " + std::to_string(ctx.seed), n);
-  const TrainedModel* model = cfg.model ? &*cfg.model : nullptr;
-  const Catalog* catalog = cfg.catalog ? &*cfg.catalog : nullptr;
-
   auto run_scene = [&](Pipeline& p, size_t i) {
-    Pipeline::SceneInput si;
-    si.path = scenes[i].scan;
-    si.origin = scenes[i].origin;
-    si.origin_name = in.dataset->path + ":/scenes/" + std::to_string(i) + "/origin";
-    si.frame = scenes[i].frame;
-    si.jitter_m = float(in.jitter_m);
-    si.jitter_seed = SplitMix64(ctx.seed) ^ Fnv1a(scenes[i].scan);
-    Stopwatch sw;
-    Pipeline::Result r;
-    // Name the scene: the stage's message alone does not say which of many scans failed.
-    try {
-      r = p.Detect({si}, model, catalog, ctx);
-    } catch (const InputError& e) {
-      throw InputError(scenes[i].scan + ": " + e.what());
-    } catch (const StageError& e) {
-      throw StageError(scenes[i].scan + ": " + e.what(), e.IsInputError());
-    }
-    records[i].scan = scenes[i].scan;
-    records[i].total_ms = sw.Ms();
-    records[i].detections = static_cast<int>(r.detections.size());
-    records[i].timings_ms = r.timings_ms;
-    // Keep only what the evaluation needs: scans and features of every scene would add up.
-    // Compared in the scan's z-up frame: the detections from the working frame, the ground
-    // truth from the file's.
-    for (const auto& h : r.votes.hypotheses) voter_centres[i].push_back(r.world_to_user * h.center);
-    for (auto& d : r.detections) d = TransformDetection(d, r.world_to_user);
-    if (!r.scans.empty()) {
-      const ScanFrame& fr = r.scans.front().frame;
-      if (!fr.shift.isZero() || !fr.to_upright.matrix().isIdentity()) truth_working[i] = ToUpright((*in.truth)[i], fr);
-    }
-    if (!in.detections_dir.empty() && !r.scans.empty()) {
-      Scan& f = frame_of[i].emplace();
-      f.frame = r.scans.front().frame;
-      f.pose = r.world_to_user * r.scans.front().pose;  // the detections are in the z-up frame now
-      f.ground = r.scans.front().ground;
-    }
-    Pipeline::Result keep;
-    keep.detections = std::move(r.detections);
-    keep.fitted = r.fitted;
-    keep.voted = r.voted;
-    results[i] = std::move(keep);
+    outcomes[i] = RunScene(p, cfg, ctx, in, i);
     progress.Tick();
   };
 
@@ -268,34 +367,58 @@ RunFigures RunOne(Loaded& cfg, const Registry& reg, const RunContext& ctx, const
   }
   progress.Done();
 
-  RunFigures f;
-  f.seed = ctx.seed;
-  f.wall_ms = wall.Ms();
-  f.jobs = jobs;
-  std::vector<SceneEval> evals(n);
-  for (size_t i = 0; i < n; ++i) {
-    evals[i].detections = std::move(results[i].detections);
-    evals[i].truth = truth_working[i] ? *truth_working[i] : (*in.truth)[i];
-    evals[i].fitted = results[i].fitted;
-    evals[i].name = fs::path(scenes[i].scan).stem().string();
-    evals[i].voter_centres = std::move(voter_centres[i]);
-    for (const auto& [tag, ms] : records[i].timings_ms) {
-      auto it = std::find_if(f.stage_ms.begin(), f.stage_ms.end(), [&](const auto& t) { return t.first == tag; });
-      if (it == f.stage_ms.end()) f.stage_ms.emplace_back(tag, ms);
-      else it->second += ms;
-    }
+  return Figures(cfg, ctx, in, wall.Ms(), jobs, reset_ok, outcomes);
+}
+
+
+// RunOne of every seed over the ranks of an MPI launch: the (seed, scene) jobs shared among them
+// (ShareJobs, one at a time on each rank), rank 0 gathering each outcome, bit for bit what it
+// would have computed itself. On rank 0 the figures of each seed, on the other ranks none.
+std::vector<RunFigures> RunShared(Loaded& cfg, const Registry& reg, const std::vector<RunContext>& seeds,
+                                  const RunInput& in) {
+  const auto& scenes = in.dataset->scenes;
+  const size_t n = scenes.size();
+  const bool reset_ok = ResetPeakRss();
+  Pipeline p(cfg.graph, reg);
+  Progress progress("eval " + cfg.name + " (rank " + std::to_string(in.world->Rank()) + ")", seeds.size() * n);
+  Stopwatch wall;
+  const std::vector<std::string> got = ShareJobs(
+      *in.world, seeds.size() * n,
+      [&](size_t job) {
+        const std::string bytes = EncodeScene(RunScene(p, cfg, seeds[job / n], in, job % n));
+        progress.Tick();
+        return bytes;
+      },
+      [&](size_t job) {
+        return "scene " + scenes[job % n].scan + ", seed " + std::to_string(seeds[job / n].seed) + ", config " + cfg.name;
+      });
+  progress.Done();
+  std::vector<RunFigures> figures;
+  if (!in.world->Root()) return figures;  // rank 0 evaluates and writes
+  const double wall_ms = wall.Ms();
+  for (size_t k = 0; k < seeds.size(); ++k) {
+    std::vector<SceneOutcome> outcomes;
+    for (size_t i = 0; i < n; ++i) outcomes.push_back(DecodeScene(got[k * n + i], scenes[i].scan));
+    // The wall clock of all seeds together: the ranks ran them interleaved.
+    figures.push_back(Figures(cfg, seeds[k], in, wall_ms, in.world->Size(), reset_ok, outcomes));
   }
-  f.scenes = std::move(records);
-  if (!in.detections_dir.empty())
-    for (size_t i = 0; i < n; ++i) {
-      json j = {{"scan", scenes[i].scan}, {"seed", ctx.seed}, {"detections", json::array()}};
-      const Scan* frame = frame_of[i] ? &*frame_of[i] : nullptr;
-      for (const auto& d : evals[i].detections) j["detections"].push_back(DetectionToJson(d, frame));
-      WriteJson((fs::path(in.detections_dir) / cfg.file / std::to_string(ctx.seed) / (in.scene_files[i] + ".json")).string(), j);
-    }
-  f.metrics = Evaluate(evals, in.dataset->classes, in.width);
-  f.peak_rss_mb = PeakRssMb(reset_ok);
-  return f;
+  return figures;
+}
+
+// --reproducible: removes what the run measured of itself from a summary or run record (per
+// run: stage, wall and model times, peak memory, workers, the model's source; per scene: its
+// times; the host and the creation time), recursively: what is left depends on the inputs only.
+void Unmeasured(json& j) {
+  if (j.is_array()) {
+    for (auto& e : j) Unmeasured(e);
+    return;
+  }
+  if (!j.is_object()) return;
+  for (const char* key : {"stage_ms", "wall_ms", "model_ms", "model_source", "peak_rss_mb", "jobs", "total_ms",
+                          "timings_ms", "machine", "created_utc"})
+    j.erase(key);
+  for (auto it = j.begin(); it != j.end(); ++it)
+    if (it.key() != "config") Unmeasured(it.value());  // a graph's own parameters are inputs
 }
 
 std::vector<std::string> Names(const std::vector<std::string>& graphs, const std::vector<std::string>& given) {
@@ -382,7 +505,7 @@ int RunEval(const std::vector<std::string>& args) {
   std::string dataset_path, out = "furnihost-out/eval", width_text = "max";
   int seeds = 1, jobs = 0;
   double jitter = 0;
-  bool retrain = false, strict = false, save_detections = false;
+  bool retrain = false, strict = false, save_detections = false, reproducible = false;
   common.Add(app);
   app.add_option("--graph,-g", graphs, "graph config (repeat: the first is the baseline A)")->required();
   app.add_option("--name", names, "label per graph, in --graph order (default: the file stem)");
@@ -407,6 +530,10 @@ int RunEval(const std::vector<std::string>& args) {
                "also write every scene's detections (in its file's frame) to OUT/detections/<config>/<seed>/<scan "
                "stem>.json (for cross-validation scripts)");
   app.add_flag("--strict", strict, "invalid catalog entries are fatal instead of skipped");
+  app.add_flag("--reproducible", reproducible,
+               "leave the run's own measurements out of summary.json, report.md and run_<name>.json (times, memory, "
+               "workers, whether the model came from its cache, host, creation time): two runs of the same inputs then "
+               "write those files byte for byte the same, whatever --jobs, --threads or the number of MPI ranks");
   if (auto rc = Parse(app, args)) return *rc;
   common.Apply();
   const WidthConvention width = *ParseWidthConvention(width_text);
@@ -429,6 +556,8 @@ int RunEval(const std::vector<std::string>& args) {
 
   const json git = GitInfo(graphs.front());
   const json machine = MachineInfo();
+  // Under mpirun the ranks share the scenes and the training.
+  const World& world = World::Get();
   const json dataset_json = {{"path", dataset_path},
                              {"hash", hash},
                              {"scenes", dataset.scenes.size()},
@@ -441,7 +570,7 @@ int RunEval(const std::vector<std::string>& args) {
   std::vector<std::string> scene_stems;
   for (const auto& s : dataset.scenes) scene_stems.push_back(fs::path(s.scan).stem().string());
   const RunInput run_in{&dataset, &truth, width, jobs, save_detections ? (fs::path(out) / "detections").string() : "",
-                        UniqueSafeNames(scene_stems), jitter};
+                        UniqueSafeNames(scene_stems), jitter, &world};
   std::vector<ConfigSummary> summaries;
   for (auto& cfg : configs) {
     ConfigSummary summary;
@@ -466,8 +595,9 @@ int RunEval(const std::vector<std::string>& args) {
         if (!cache.empty() && fs::exists(cache)) before = fs::last_write_time(cache);
         RunContext c = train_ctx;
         c.seed = cfg.graph.seed;  // the model is the graph's, whatever --seed says
-        cfg.model = EnsureModel(p, *cfg.catalog, c, retrain);
-        model_source = before && fs::exists(cache) && fs::last_write_time(cache) == *before ? "cache" : "trained";
+        cfg.model = EnsureModelShared(world, p, *cfg.catalog, c, retrain);
+        if (world.Root())
+          model_source = before && fs::exists(cache) && fs::last_write_time(cache) == *before ? "cache" : "trained";
       } else {
         std::string m;
         for (const auto& s : p.MissingStages()) m += (m.empty() ? "" : ", ") + s;
@@ -476,15 +606,28 @@ int RunEval(const std::vector<std::string>& args) {
     }
     const double model_ms = model_clock.Ms();
     const uint64_t seed0 = train_ctx.seed;
+    std::vector<RunContext> contexts;
     for (int k = 0; k < seeds; ++k) {
       RunContext ctx = train_ctx;
       ctx.seed = seed0 + static_cast<uint64_t>(k);
-      RunFigures f = RunOne(cfg, *reg, ctx, run_in);
+      contexts.push_back(ctx);
+    }
+    std::vector<RunFigures> runs;
+    if (world.Shared())
+      runs = RunShared(cfg, *reg, contexts, run_in);  // rank 0 gets the figures
+    else
+      for (const RunContext& ctx : contexts) runs.push_back(RunOne(cfg, *reg, ctx, run_in));
+    for (RunFigures& f : runs) {
       f.model_ms = model_ms;  // paid once per config; the same in every seed's figures
       f.model_source = model_source;
-      spdlog::info("eval {} seed {}: mAP {:.3f}, {} detections, {:.1f} s, peak {:.0f} MB", cfg.name, ctx.seed,
+      spdlog::info("eval {} seed {}: mAP {:.3f}, {} detections, {:.1f} s, peak {:.0f} MB", cfg.name, f.seed,
                    f.metrics.map, f.metrics.hypotheses.tp + f.metrics.hypotheses.fp, f.wall_ms / 1000, f.peak_rss_mb);
       summary.runs.push_back(std::move(f));
+    }
+    if (!world.Root()) {
+      cfg.model.reset();
+      cfg.catalog.reset();
+      continue;
     }
     // The run record: enough to reproduce this config's figures and compare with a later run.
     json plugins = json::array();
@@ -494,29 +637,31 @@ int RunEval(const std::vector<std::string>& args) {
     }
     json seeds_json = json::array();
     for (const auto& r : summary.runs) seeds_json.push_back(r.seed);
-    const json record = {{"format", "furnihost-run-record"},
-                         {"format_version", 1},
-                         {"furnihost_version", FURNIHOST_APP_VERSION},
-                         {"created_utc", UtcNow()},
-                         {"name", cfg.name},
-                         {"graph", cfg.graph.path},
-                         {"config", cfg.graph.resolved},
-                         {"plugins", plugins},
-                         {"git", git},
-                         {"seed", summary.runs.front().seed},
-                         {"seeds", seeds_json},
-                         {"model_seed", cfg.graph.seed},
-                         {"jitter_m", jitter},
-                         {"width_convention", ToString(width)},
-                         {"dataset", dataset_json},
-                         {"machine", machine},
-                         {"figures", ToJson(summary)}};
+    json record = {{"format", "furnihost-run-record"},
+                   {"format_version", 1},
+                   {"furnihost_version", FURNIHOST_APP_VERSION},
+                   {"created_utc", UtcNow()},
+                   {"name", cfg.name},
+                   {"graph", cfg.graph.path},
+                   {"config", cfg.graph.resolved},
+                   {"plugins", plugins},
+                   {"git", git},
+                   {"seed", summary.runs.front().seed},
+                   {"seeds", seeds_json},
+                   {"model_seed", cfg.graph.seed},
+                   {"jitter_m", jitter},
+                   {"width_convention", ToString(width)},
+                   {"dataset", dataset_json},
+                   {"machine", machine},
+                   {"figures", ToJson(summary)}};
+    if (reproducible) Unmeasured(record);
     WriteJson((fs::path(out) / ("run_" + cfg.file + ".json")).string(), record);
     summaries.push_back(std::move(summary));
     cfg.model.reset();  // free the model before the next config
     cfg.catalog.reset();
   }
 
+  if (!world.Root()) return 0;
   const std::vector<std::string> plots = WritePlots(out, summaries, dataset.classes.classes);
   ReportInfo info;
   info.dataset = dataset_path;
@@ -529,8 +674,10 @@ int RunEval(const std::vector<std::string>& args) {
     info.notes.push_back("scans jittered: Gaussian noise of " + Mm(jitter) +
                          " on every coordinate, drawn anew for each seed (--jitter)");
   info.notes.push_back("git " + git["revision"].get<std::string>() + (git["dirty"] == true ? " (uncommitted changes)" : "") +
-                       "; machine: " + machine.value("cpu", std::string("?")) + ", " +
-                       std::to_string(machine["nproc"].get<unsigned>()) + " threads");
+                       (reproducible ? std::string()
+                                     : "; machine: " + machine.value("cpu", std::string("?")) + ", " +
+                                           std::to_string(machine["nproc"].get<unsigned>()) + " threads"));
+  info.measurements = !reproducible;
   const std::string report = RenderReport(summaries, info);
   json configs_json = json::array();
   for (size_t i = 0; i < summaries.size(); ++i) {
@@ -538,15 +685,17 @@ int RunEval(const std::vector<std::string>& args) {
     c["run_record"] = "run_" + configs[i].file + ".json";
     configs_json.push_back(c);
   }
-  WriteJson((fs::path(out) / "summary.json").string(),
-            {{"dataset", dataset_json},
-             {"width_convention", ToString(width)},
-             {"matching", "TP: mapped classes equal and floor-plane (x, y) centre distance < " + std::string(ToString(width)) +
-                              "(gt size x, y) / 2; greedy by descending score, each gt object matched at most once"},
-             {"average_precision", "all-point interpolated (VOC 2010+)"},
-             {"git", git},
-             {"machine", machine},
-             {"configs", configs_json}});
+  json summary_json = {{"dataset", dataset_json},
+                       {"width_convention", ToString(width)},
+                       {"matching", "TP: mapped classes equal and floor-plane (x, y) centre distance < " +
+                                        std::string(ToString(width)) +
+                                        "(gt size x, y) / 2; greedy by descending score, each gt object matched at most once"},
+                       {"average_precision", "all-point interpolated (VOC 2010+)"},
+                       {"git", git},
+                       {"machine", machine},
+                       {"configs", configs_json}};
+  if (reproducible) Unmeasured(summary_json);
+  WriteJson((fs::path(out) / "summary.json").string(), summary_json);
   AtomicWriteText((fs::path(out) / "report.md").string(), report);
   std::cout << report;
   std::cout << "-> " << (fs::path(out) / "report.md").string() << ", summary.json, pr_<class>.svg/.png, run_<name>.json\n";
@@ -596,7 +745,7 @@ int RunCompare(const std::vector<std::string>& args) {
     info.notes.push_back(std::string(i == 0 ? "A" : "B") + ": git " +
                          (g.is_object() ? g.value("revision", "unknown") : "unknown") + ", created " +
                          records[i].value("created_utc", "?") + ", machine " +
-                         records[i]["machine"].value("cpu", std::string("?")));
+                         records[i].value("machine", json::object()).value("cpu", std::string("?")));
   }
   const std::string report = RenderReport(configs, info);
   std::cout << report;

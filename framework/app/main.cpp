@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "commands.hpp"
+#include "mpi_world.hpp"
 #include "furnihost/error.hpp"
 #include "furnihost/log.hpp"
 
@@ -66,6 +67,10 @@ int main(int argc, char** argv) {
   mallopt(M_MMAP_THRESHOLD, 32 << 20);
   mallopt(M_TRIM_THRESHOLD, 64 << 20);
   furnihost::SetupLogging(1);
+  // Every rank of an MPI run ends its world before exiting, whatever the path out of main.
+  struct CloseWorld {
+    ~CloseWorld() { app::World::Close(); }
+  } close_world;
   std::vector<std::string> args(argv + 1, argv + argc);
   const std::map<std::string, int (*)(const std::vector<std::string>&)> commands = {
       {"detect", app::RunDetect},     {"train", app::RunTrain},       {"simulate", app::RunSimulate},
@@ -81,6 +86,10 @@ int main(int argc, char** argv) {
       return 0;
     }
     auto it = commands.find(args[0]);
+    // eval and train share their work among the ranks of an MPI launch (mpi_jobs.hpp); the
+    // other commands run on rank 0 alone.
+    const std::string command = it != commands.end() ? args[0] : "detect";
+    if (command != "eval" && command != "train" && !app::RunsOnThisRank(command)) return 0;
     if (it != commands.end()) return it->second(std::vector<std::string>(args.begin() + 1, args.end()));
     if (args[0].rfind("-", 0) != 0 && args[0].find('.') == std::string::npos && args[0].find('/') == std::string::npos) {
       std::cerr << "furnihost: error: unknown command '" << args[0]
@@ -88,6 +97,8 @@ int main(int argc, char** argv) {
       return 2;
     }
     return app::RunDetect(args);
+  } catch (const app::RankStopped& e) {
+    return e.code;  // another rank failed and rank 0 said why
   } catch (const InputError& e) {
     std::cerr << "furnihost: error: " << OneLine(e.what()) << "\n";
     return 2;

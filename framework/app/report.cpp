@@ -210,6 +210,14 @@ std::string RenderReport(const std::vector<ConfigSummary>& configs, const Report
     ObjectTable(o, r.metrics.objects);
   }
 
+  if (!info.measurements) {
+    if (!info.plots.empty()) {
+      o << "## Precision–recall (recall vs 1 − precision)\n\n";
+      for (const auto& p : info.plots) o << "![" << fs::path(p).stem().string() << "](" << p << ")\n";
+      o << "\n";
+    }
+    return o.str();
+  }
   // Stage tags in first-seen order.
   std::vector<std::string> stages;
   for (const auto& c : configs)

@@ -16,6 +16,7 @@ struct ReportInfo {
   WidthConvention width = WidthConvention::Max;
   std::vector<std::string> plots;  // image files to embed (relative to the report)
   std::vector<std::string> notes;  // extra lines (warnings) printed under the header
+  bool measurements = true;        // the time and memory tables (false: eval --reproducible)
 };
 
 // Markdown: a header (dataset, hash, width convention, seeds, configs), then per class and

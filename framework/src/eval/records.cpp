@@ -289,7 +289,7 @@ RunFigures RunFiguresFromJson(const json& j, const std::string& where) {
   if (!j.contains("metrics")) throw InputError(where + "/metrics: missing");
   r.metrics = EvalMetricsFromJson(j["metrics"], where + "/metrics");
   if (j.contains("stage_ms")) r.stage_ms = TimingsFromJson(j["stage_ms"], where + "/stage_ms");
-  r.wall_ms = GetNum(j, "wall_ms", where);
+  r.wall_ms = j.contains("wall_ms") ? GetNum(j, "wall_ms", where) : NAN;  // absent: eval --reproducible
   r.model_ms = j.contains("model_ms") ? GetNum(j, "model_ms", where) : 0.0;
   r.model_source = j.value("model_source", "");
   r.peak_rss_mb = j.contains("peak_rss_mb") ? GetNum(j, "peak_rss_mb", where) : NAN;
@@ -300,7 +300,7 @@ RunFigures RunFiguresFromJson(const json& j, const std::string& where) {
       const std::string w = where + "/scenes/" + std::to_string(i);
       SceneRecord rec;
       rec.scan = s.value("scan", "");
-      rec.total_ms = GetNum(s, "total_ms", w);
+      rec.total_ms = s.contains("total_ms") ? GetNum(s, "total_ms", w) : NAN;
       rec.detections = s.value("detections", 0);
       if (s.contains("timings_ms")) rec.timings_ms = TimingsFromJson(s["timings_ms"], w + "/timings_ms");
       r.scenes.push_back(std::move(rec));

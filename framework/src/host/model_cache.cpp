@@ -69,26 +69,32 @@ void CheckModelCacheTarget(const std::string& path, const std::string& where) {
     throw InputError(where + path + ": exists and is not a furnihost model file" + refuse);
 }
 
-TrainedModel EnsureModel(Pipeline& p, const Catalog& catalog, const RunContext& ctx, bool force) {
+std::optional<TrainedModel> CachedModel(const Pipeline& p, const Catalog& catalog, bool force) {
   const std::string cache = p.Graph().model_cache;
   if (!cache.empty()) CheckModelCacheTarget(cache, p.Graph().path + ":/model_cache: ");
-  if (!force && !cache.empty() && fs::exists(cache)) {
-    try {
-      TrainedModel m = LoadModel(cache);
-      std::string why = Incompatibility(m, p.Graph(), catalog.hash);
-      if (why.empty()) {
-        spdlog::info("model: using cached {}", cache);
-        return m;
-      }
-      spdlog::warn("model: cached {} is stale: {}; retraining", cache, why);
-    } catch (const InputError& e) {
-      spdlog::warn("model: {}; retraining", e.what());
+  if (force || cache.empty() || !fs::exists(cache)) return std::nullopt;
+  try {
+    TrainedModel m = LoadModel(cache);
+    std::string why = Incompatibility(m, p.Graph(), catalog.hash);
+    if (why.empty()) {
+      spdlog::info("model: using cached {}", cache);
+      return m;
     }
+    spdlog::warn("model: cached {} is stale: {}; retraining", cache, why);
+  } catch (const InputError& e) {
+    spdlog::warn("model: {}; retraining", e.what());
   }
+  return std::nullopt;
+}
+
+TrainedModel EnsureModel(Pipeline& p, const Catalog& catalog, const RunContext& ctx, bool force) {
+  if (std::optional<TrainedModel> cached = CachedModel(p, catalog, force)) return std::move(*cached);
+  const std::string cache = p.Graph().model_cache;
   spdlog::info("model: training from {} ({} models)", catalog.path, catalog.models.size());
   Stopwatch sw;
   TrainedModel m = p.Train(catalog, ctx);
-  spdlog::info("model: trained in {:.1f} s: {}", sw.Ms() / 1000.0, m.summary.dump());
+  spdlog::info("model: trained in {:.1f} s: {}, time per stage [ms] {}", sw.Ms() / 1000.0, m.summary.dump(),
+               m.timings_ms.dump());
   if (!cache.empty()) {
     SaveModel(cache, m);
     spdlog::info("model: written to {}", cache);

@@ -30,10 +30,8 @@ class DepthLimitedSax : public nlohmann::detail::json_sax_dom_parser<nlohmann::j
   int depth_ = 0;
 };
 
-nlohmann::json ReadCbor(const std::string& path) {
-  RequireRegularFile(path, "model file");
-  std::ifstream in(path, std::ios::binary);
-  std::string data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+// `path` names the bytes in errors (a file, or what another process sent).
+nlohmann::json ReadCbor(const std::string& data, const std::string& path) {
   const size_t ml = sizeof(kMagic) - 1;
   if (data.size() < ml || data.compare(0, ml, kMagic) != 0)
     throw InputError(path + ": not a furnihost model file (bad magic)");
@@ -83,24 +81,37 @@ const TrainedVoter* TrainedModel::FindVoter(const std::string& tag) const {
   return it == voters.end() ? nullptr : &it->second;
 }
 
-void SaveModel(const std::string& path, const TrainedModel& m) {
+std::string ModelBytes(const TrainedModel& m) {
   nlohmann::json voters = nlohmann::json::object();
   for (const auto& [tag, v] : m.voters)
     voters[tag] = {{"voter_type", v.voter_type}, {"normaliser", v.normaliser.ToJson()}, {"voter_model", v.voter_model}};
   const nlohmann::json j = {{"format_version", kModelFormatVersion}, {"training_config", m.training_config},
                             {"catalog_hash", m.catalog_hash}, {"voters", voters}, {"summary", m.summary}};
   const std::vector<uint8_t> cbor = nlohmann::json::to_cbor(j);
+  std::string bytes(kMagic, sizeof(kMagic) - 1);
+  bytes.append(reinterpret_cast<const char*>(cbor.data()), cbor.size());
+  return bytes;
+}
+
+void SaveModel(const std::string& path, const TrainedModel& m) {
+  const std::string bytes = ModelBytes(m);
   AtomicWrite(path, [&](const std::string& tmp) {
     std::ofstream out(tmp, std::ios::binary);
-    out.write(kMagic, sizeof(kMagic) - 1);
-    out.write(reinterpret_cast<const char*>(cbor.data()), cbor.size());
+    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
     out.flush();
     if (!out) throw InputError(tmp + ": write failed");
   });
 }
 
 TrainedModel LoadModel(const std::string& path) {
-  const nlohmann::json j = ReadCbor(path);
+  RequireRegularFile(path, "model file");
+  std::ifstream in(path, std::ios::binary);
+  const std::string data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  return ModelFromBytes(data, path);
+}
+
+TrainedModel ModelFromBytes(const std::string& data, const std::string& path) {
+  const nlohmann::json j = ReadCbor(data, path);
   try {
     TrainedModel m;
     const auto& version = j.at("format_version");

@@ -36,6 +36,14 @@ TrainedModel Pipeline::Train(const Catalog& catalog, const RunContext& ctx) {
   return graph::TrainGraph(graph_, *stages_, catalog, ctx);
 }
 
+ModelViews Pipeline::ScanModel(const Catalog& catalog, size_t index, const RunContext& ctx) {
+  return graph::ScanModel(graph_, *stages_, catalog, index, ctx);
+}
+
+TrainedModel Pipeline::TrainFromViews(const Catalog& catalog, std::vector<ModelViews> scanned, const RunContext& ctx) {
+  return graph::TrainFromViews(graph_, *stages_, catalog, std::move(scanned), ctx);
+}
+
 Pipeline::Result Pipeline::DetectOnce(const std::vector<SceneInput>& scenes, const TrainedModel* model,
                                       const Catalog* catalog, const RunContext& ctx,
                                       const std::function<void()>& before_stages, const RunJitter& jitter) {

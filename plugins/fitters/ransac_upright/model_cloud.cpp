@@ -2,6 +2,7 @@
 
 #include "furnihost/geometry.hpp"
 #include "furnihost/hash.hpp"
+#include "simd/left_pack.hpp"
 
 #include <nanoflann.hpp>
 
@@ -18,6 +19,10 @@
 #include <thread>
 
 #include <unistd.h>
+
+#if defined(__x86_64__) || defined(__i386__)
+#include <immintrin.h>
+#endif
 
 namespace furnihost::ransac_upright {
 
@@ -410,6 +415,87 @@ std::unique_ptr<ModelCloud> ModelCloud::Load(const std::string& path, uint64_t k
   m->bounds_ = Eigen::AlignedBox3f(lo, hi);
   m->BuildIndices();
   return m;
+}
+
+#if defined(__x86_64__) || defined(__i386__)
+// The grid part of CoveredUpright8: bits 0-7 the covered lanes, bits 8-15 the ambiguous ones.
+[[gnu::target("avx2")]] static int CoveredUpright8Avx2(const float* x, const float* y, const float* z, float c, float s,
+                                                       float tx, float ty, const Eigen::Vector3f& gmin, float inv_cell,
+                                                       const int dims[3], const int bdims[3], const int32_t* blocks,
+                                                       const uint8_t* cells) {
+  const __m256 C = _mm256_set1_ps(c), S = _mm256_set1_ps(s), NS = _mm256_set1_ps(-s);
+  const __m256 dx = _mm256_sub_ps(_mm256_loadu_ps(x), _mm256_set1_ps(tx));
+  const __m256 dy = _mm256_sub_ps(_mm256_loadu_ps(y), _mm256_set1_ps(ty));
+  const __m256 qx = _mm256_add_ps(_mm256_mul_ps(C, dx), _mm256_mul_ps(S, dy));
+  const __m256 qy = _mm256_add_ps(_mm256_mul_ps(NS, dx), _mm256_mul_ps(C, dy));
+  const __m256 qz = _mm256_loadu_ps(z);
+  const __m256 inv = _mm256_set1_ps(inv_cell), zero = _mm256_setzero_ps();
+  const __m256 fx = _mm256_mul_ps(_mm256_sub_ps(qx, _mm256_set1_ps(gmin.x())), inv);
+  const __m256 fy = _mm256_mul_ps(_mm256_sub_ps(qy, _mm256_set1_ps(gmin.y())), inv);
+  const __m256 fz = _mm256_mul_ps(_mm256_sub_ps(qz, _mm256_set1_ps(gmin.z())), inv);
+  // fx >= 0 && fy >= 0 && fz >= 0 (false for NaN), then inside the grid. A coordinate too large
+  // for an int converts to INT_MIN and counts as outside.
+  const __m256 nonneg = _mm256_and_ps(_mm256_and_ps(_mm256_cmp_ps(fx, zero, _CMP_GE_OQ), _mm256_cmp_ps(fy, zero, _CMP_GE_OQ)),
+                                      _mm256_cmp_ps(fz, zero, _CMP_GE_OQ));
+  const __m256i ix = _mm256_cvttps_epi32(fx), iy = _mm256_cvttps_epi32(fy), iz = _mm256_cvttps_epi32(fz);
+  const __m256i in = _mm256_and_si256(
+      _mm256_castps_si256(nonneg),
+      _mm256_and_si256(_mm256_and_si256(_mm256_and_si256(_mm256_cmpgt_epi32(_mm256_set1_epi32(dims[0]), ix),
+                                                         _mm256_cmpgt_epi32(_mm256_set1_epi32(dims[1]), iy)),
+                                        _mm256_cmpgt_epi32(_mm256_set1_epi32(dims[2]), iz)),
+                       _mm256_cmpgt_epi32(_mm256_or_si256(_mm256_or_si256(ix, iy), iz), _mm256_set1_epi32(-1))));
+  const __m256i bidx = _mm256_add_epi32(
+      _mm256_mullo_epi32(_mm256_add_epi32(_mm256_mullo_epi32(_mm256_srai_epi32(iz, 3), _mm256_set1_epi32(bdims[1])),
+                                          _mm256_srai_epi32(iy, 3)),
+                         _mm256_set1_epi32(bdims[0])),
+      _mm256_srai_epi32(ix, 3));
+  const __m256i b = _mm256_mask_i32gather_epi32(_mm256_set1_epi32(-1), reinterpret_cast<const int*>(blocks), bidx, in, 4);
+  const __m256i have = _mm256_cmpgt_epi32(b, _mm256_set1_epi32(-1));
+  const __m256i seven = _mm256_set1_epi32(7);
+  const __m256i idx = _mm256_or_si256(
+      _mm256_or_si256(_mm256_slli_epi32(_mm256_and_si256(iz, seven), 6), _mm256_slli_epi32(_mm256_and_si256(iy, seven), 3)),
+      _mm256_and_si256(ix, seven));
+  // A block's 128 bytes are 32 words: cell idx's 2 bits are bits (idx & 15) * 2 of word idx >> 4.
+  const __m256i word_at = _mm256_add_epi32(_mm256_slli_epi32(b, 5), _mm256_srli_epi32(idx, 4));
+  const __m256i word =
+      _mm256_mask_i32gather_epi32(_mm256_setzero_si256(), reinterpret_cast<const int*>(cells), word_at, have, 4);
+  const __m256i state = _mm256_and_si256(
+      _mm256_srlv_epi32(word, _mm256_slli_epi32(_mm256_and_si256(idx, _mm256_set1_epi32(15)), 1)), _mm256_set1_epi32(3));
+  const int covered = _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_and_si256(have, _mm256_cmpeq_epi32(state, _mm256_set1_epi32(2)))));
+  const int ambiguous = _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_and_si256(have, _mm256_cmpeq_epi32(state, _mm256_set1_epi32(1)))));
+  return covered | (ambiguous << 8);
+}
+#endif
+
+int ModelCloud::CoveredUpright8(const float* x, const float* y, const float* z, float c, float s, float tx,
+                                float ty) const {
+  static_assert(kCovered == 2 && kAmbiguous == 1, "CoveredUpright8Avx2 compares the states with 2 and 1");
+#if defined(__x86_64__) || defined(__i386__)
+  if (!simd::UseAvx2()) {
+    int hits = 0;
+    for (int l = 0; l < 8; ++l) {
+      const float dx = x[l] - tx, dy = y[l] - ty;
+      if (Covered(Eigen::Vector3f(c * dx + s * dy, -s * dx + c * dy, z[l]))) hits |= 1 << l;
+    }
+    return hits;
+  }
+  const int both =
+      CoveredUpright8Avx2(x, y, z, c, s, tx, ty, grid_min_, inv_cell_, dims_, bdims_, blocks_.data(), cells_.data());
+  int hits = both & 0xff;
+  for (int amb = both >> 8; amb != 0; amb &= amb - 1) {
+    const int l = __builtin_ctz(unsigned(amb));
+    const float dx = x[l] - tx, dy = y[l] - ty;
+    if (CoveredExact(Eigen::Vector3f(c * dx + s * dy, -s * dx + c * dy, z[l]))) hits |= 1 << l;
+  }
+  return hits;
+#else
+  int hits = 0;
+  for (int l = 0; l < 8; ++l) {
+    const float dx = x[l] - tx, dy = y[l] - ty;
+    if (Covered(Eigen::Vector3f(c * dx + s * dy, -s * dx + c * dy, z[l]))) hits |= 1 << l;
+  }
+  return hits;
+#endif
 }
 
 void ModelCloud::HeightBand(float z, float tol, bool informative, std::vector<int>* out) const {

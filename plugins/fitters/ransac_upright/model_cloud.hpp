@@ -105,8 +105,9 @@ class ModelCloud {
     const float fy = (q.y() - grid_min_.y()) * inv_cell_;
     const float fz = (q.z() - grid_min_.z()) * inv_cell_;
     if (!(fx >= 0.f && fy >= 0.f && fz >= 0.f)) return false;
+    // Compared as floats: a coordinate beyond an int's range must not be converted.
+    if (!(fx < float(dims_[0]) && fy < float(dims_[1]) && fz < float(dims_[2]))) return false;
     const int ix = static_cast<int>(fx), iy = static_cast<int>(fy), iz = static_cast<int>(fz);
-    if (ix >= dims_[0] || iy >= dims_[1] || iz >= dims_[2]) return false;
     const int32_t b = blocks_[(size_t(iz >> 3) * bdims_[1] + (iy >> 3)) * bdims_[0] + (ix >> 3)];
     if (b < 0) return false;
     const unsigned idx = ((iz & 7) << 6) | ((iy & 7) << 3) | (ix & 7);
@@ -116,6 +117,12 @@ class ModelCloud {
     return CoveredExact(q);
   }
   bool CoveredExact(const Eigen::Vector3f& q) const { return near_->AnyWithin(q); }
+  // Covered() of 8 scene points turned into the model frame by an upright pose: q_l = (c dx +
+  // s dy, -s dx + c dy, z[l]) with dx = x[l] - tx, dy = y[l] - ty (floats, as the RANSAC's
+  // scoring computes them); bit l of the result is q_l's answer, Covered()'s. Where the CPU has
+  // AVX2 (simd::UseAvx2) the grid is read by gathers, 8 lanes at a time, and only the ambiguous
+  // lanes go to CoveredExact; elsewhere it calls Covered() 8 times.
+  int CoveredUpright8(const float* x, const float* y, const float* z, float c, float s, float tx, float ty) const;
   int Nearest(const Eigen::Vector3f& q, float* dist) const { return kd_->Nearest(q, dist); }
   // Share of Covered() answers that needed the kd-tree; for benchmarks.
   double AmbiguousCellShare() const;

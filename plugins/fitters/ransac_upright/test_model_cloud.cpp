@@ -14,8 +14,10 @@
 #include <octomap/OcTree.h>
 
 #include "model_cloud.hpp"
+#include "simd/left_pack.hpp"
 #include "occupancy.hpp"
 #include "synthetic_scene.hpp"
+#include "upright_ransac.hpp"
 #include "test_support.hpp"
 
 namespace {
@@ -171,6 +173,138 @@ TEST(RadiusGrid, SameAnswersAsTheKdTree) {
   const RadiusGrid sparse(&wide, 0.02f);
   EXPECT_TRUE(sparse.AnyWithin({1000.f, 1000.f, 1000.01f}));
   EXPECT_FALSE(sparse.AnyWithin({500.f, 500.f, 500.f}));
+}
+
+// CoveredUpright8 (the RANSAC's look-ups 8 at a time) answers Covered() of each turned point:
+// points near the model's surface (covered, ambiguous and outside cells), far away, below the
+// grid, NaN and huge, under random upright poses.
+TEST(ModelCloud, CoveredUpright8IsCoveredOfEachPoint) {
+  const CatalogModel chair = Model("chair_b", "chair", Chair(0.56f, 0.50f, 0.40f, 0.62f, 0.05f).mesh);
+  const ModelCloud c(chair, SamplingOptions(), 3);
+  std::mt19937_64 rng(17);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  int hits = 0, n = 0;
+  for (int trial = 0; trial < 4000; ++trial) {
+    const float yaw = 3.2f * u(rng), tx = u(rng), ty = u(rng);
+    const float co = std::cos(yaw), si = std::sin(yaw);
+    float x[8], y[8], z[8];
+    for (int l = 0; l < 8; ++l) {
+      // A model point placed by the pose (so that it turns back onto the model), jittered.
+      const Eigen::Vector3f& m = c.Cloud()[size_t(rng() % c.Cloud().size())];
+      const Eigen::Vector3f j = Eigen::Vector3f(u(rng), u(rng), u(rng)) * (0.05f * (l % 3));
+      x[l] = co * m.x() - si * m.y() + tx + j.x();
+      y[l] = si * m.x() + co * m.y() + ty + j.y();
+      z[l] = m.z() + j.z();
+    }
+    if (trial % 5 == 1) x[2] = 50.f;                                      // far away
+    if (trial % 5 == 2) z[5] = -3.f;                                      // below the grid
+    if (trial % 5 == 3) y[7] = std::numeric_limits<float>::quiet_NaN();  // not a number
+    if (trial % 5 == 4) x[0] = 4e9f;                                      // beyond an int
+    const int got = c.CoveredUpright8(x, y, z, co, si, tx, ty);
+    for (int l = 0; l < 8; ++l) {
+      const float dx = x[l] - tx, dy = y[l] - ty;
+      const bool want = c.Covered(Eigen::Vector3f(co * dx + si * dy, -si * dx + co * dy, z[l]));
+      ASSERT_EQ(bool(got & (1 << l)), want) << "trial " << trial << " lane " << l;
+      hits += want, ++n;
+    }
+  }
+  EXPECT_GT(hits, n / 5);
+  EXPECT_LT(hits, n - n / 5);
+}
+
+// The RANSAC scores 8 look-ups at a time where the CPU has AVX2 (blocks of Score): the fits must
+// be the one-at-a-time fits', every figure, including the abandoned candidates' partial counts
+// (the pose of a fit that reached no bound: a table's model against a chair's points).
+TEST(ModelCloud, FitsWithLookupsEightAtATimeAreTheSingleLookups) {
+  const CatalogModel chair = Model("chair_b", "chair", Chair(0.56f, 0.50f, 0.40f, 0.62f, 0.05f).mesh);
+  const CatalogModel other = Model("chair_c", "chair", Chair(0.50f, 0.52f, 0.45f, 0.50f, 0.04f).mesh);
+  const CatalogModel table = Model("table", "table", Table(1.2f, 0.8f, 0.75f).mesh);
+  const ModelCloud ca(chair, SamplingOptions(), 3), cb(other, SamplingOptions(), 3), ct(table, SamplingOptions(), 3);
+  // The scene: the chair sampled anew (another seed), placed, with 3 mm of noise.
+  SamplingOptions dense;
+  dense.min_points = 9000;
+  const ModelCloud scan(chair, dense, 11);
+  std::mt19937_64 rng(5);
+  std::normal_distribution<float> g(0.f, 0.003f);
+  const Eigen::Isometry3f pose = UprightIsometry(1.3f, -0.4f, 0.f, 0.7f);
+  ScenePoints sp;
+  for (size_t i = 0; i < scan.Cloud().size(); i += 2) {
+    sp.points.push_back(pose * scan.Cloud()[i] + Eigen::Vector3f(g(rng), g(rng), g(rng)));
+    sp.normals.push_back(pose.linear() * scan.Normals()[i]);
+  }
+  RansacOptions o, unreachable;
+  unreachable.min_coverage = 0.9f;  // not reached by the other chair: the pose is the best partial count's
+  struct Case {
+    const RansacOptions* options;
+    std::vector<const ModelCloud*> models;
+    bool reached;
+  };
+  const std::vector<Case> cases = {{&o, {&ca, &cb, &ct}, true}, {&o, {&ct}, false}, {&unreachable, {&cb}, false}};
+  for (const Case& cs : cases)
+    for (uint64_t seed : {1u, 2u, 3u}) {
+      const RansacOptions& opt = *cs.options;
+      const auto& models = cs.models;
+      furnihost::simd::SetAvx2(false);
+      const FitResult a = FitUpright(sp, models, opt, seed);
+      furnihost::simd::SetAvx2(true);
+      const FitResult b = FitUpright(sp, models, opt, seed);
+      EXPECT_EQ(a.model, b.model);
+      EXPECT_EQ(a.reached_bound, b.reached_bound);
+      EXPECT_EQ(a.x, b.x);
+      EXPECT_EQ(a.y, b.y);
+      EXPECT_EQ(a.yaw, b.yaw);
+      EXPECT_EQ(a.covered, b.covered);
+      EXPECT_EQ(a.total, b.total);
+      EXPECT_EQ(a.iterations, b.iterations);
+      EXPECT_EQ(a.explained_share, b.explained_share);
+      ASSERT_EQ(a.trials.size(), b.trials.size());
+      for (size_t m = 0; m < a.trials.size(); ++m) {
+        EXPECT_EQ(a.trials[m].samples, b.trials[m].samples);
+        EXPECT_EQ(a.trials[m].subset_coverage, b.trials[m].subset_coverage);
+      }
+      EXPECT_EQ(a.alternatives, b.alternatives);
+      if (cs.options == &unreachable || models.size() == 3) {
+        EXPECT_EQ(a.reached_bound, cs.reached);
+      }
+    }
+}
+
+// One candidate's score, looked up 8 at a time and one at a time: the same exact count when it
+// is kept, and when abandoned the same partial count (abandoned at the same point), whatever
+// the floor, the best so far and the subset's points beyond the model's height range.
+TEST(ModelCloud, ScoringEightAtATimeAbandonsAtTheSamePoint) {
+  const CatalogModel chair = Model("chair_b", "chair", Chair(0.56f, 0.50f, 0.40f, 0.62f, 0.05f).mesh);
+  const ModelCloud c(chair, SamplingOptions(), 3);
+  std::mt19937_64 rng(29);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  std::normal_distribution<float> g(0.f, 0.01f);
+  const float yaw0 = 0.4f, tx0 = 0.2f, ty0 = -0.1f;
+  std::vector<Eigen::Vector3f> ev;
+  for (size_t i = 0; i < c.Cloud().size() && ev.size() < 1500; i += 3) {
+    const Eigen::Vector3f& m = c.Cloud()[i];
+    ev.emplace_back(std::cos(yaw0) * m.x() - std::sin(yaw0) * m.y() + tx0 + g(rng),
+                    std::sin(yaw0) * m.x() + std::cos(yaw0) * m.y() + ty0 + g(rng), m.z() + g(rng));
+  }
+  for (int i = 0; i < 300; ++i) ev.emplace_back(u(rng), u(rng), 0.5f + 0.5f * u(rng));  // clutter
+  std::shuffle(ev.begin(), ev.end(), rng);
+  int kept = 0, abandoned = 0;
+  for (int trial = 0; trial < 3000; ++trial) {
+    // Poses from the true one to far off; subsets with up to a third of their points elsewhere.
+    const float spread = 0.3f * float(trial % 4);
+    const float yaw = yaw0 + spread * u(rng), tx = tx0 + 0.3f * spread * u(rng), ty = ty0 + 0.3f * spread * u(rng);
+    const int n = 1 + int(rng() % ev.size());
+    const std::vector<Eigen::Vector3f> sub(ev.begin(), ev.begin() + n);
+    const int E = n + int(rng() % (n / 3 + 1));
+    const int floor = int(float(E) * (0.3f + 0.6f * 0.5f * (u(rng) + 1.f)));
+    const int slack = int(rng() % 40), best = int(rng() % (E + 1)) - 1;
+    const auto one = ransac_upright::detail::ScorePose(c, sub, E, floor, slack, yaw, tx, ty, best, false);
+    const auto eight = ransac_upright::detail::ScorePose(c, sub, E, floor, slack, yaw, tx, ty, best, true);
+    ASSERT_EQ(one.score, eight.score) << trial;
+    ASSERT_EQ(one.partial, eight.partial) << trial;
+    (one.score >= 0 ? kept : abandoned)++;
+  }
+  EXPECT_GT(kept, 300);
+  EXPECT_GT(abandoned, 1000);
 }
 
 // The occupancy grid of a sensor origin far outside the scan (1.3 km, or 5 km past OctoMap's

@@ -86,4 +86,16 @@ FitResult FinishAt(const ScenePoints& scene, const ModelCloud& model, int index,
 FitResult FitUpright(const ScenePoints& scene, const std::vector<const ModelCloud*>& models,
                      const RansacOptions& options, uint64_t seed);
 
+namespace detail {
+// One candidate pose scored as FitUpright scores it (points `ev` in the model's height range
+// of a subset of E, floor and slack as there, `best` the batch's best so far): the exact covered
+// count, or -1 and the covered count when it was abandoned. blocks: 8 look-ups at a time
+// (CPUs with AVX2), else one at a time. Here for the tests.
+struct ScoreResult {
+  int score = -1, partial = 0;
+};
+ScoreResult ScorePose(const ModelCloud& model, const std::vector<Eigen::Vector3f>& ev, int E, int floor, int slack,
+                      float yaw, float tx, float ty, int best, bool blocks);
+}  // namespace detail
+
 }  // namespace furnihost::ransac_upright

@@ -2,6 +2,7 @@
 // it, and getting one (the cache when it serves, else training).
 #pragma once
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 
 #include "furnihost/host/catalog.hpp"
@@ -22,6 +23,12 @@ FURNIHOST_API nlohmann::json TrainingKey(const GraphConfig& graph);
 // what differs. A version 1 file's untagged voter serves a graph of one voter of any tag.
 FURNIHOST_API std::string Incompatibility(const TrainedModel& model, const GraphConfig& graph,
                                           const std::string& catalog_hash);
+
+// The graph's model cache when it serves the graph and catalog and `force` is false; nullopt when
+// there is none or it is stale or corrupt (logged: it is retrained). InputError when the cache
+// path holds something else than a model file (CheckModelCacheTarget).
+FURNIHOST_API std::optional<TrainedModel> CachedModel(const Pipeline& pipeline, const Catalog& catalog,
+                                                      bool force = false);
 
 // Resolves the model for a graph: loads the cache when compatible, otherwise trains and
 // writes it (atomically). `force` retrains.

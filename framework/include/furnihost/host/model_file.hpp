@@ -30,7 +30,10 @@ struct TrainedModel {
   // Each trained stage's model by stage tag. A version 1 file of one voter holds it under ""
   // (its tag was not written): it is the model of the graph's one voter.
   std::map<std::string, TrainedVoter> voters;
-  nlohmann::json summary;  // models, and per voter views, parts per class; time per stage
+  nlohmann::json summary;  // models, and per voter views, parts per class
+  // Time per stage [ms] of the training that made it, by stage tag; not saved in the model file
+  // (the same inputs give the same file), so empty for a loaded model.
+  nlohmann::json timings_ms;
 
   // The model of the voter `tag`, or null when the file has none for it.
   FURNIHOST_API const TrainedVoter* FindVoter(const std::string& tag) const;
@@ -42,6 +45,10 @@ constexpr char kModelMagic[] = "furnihost-model\n";
 FURNIHOST_API void SaveModel(const std::string& path, const TrainedModel& model);
 // InputError on a missing/corrupt file or another format version (says what to do).
 FURNIHOST_API TrainedModel LoadModel(const std::string& path);
+// The bytes SaveModel writes, and the model from such bytes (errors name `what`): what MPI
+// ranks hand each other.
+FURNIHOST_API std::string ModelBytes(const TrainedModel& model);
+FURNIHOST_API TrainedModel ModelFromBytes(const std::string& bytes, const std::string& what);
 // A model cache replaces only its own kind of file: InputError "<where><path>: ..." unless
 // `path` does not exist or is a regular file that starts with the model magic (a corrupt one
 // too: it is retrained). Checked before anything is trained (model_cache.cpp).

@@ -29,6 +29,14 @@ namespace graph {
 struct StageInstances;
 }
 
+// What training learns from one catalog model: its training sensor's views run through the
+// stages training views pass through, for each trained stage in the graph's order
+// (branches[t]), and the time each stage took on them [ms] by stage tag.
+struct ModelViews {
+  std::vector<std::vector<TrainingView>> branches;
+  std::map<std::string, double> time_ms;
+};
+
 // Not thread-safe: a Pipeline runs one Detect or Train at a time (copies share its stages).
 class FURNIHOST_API Pipeline {
  public:
@@ -42,6 +50,12 @@ class FURNIHOST_API Pipeline {
   // Trains every trained stage (voter) of the graph on the catalog (the stages' runners on the
   // training sensor's views of each model).
   TrainedModel Train(const Catalog& catalog, const RunContext& ctx);
+  // Training in two steps, so that processes can share the models (furnihost train / eval
+  // under MPI): ScanModel, the per-model part, for each catalog model (any order, anywhere: it
+  // depends on the model, the graph and the seed only), then TrainFromViews with every model's
+  // views in catalog order. Train does both here.
+  ModelViews ScanModel(const Catalog& catalog, size_t index, const RunContext& ctx);
+  TrainedModel TrainFromViews(const Catalog& catalog, std::vector<ModelViews> scanned, const RunContext& ctx);
 
   using SceneInput = furnihost::SceneInput;
   // The detections, and the outputs behind them: the fields below `scans` hold those of the

@@ -27,56 +27,89 @@ TrainingView View(const CatalogModel& model, int view, Scan scan) {
   tv.object_centroid = (c / static_cast<double>(tv.scan.points.size())).cast<float>();
   return tv;
 }
-}  // namespace
 
-TrainedModel TrainGraph(const GraphConfig& g, StageInstances& stages, const Catalog& catalog, const RunContext& ctx) {
-  const StageConfig* sensor_cfg = g.training_sensor.empty() ? nullptr : g.Find(g.training_sensor);
-  if (!sensor_cfg) throw InputError(g.path + ":/training/sensor: the graph names no training sensor");
-  const auto trained = g.Trained();
-  if (trained.empty()) throw InputError(g.path + ": training needs a voter stage");
-  if (catalog.models.empty()) throw InputError(catalog.path + ": no usable models to train from");
-  auto& sensor = stages.at(sensor_cfg->tag).As<Sensor>(*sensor_cfg);
-  // Each view runs through the stages training views pass through, each once whichever trained
-  // stages share it; a stage learns from the parts and features its training inputs give (none
-  // for a recogniser of whole proposals: it learns from the views' points).
+// The learners of the graph's trained stages, in the graph's order, their views empty.
+std::vector<Learner> Learners(const GraphConfig& g) {
   const std::set<std::string> through = TrainingStages(g);
   std::vector<Learner> learners;
-  for (const StageConfig* t : trained) {
+  for (const StageConfig* t : g.Trained()) {
     const StageConfig* features = g.Input(*t, InputRole::Features);
     if (features && !through.count(features->tag)) features = nullptr;
     learners.push_back({t, features, features ? g.SegmenterOf(*features) : nullptr, {}, {}});
   }
+  return learners;
+}
+
+const StageConfig& CheckTraining(const GraphConfig& g, const Catalog& catalog) {
+  const StageConfig* sensor_cfg = g.training_sensor.empty() ? nullptr : g.Find(g.training_sensor);
+  if (!sensor_cfg) throw InputError(g.path + ":/training/sensor: the graph names no training sensor");
+  if (g.Trained().empty()) throw InputError(g.path + ": training needs a voter stage");
+  if (catalog.models.empty()) throw InputError(catalog.path + ": no usable models to train from");
+  return *sensor_cfg;
+}
+}  // namespace
+
+ModelViews ScanModel(const GraphConfig& g, StageInstances& stages, const Catalog& catalog, size_t index,
+                     const RunContext& ctx) {
+  const StageConfig& sensor_cfg = CheckTraining(g, catalog);
+  const CatalogModel& model = catalog.models.at(index);
+  auto& sensor = stages.at(sensor_cfg.tag).As<Sensor>(sensor_cfg);
+  // Each view runs through the stages training views pass through, each once whichever trained
+  // stages share it; a stage learns from the parts and features its training inputs give (none
+  // for a recogniser of whole proposals: it learns from the views' points).
+  const std::set<std::string> through = TrainingStages(g);
+  const std::vector<Learner> learners = Learners(g);
+  ModelViews out;
+  out.branches.resize(learners.size());
+  SensorRequest req;
+  req.objects.push_back({&model, Eigen::Isometry3f::Identity()});
+  Stopwatch sw;
+  std::vector<Scan> scans = CallStage(sensor_cfg, [&] { return sensor.Acquire(req, ctx); });
+  out.time_ms[sensor_cfg.tag] += sw.Ms();
+  for (size_t v = 0; v < scans.size(); ++v) {
+    if (scans[v].points.size() < 3) continue;
+    std::vector<Scan> view;
+    view.push_back(std::move(scans[v]));
+    Run run(g, view, ctx);
+    run.log = false;
+    RunStages(run, stages, &through);
+    for (const auto& [tag, ms] : run.timings_ms) out.time_ms[tag] += ms;
+    for (size_t b = 0; b < learners.size(); ++b) {
+      const Learner& l = learners[b];
+      TrainingView tv = View(model, int(v), b + 1 == learners.size() ? std::move(view[0]) : view[0]);
+      if (l.features) {
+        tv.segmentation = run.Of(*l.segmenter).segmentations.at(0);
+        tv.features = run.Of(*l.features).features.at(0);
+      }
+      out.branches[b].push_back(std::move(tv));
+    }
+  }
+  return out;
+}
+
+TrainedModel TrainFromViews(const GraphConfig& g, StageInstances& stages, const Catalog& catalog,
+                            std::vector<ModelViews> scanned, const RunContext& ctx) {
+  CheckTraining(g, catalog);
+  if (scanned.size() != catalog.models.size())
+    throw std::logic_error("TrainFromViews: " + std::to_string(scanned.size()) + " models scanned of " +
+                           std::to_string(catalog.models.size()));
+  std::vector<Learner> learners = Learners(g);
   std::map<std::string, double> time_ms;  // by stage tag
-  Progress progress("train: scanning models", catalog.models.size());
-  for (const auto& model : catalog.models) {
-    SensorRequest req;
-    req.objects.push_back({&model, Eigen::Isometry3f::Identity()});
-    Stopwatch sw;
-    std::vector<Scan> scans = CallStage(*sensor_cfg, [&] { return sensor.Acquire(req, ctx); });
-    time_ms[sensor_cfg->tag] += sw.Ms();
-    for (size_t v = 0; v < scans.size(); ++v) {
-      if (scans[v].points.size() < 3) continue;
-      std::vector<Scan> view;
-      view.push_back(std::move(scans[v]));
-      Run run(g, view, ctx);
-      run.log = false;
-      RunStages(run, stages, &through);
-      for (const auto& [tag, ms] : run.timings_ms) time_ms[tag] += ms;
-      for (size_t b = 0; b < learners.size(); ++b) {
-        Learner& l = learners[b];
-        TrainingView tv = View(model, int(v), b + 1 == learners.size() ? std::move(view[0]) : view[0]);
-        if (l.features) {
-          tv.segmentation = run.Of(*l.segmenter).segmentations.at(0);
-          tv.features = run.Of(*l.features).features.at(0);
-        }
-        l.per_class[model.cls].first++;
-        l.per_class[model.cls].second += static_cast<int>(tv.segmentation.parts.size());
+  for (size_t i = 0; i < scanned.size(); ++i) {
+    ModelViews& mv = scanned[i];
+    if (mv.branches.size() != learners.size()) throw std::logic_error("TrainFromViews: trained stages differ");
+    for (const auto& [tag, ms] : mv.time_ms) time_ms[tag] += ms;
+    for (size_t b = 0; b < learners.size(); ++b) {
+      Learner& l = learners[b];
+      for (TrainingView& tv : mv.branches[b]) {
+        tv.model = &catalog.models[i];  // the views of another process point at this catalog
+        l.per_class[tv.cls].first++;
+        l.per_class[tv.cls].second += static_cast<int>(tv.segmentation.parts.size());
         l.views.push_back(std::move(tv));
       }
     }
-    progress.Tick();
+    mv.branches.clear();
   }
-  progress.Done();
   TrainedModel m;
   m.training_config = TrainingKey(g);
   m.catalog_hash = catalog.hash;
@@ -116,8 +149,23 @@ TrainedModel TrainGraph(const GraphConfig& g, StageInstances& stages, const Cata
     instance.loaded_model = m.catalog_hash + m.training_config.dump();
     m.voters[l.stage->tag] = std::move(tvr);
   }
-  m.summary = {{"models", catalog.models.size()}, {"voters", per_voter}, {"time_ms", time_ms}};
+  // The summary describes what was learned; the times go to `timings_ms` (not saved), so that the
+  // same inputs give the same model file byte for byte, however many processes trained it.
+  m.summary = {{"models", catalog.models.size()}, {"voters", per_voter}};
+  m.timings_ms = time_ms;
   return m;
+}
+
+TrainedModel TrainGraph(const GraphConfig& g, StageInstances& stages, const Catalog& catalog, const RunContext& ctx) {
+  CheckTraining(g, catalog);
+  std::vector<ModelViews> views;
+  Progress progress("train: scanning models", catalog.models.size());
+  for (size_t i = 0; i < catalog.models.size(); ++i) {
+    views.push_back(ScanModel(g, stages, catalog, i, ctx));
+    progress.Tick();
+  }
+  progress.Done();
+  return TrainFromViews(g, stages, catalog, std::move(views), ctx);
 }
 
 }  // namespace furnihost::graph

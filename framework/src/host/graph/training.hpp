@@ -9,4 +9,11 @@ namespace furnihost::graph {
 // InputError when the graph has no training sensor or nothing to train, or the catalog no model.
 TrainedModel TrainGraph(const GraphConfig& graph, StageInstances& stages, const Catalog& catalog, const RunContext& ctx);
 
+// TrainGraph in two steps (Pipeline::ScanModel, Pipeline::TrainFromViews): one model's views,
+// then the trained stages taught on every model's views in catalog order.
+ModelViews ScanModel(const GraphConfig& graph, StageInstances& stages, const Catalog& catalog, size_t index,
+                     const RunContext& ctx);
+TrainedModel TrainFromViews(const GraphConfig& graph, StageInstances& stages, const Catalog& catalog,
+                            std::vector<ModelViews> scanned, const RunContext& ctx);
+
 }  // namespace furnihost::graph
