@@ -409,6 +409,7 @@ Pipeline::Result Pipeline::DetectOnce(const std::vector<SceneInput>& scenes, con
   for (const auto& sc : scenes) {
     SensorRequest req;
     req.path = sc.path;
+    req.scan = sc.scan.get();
     req.origin = sc.origin;
     req.shift = sc.frame.shift;
     Stopwatch sw;

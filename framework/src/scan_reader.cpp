@@ -725,18 +725,11 @@ Scan ReadXyz(const std::string& path, Tally& tally, size_t max_points) {
 
 }  // namespace
 
-Scan ReadScan(const std::string& path, ReadStats* stats_out, size_t max_points, const ShiftOption& shift) {
-  RequireRegularFile(path, "scan file");
-  Tally tally;
-  tally.shift = shift.shift;
-  tally.auto_shift = shift.automatic;
+namespace {
+// What every reader does once the points are in: refuses a scan left with no point, records the
+// shift, logs what was dropped.
+void FinishScan(const std::string& path, const Tally& tally, const ShiftOption& shift, Scan& scan, ReadStats* stats_out) {
   const ReadStats& stats = tally.stats;
-  const std::string ext = Lower(fs::path(path).extension().string());
-  Scan scan;
-  if (ext == ".pcd") scan = ReadPcd(path, tally, max_points);
-  else if (ext == ".ply") scan = ReadPly(path, tally, max_points);
-  else if (ext == ".xyz" || ext == ".txt" || ext == ".pts" || ext == ".asc") scan = ReadXyz(path, tally, max_points);
-  else throw InputError(path + ": unknown scan format '" + ext + "' (expected .pcd, .ply, .xyz or .txt)");
   if (scan.points.empty() && tally.far)
     throw InputError(path + ": holds no points within " + std::to_string(static_cast<int>(kMaxCoordinate)) +
                      " m of the " + (tally.shift ? "shifted origin" : "origin") + " (" + std::to_string(tally.far) +
@@ -752,6 +745,52 @@ Scan ReadScan(const std::string& path, ReadStats* stats_out, size_t max_points, 
     spdlog::warn("{}: dropped {} of {} points farther than {} m from the origin (scans are metres in a local frame)",
                  path, tally.far, stats.read, static_cast<int>(kMaxCoordinate));
   if (stats_out) *stats_out = stats;
+}
+}  // namespace
+
+Scan ReadScan(const std::string& path, ReadStats* stats_out, size_t max_points, const ShiftOption& shift) {
+  RequireRegularFile(path, "scan file");
+  Tally tally;
+  tally.shift = shift.shift;
+  tally.auto_shift = shift.automatic;
+  const std::string ext = Lower(fs::path(path).extension().string());
+  Scan scan;
+  if (ext == ".pcd") scan = ReadPcd(path, tally, max_points);
+  else if (ext == ".ply") scan = ReadPly(path, tally, max_points);
+  else if (ext == ".xyz" || ext == ".txt" || ext == ".pts" || ext == ".asc") scan = ReadXyz(path, tally, max_points);
+  else throw InputError(path + ": unknown scan format '" + ext + "' (expected .pcd, .ply, .xyz or .txt)");
+  FinishScan(path, tally, shift, scan, stats_out);
+  return scan;
+}
+
+std::optional<Eigen::Vector3d> ScanFileOrigin(const std::string& path) {
+  RequireRegularFile(path, "scan file");
+  if (Lower(fs::path(path).extension().string()) != ".pcd") return std::nullopt;
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path + ": cannot be opened");
+  std::error_code ec;
+  const uint64_t file_size = fs::file_size(path, ec);
+  if (ec) throw InputError(path + ": cannot be read (" + ec.message() + ")");
+  return ReadPcdHeader(path, in, file_size, 0).viewpoint;
+}
+
+Scan ScanFromPoints(const std::string& name, const double* xyz, size_t n, const uint8_t* rgb, ReadStats* stats_out,
+                    const ShiftOption& shift) {
+  Tally tally;
+  tally.shift = shift.shift;
+  tally.auto_shift = shift.automatic;
+  Scan scan;
+  scan.source = name;
+  scan.points.reserve(n);
+  if (rgb) scan.colors.reserve(n);
+  Eigen::Vector3f v;
+  for (size_t i = 0; i < n; ++i) {
+    ++tally.stats.read;
+    if (!tally.Keep(Eigen::Vector3d(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]), v)) continue;
+    scan.points.push_back(v);
+    if (rgb) scan.colors.push_back({rgb[3 * i], rgb[3 * i + 1], rgb[3 * i + 2]});
+  }
+  FinishScan(name, tally, shift, scan, stats_out);
   return scan;
 }
 

@@ -72,6 +72,9 @@ class FURNIHOST_API Pipeline {
 
   struct SceneInput {
     std::string path;
+    // A scan already in memory (ScanFromPoints with frame.shift): the input sensor takes it
+    // instead of reading `path`, which then only names it.
+    std::shared_ptr<const Scan> scan;
     std::optional<Eigen::Vector3f> origin;  // in the file's frame
     Eigen::Isometry3f pose = Eigen::Isometry3f::Identity();
     FrameOptions frame;                      // up axis / transform / global shift

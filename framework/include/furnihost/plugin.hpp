@@ -29,7 +29,7 @@
 // defines for them. It changes whenever one of their types changes layout or one of their
 // exported functions its signature; the host's headers (pipeline, config, registry, io,
 // evaluation, ...) change freely, since no plugin includes them.
-#define FURNIHOST_ABI_VERSION 7
+#define FURNIHOST_ABI_VERSION 8
 
 namespace furnihost {
 
