@@ -18,10 +18,11 @@
 #include <string>
 #include <vector>
 
-#include "furnihost/detector.hpp"
-#include "furnihost/frame.hpp"
 #include "furnihost/geometry.hpp"
-#include "furnihost/io.hpp"
+#include "furnihost/host/detections.hpp"
+#include "furnihost/host/detector.hpp"
+#include "furnihost/host/frame.hpp"
+#include "furnihost/host/io.hpp"
 #include "furnihost/log.hpp"
 #include "furnihost/scan_reader.hpp"
 

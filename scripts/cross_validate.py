@@ -60,7 +60,7 @@ def load(path):
         return json.load(f)
 
 
-# ---- matching and AP (as framework/src/eval_matching.cpp, eval_metrics.cpp) -----------------------
+# ---- matching and AP (as framework/src/eval/matching.cpp, metrics.cpp) -----------------------
 def box_iou(a, b):
     """a, b: (lo, hi) triples of 3 numbers."""
     inter = 1.0
@@ -270,11 +270,14 @@ def main():
         return {c: {**fixed.get(c, {}), **pt} for c, pt in choice.items()}
     print(f"cross_validate: {len(points)} grid points x {len(stems)} scans, {len(groups)} groups", file=sys.stderr)
 
-    # 1. every grid point, every class set to it
+    # 1. every grid point, every class set to it. The grid "none" sets nothing (the graph as it is,
+    # whatever its recogniser: any graph, paper.json's Hough voter too) and its folds reuse these
+    # detections, their parameters being the same.
+    grid_free = not GRIDS[args.grid]
     per_point = []
     for i, pt in enumerate(points):
         cp = with_fixed({c: pt for c in ds.classes})
-        folder = run_eval(args, [f"{args.stage}.class_params={json.dumps(cp)}"], args.dataset,
+        folder = run_eval(args, [] if grid_free else [f"{args.stage}.class_params={json.dumps(cp)}"], args.dataset,
                           os.path.join(args.out, f"grid_{i:03d}"))
         per_point.append({s: detections_of(folder, s, ds) for s in stems})
         print(f"  grid point {i + 1}/{len(points)}", file=sys.stderr)
@@ -308,8 +311,12 @@ def main():
         os.makedirs(args.out, exist_ok=True)
         with open(mpath, "w") as f:
             json.dump(sub, f)
-        folder = run_eval(args, [f"{args.stage}.class_params={json.dumps(with_fixed(choice))}"], mpath, os.path.join(args.out, f"fold_{g}"))
-        dets = {s: detections_of(folder, s, ds) for s in test}
+        if grid_free:
+            dets = {s: per_point[0][s] for s in test}
+        else:
+            folder = run_eval(args, [f"{args.stage}.class_params={json.dumps(with_fixed(choice))}"], mpath,
+                              os.path.join(args.out, f"fold_{g}"))
+            dets = {s: detections_of(folder, s, ds) for s in test}
         for c in ds.classes:
             sc, n = class_figures(ds, dets, test, c)
             npos[c] += n

@@ -6,7 +6,7 @@
 # commit them with the fix, and add the input to tests/hostile/corpus/ with its expectation.
 #
 #   scripts/fuzz.sh [SECONDS_PER_TARGET=600] [TARGET ...]
-#     targets: scan_readers graph_config catalog model_file (default: all)
+#     targets: scan_readers graph_config catalog model_file mesh cli_json (default: all)
 #   FUZZ_JOBS=2 scripts/fuzz.sh 600 scan_readers   # two targets at a time ...
 #
 # Needs clang and libFuzzer (Debian: apt-get install -y clang libclang-rt-14-dev).
@@ -15,7 +15,7 @@ cd "$(dirname "$0")/.."
 SECONDS_PER_TARGET=${1:-600}
 shift || true
 TARGETS=("$@")
-[ ${#TARGETS[@]} -eq 0 ] && TARGETS=(scan_readers graph_config catalog model_file)
+[ ${#TARGETS[@]} -eq 0 ] && TARGETS=(scan_readers graph_config catalog model_file mesh cli_json)
 BUILD=${FURNIHOST_FUZZ_BUILD_DIR:-build-fuzz}
 JOBS=${FUZZ_JOBS:-1}
 SAN="-fsanitize=fuzzer-no-link,address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined"
@@ -29,7 +29,7 @@ CC=clang CXX=clang++ cmake -S . -B "$BUILD" -DCMAKE_BUILD_TYPE=RelWithDebInfo -D
   -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=address,undefined" \
   -DCMAKE_SHARED_LINKER_FLAGS="-fsanitize=address,undefined" \
   -DCMAKE_MODULE_LINKER_FLAGS="-fsanitize=address,undefined" >/dev/null
-# Only the targets asked for: fuzz_graph_config alone needs every plugin built.
+# Only the targets asked for: fuzz_graph_config and fuzz_cli_json need every plugin built.
 cmake --build "$BUILD" $(printf -- '--target fuzz_%s ' "${TARGETS[@]}") -j"${BUILD_JOBS:-2}"
 
 # Libraries the host loads with dlopen (PCL, assimp) are not instrumented: ASan still sees

@@ -10,7 +10,8 @@
 #include <random>
 
 #include "furnihost/geometry.hpp"
-#include "furnihost/registry.hpp"
+#include "furnihost/host/registry.hpp"
+#include "furnihost/host/ground_estimation.hpp"
 #include "voting/synthetic_views.hpp"
 
 namespace {

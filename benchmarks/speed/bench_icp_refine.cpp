@@ -10,7 +10,7 @@
 #include <string>
 
 #include "furnihost/geometry.hpp"
-#include "furnihost/registry.hpp"
+#include "furnihost/host/registry.hpp"
 #include "furnihost/stage.hpp"
 
 namespace {

@@ -5,7 +5,7 @@
 #include <cstdlib>
 
 #include "furnihost/log.hpp"
-#include "furnihost/registry.hpp"
+#include "furnihost/host/registry.hpp"
 #include "synthetic_furniture.hpp"
 
 namespace furnihost {

@@ -47,7 +47,7 @@
 #include <string>
 #include <vector>
 
-#include "furnihost/io.hpp"
+#include "furnihost/host/io.hpp"
 #include "furnihost/log.hpp"
 #include "furnihost/voxel_index.hpp"
 #include "parallel/tbb_for.hpp"

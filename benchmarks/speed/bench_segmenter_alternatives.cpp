@@ -8,8 +8,8 @@
 
 #include <cstdlib>
 
-#include "furnihost/io.hpp"
-#include "furnihost/registry.hpp"
+#include "furnihost/host/io.hpp"
+#include "furnihost/host/registry.hpp"
 #include "furnihost/stage.hpp"
 
 namespace {

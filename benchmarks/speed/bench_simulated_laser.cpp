@@ -7,8 +7,8 @@
 #include <cmath>
 #include <filesystem>
 
-#include "furnihost/catalog.hpp"
-#include "furnihost/registry.hpp"
+#include "furnihost/host/catalog.hpp"
+#include "furnihost/host/registry.hpp"
 #include "furnihost/stage.hpp"
 
 namespace {

@@ -103,6 +103,27 @@ def route_table(route):
     return lines
 
 
+def views_table(views):
+    """Single views (configs/rgbd_view.json) and one-spot laser rooms (configs/laser_room.json) as whole
+    processes: per scan the median, fastest and slowest, against the target of its kind."""
+    by_scan = {}
+    for r in views["runs"]:
+        by_scan.setdefault((r["kind"], r["graph"], r["scan"]), []).append(r)
+    target = {"view": 0.3, "room": 0.6}
+    head = ["graph", "scan", "points", "process [s]: median (min-max)", "runs",
+            "stages [s]: ground + proposals + recognition + synthesis", "target", "met"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for (kind, graph, scan), runs in sorted(by_scan.items()):
+        walls = sorted(r["wall_s"] for r in runs)
+        med = walls[len(walls) // 2] if len(walls) % 2 else 0.5 * (walls[len(walls) // 2 - 1] + walls[len(walls) // 2])
+        t = min((r["detections"]["timings_ms"] for r in runs), key=lambda t: t["total"])
+        stages = " + ".join(f"{t.get(s, 0.0) / 1000:.3f}" for s in ("ground", "propose", "recognise", "fit"))
+        cells = [graph, scan, points_label(runs[0]["detections"]["points"]), f"{med:.3f} ({walls[0]:.3f}-{walls[-1]:.3f})",
+                 str(len(walls)), stages, f"{target[kind]:.1f} s", "yes" if med <= target[kind] else "no"]
+        lines.append("| " + " | ".join(cells) + " |")
+    return lines
+
+
 def svg_plot(series, path, title):
     """series: [(label, colour, [(points, seconds), ...])]; log-log axes."""
     W, H, L, R, T, B = 640, 420, 70, 190, 40, 50
@@ -170,6 +191,11 @@ def main():
     if route["runs"]:
         md += ["", "## configs/scannet.json on ScanNet dev rooms, whole process (model cached; 2 threads)", ""]
         md += route_table(route)
+    views_path = os.path.join(out, "views_route.json")
+    views = json.load(open(views_path)) if os.path.exists(views_path) else {"runs": []}
+    if views["runs"]:
+        md += ["", "## Single views and one-spot laser rooms, whole process (model cached; 2 threads)", ""]
+        md += views_table(views)
     md += ["", "## Segmentation (+ features) against PCL on the same clouds, one process (2 threads)", ""]
     md += seg_table(seg) if seg["rows"] else ["(no segmentation rows)"]
     md += ["", "Each contender's fastest timed run. × ours = PCL time / our time (higher: ours faster). PCL RegionGrowing is single-threaded;",

@@ -18,7 +18,8 @@
 # run without it retrains again).
 # Writes DIR (default runs/speed/): rooms/*.pcd, detect/<scan>/run<i>/detections.json,
 # scannet_route.json (configs/scannet.json timed as whole processes on ScanNet dev rooms,
-# PROCESS_RUNS=N runs each, default 5), segmentation.json, speed.md (the tables) and speed.svg
+# PROCESS_RUNS=N runs each, default 5), views_route.json (configs/rgbd_view.json on SUN RGB-D
+# views and configs/laser_room.json on laser rooms, the same way), segmentation.json, speed.md (the tables) and speed.svg
 # (time against point count).
 # $FURNIHOST_SHARED_DATA_DIR (default ../shared/data) holds scannet_votenet50k/; it is read in
 # place, never copied.
@@ -111,6 +112,38 @@ for room in scene0000_00 scene0001_01 scene0003_00; do
   done
 done
 echo ']}' >>"$ROUTE_JSON"
+
+# What a robot sees from where it stands, as a user runs it (issue 51's targets: a single view in
+# 0.3 s, a one-spot laser room of about 50k points in 0.6 s, whole processes, model cached):
+# configs/rgbd_view.json on SUN RGB-D dev views (50k points each, camera at the origin) and
+# configs/laser_room.json on the 0.1M simulated room (the demo room scanned from its centre at
+# 0.25 deg and thinned by a 4 cm voxel filter) and on the demo room itself; one warm-up run
+# each, then PROCESS_RUNS timed runs.
+VIEWS_JSON="$OUT/views_route.json"
+echo '{"runs": [' >"$VIEWS_JSON"
+first=1
+process_runs() {  # kind graph scan name [args...]
+  local kind=$1 graph=$2 f=$3 name=$4
+  shift 4
+  [[ -f $f ]] || return 0
+  echo "process: $graph on $name ($PROCESS_RUNS runs)"
+  "$FH" --graph "$graph" "$f" "$@" --threads "$THREADS" -q --out "$OUT/views_route/$name" >/dev/null
+  for i in $(seq "$PROCESS_RUNS"); do
+    t0=$(date +%s%N)
+    "$FH" --graph "$graph" "$f" "$@" --threads "$THREADS" -q --out "$OUT/views_route/$name" >/dev/null
+    t1=$(date +%s%N)
+    [[ $first == 1 ]] || echo ',' >>"$VIEWS_JSON"
+    first=0
+    printf '{"kind": "%s", "graph": "%s", "scan": "%s", "wall_s": %s, "detections": %s}' "$kind" "$graph" "$name" \
+      "$(awk "BEGIN{print ($t1 - $t0) / 1e9}")" "$(cat "$OUT/views_route/$name/detections.json")" >>"$VIEWS_JSON"
+  done
+}
+for v in sun000001 sun000002 sun000003; do
+  process_runs view configs/rgbd_view.json "$SHARED/sunrgbd_dev/$v.ply" "$v" --origin 0,0,0
+done
+process_runs room configs/laser_room.json "$OUT/rooms/room_0.1M.pcd" room_0.1M
+process_runs room configs/laser_room.json data/demo/room.pcd demo_room
+echo ']}' >>"$VIEWS_JSON"
 
 # Ours against PCL on the same clouds, in one process (configs/paper.json's radii).
 BENCH_ARGS=()

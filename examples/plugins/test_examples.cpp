@@ -11,7 +11,7 @@
 #include <set>
 #include <sstream>
 
-#include "furnihost/registry.hpp"
+#include "furnihost/host/registry.hpp"
 #include "furnihost/stage.hpp"
 #include "test_support.hpp"
 

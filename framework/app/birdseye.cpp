@@ -14,8 +14,8 @@
 
 #include "furnihost/error.hpp"
 #include "furnihost/geometry.hpp"
-#include "furnihost/io.hpp"
-#include "furnihost/pipeline.hpp"
+#include "furnihost/host/io.hpp"
+#include "furnihost/host/pipeline.hpp"
 #include "cancel_on_unwind.hpp"
 #include "png_writer.hpp"
 

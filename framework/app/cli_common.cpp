@@ -109,6 +109,7 @@ FrameOptions FrameCli::Frame() const {
   if (!shift.empty()) {
     const auto v = ParseNumbers(shift, 3, "--shift");
     f.shift.shift = Eigen::Vector3d(v[0], v[1], v[2]);
+    CheckShift(*f.shift.shift, "--shift");
   }
   return f;
 }

@@ -6,9 +6,9 @@
 #include <string>
 #include <vector>
 
-#include "furnihost/config.hpp"
-#include "furnihost/frame.hpp"
-#include "furnihost/registry.hpp"
+#include "furnihost/host/config.hpp"
+#include "furnihost/host/frame.hpp"
+#include "furnihost/host/registry.hpp"
 #include "furnihost/stage.hpp"
 
 namespace furnihost::app {

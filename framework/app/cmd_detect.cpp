@@ -11,10 +11,10 @@
 #include "cancel_on_unwind.hpp"
 #include "cli_common.hpp"
 #include "commands.hpp"
-#include "furnihost/catalog.hpp"
-#include "furnihost/detector.hpp"
 #include "furnihost/geometry.hpp"
-#include "furnihost/io.hpp"
+#include "furnihost/host/catalog.hpp"
+#include "furnihost/host/detector.hpp"
+#include "furnihost/host/io.hpp"
 #include "furnihost/log.hpp"
 #include "furnihost/scan_reader.hpp"
 #if __has_include("birdseye.hpp")
@@ -27,6 +27,9 @@ namespace fs = std::filesystem;
 namespace furnihost::app {
 
 namespace {
+
+// How far apart the scans of one fused group may be [m]: a building's rooms, and more.
+constexpr double kMaxPoseSpread = 1e4;
 
 // The segmentation, a random colour per part, in the scan's file frame (it overlays the
 // user's scan in CloudCompare / RViz).
@@ -168,6 +171,26 @@ void PrintDetections(std::ostream& os, const std::vector<Detection>& dets, const
   }
 }
 
+// The pose of scan i from --pose x,y,z,yaw_deg, checked against the others: the scans of a
+// fused group vote in one space, whose grids span them all, so a pose far from the rest (1e9 m:
+// "cannot create std::vector larger than max_size()") is refused here, naming it.
+Eigen::Isometry3f ParsePose(const std::vector<std::string>& poses, size_t i) {
+  const auto p = ParseNumbers(poses[i], 4, "--pose");
+  const std::string which = "--pose " + poses[i] + " (scan " + std::to_string(i + 1) + ")";
+  if (!(std::abs(p[0]) <= kMaxScanCoordinate && std::abs(p[1]) <= kMaxScanCoordinate &&
+        std::abs(p[2]) <= kMaxScanCoordinate))
+    throw InputError(which + ": x, y, z lie beyond " + std::to_string(static_cast<long long>(kMaxScanCoordinate)) +
+                     " m: poses are metres in the group's common frame");
+  if (!(std::abs(p[3]) <= 36000.0)) throw InputError(which + ": the yaw is degrees, got " + std::to_string(p[3]));
+  const auto first = ParseNumbers(poses[0], 4, "--pose");
+  const double apart = Eigen::Vector3d(p[0] - first[0], p[1] - first[1], p[2] - first[2]).norm();
+  if (!(apart <= kMaxPoseSpread))
+    throw InputError(which + ": lies " + std::to_string(static_cast<long long>(std::llround(apart))) +
+                     " m from the first scan's pose; the scans of a fused group lie within " +
+                     std::to_string(static_cast<long long>(kMaxPoseSpread)) + " m of each other");
+  return UprightPose(p[0], p[1], p[2], static_cast<float>(p[3] * M_PI / 180.0));
+}
+
 }  // namespace
 
 int RunTrain(const std::vector<std::string>& args) {
@@ -183,7 +206,10 @@ int RunTrain(const std::vector<std::string>& args) {
   common.Apply();
   std::shared_ptr<const Registry> reg = common.MakeRegistry();
   GraphConfig g = common.LoadGraph(graph, *reg);
-  if (!out.empty()) g.model_cache = out;
+  if (!out.empty()) {
+    CheckModelCacheTarget(out, "--out ");
+    g.model_cache = out;
+  }
   if (g.model_cache.empty()) throw InputError(graph + ":/model_cache: missing (or pass --out)");
   // The model is trained with the graph's seed, which its cache records: --seed sets it.
   if (common.seed) g.seed = *common.seed;
@@ -255,6 +281,11 @@ int RunDetect(const std::vector<std::string>& args) {
   std::optional<Eigen::Vector3f> origin;
   if (!origin_text.empty()) {
     auto o = ParseNumbers(origin_text, 3, "--origin");
+    // In the file's coordinates, which a global shift may take that far; the scan decides the
+    // rest (CheckSensorOrigin, before any stage).
+    for (double c : o)
+      if (!(std::abs(c) <= kMaxGlobalShift + kMaxScanCoordinate))
+        throw InputError("--origin: " + origin_text + " lies beyond 1e8 m of the file's origin");
     origin = Eigen::Vector3f(o[0], o[1], o[2]);
   }
   if (graph.empty()) graph = ChooseDefaultGraph(scans, origin.has_value());
@@ -270,10 +301,7 @@ int RunDetect(const std::vector<std::string>& args) {
     in.path = scans[i];
     in.origin = origin;
     in.frame = frame;
-    if (!poses.empty()) {
-      auto p = ParseNumbers(poses[i], 4, "--pose");
-      in.pose = UprightPose(p[0], p[1], p[2], static_cast<float>(p[3] * M_PI / 180.0));
-    }
+    if (!poses.empty()) in.pose = ParsePose(poses, i);
     inputs.push_back(in);
   }
   DetectorOptions options;
@@ -307,10 +335,17 @@ int RunDetect(const std::vector<std::string>& args) {
   if (fuse) groups.push_back(inputs);
   else
     for (const auto& in : inputs) groups.push_back({in});
-  for (const auto& group : groups) {
-    const std::string stem = fs::path(group.front().path).stem().string() + (group.size() > 1 ? "_fused" : "");
-    const std::string dir = !out.empty() ? (groups.size() > 1 ? (fs::path(out) / stem).string() : out)
-                                         : (fs::path("furnihost-out") / stem).string();
+  // Each group's output folder is named after its (first) scan: a name of its own, inside the
+  // output folder whatever the file is called (a stem "..", two scans named room.pcd).
+  std::vector<std::string> stems;
+  for (const auto& group : groups)
+    stems.push_back(fs::path(group.front().path).stem().string() + (group.size() > 1 ? "_fused" : ""));
+  const std::vector<std::string> folders = UniqueSafeNames(stems);
+  for (size_t gi = 0; gi < groups.size(); ++gi) {
+    const auto& group = groups[gi];
+    const std::string& stem = stems[gi];
+    const std::string dir = !out.empty() ? (groups.size() > 1 ? (fs::path(out) / folders[gi]).string() : out)
+                                         : (fs::path("furnihost-out") / folders[gi]).string();
     Stopwatch total;
     auto r = detector.Detect(group);
 #ifdef FURNIHOST_HAVE_BIRDSEYE

@@ -10,7 +10,6 @@
 // Detector::Evaluate runs a graph over the dataset once per seed.
 #include <sys/utsname.h>
 
-#include <cctype>
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
@@ -20,11 +19,12 @@
 
 #include "cli_common.hpp"
 #include "commands.hpp"
-#include "furnihost/detector.hpp"
-#include "furnihost/evaluation.hpp"
 #include "furnihost/hash.hpp"
-#include "furnihost/io.hpp"
+#include "furnihost/host/detector.hpp"
+#include "furnihost/host/evaluation.hpp"
+#include "furnihost/host/io.hpp"
 #include "furnihost/log.hpp"
+#include "git_info.hpp"
 #include "plots.hpp"
 #include "report.hpp"
 
@@ -35,36 +35,13 @@ namespace furnihost::app {
 
 namespace {
 
-std::string Shell(const std::string& cmd) {
-  std::string out;
-  if (FILE* p = ::popen(cmd.c_str(), "r")) {
-    char buf[256];
-    while (std::fgets(buf, sizeof(buf), p)) out += buf;
-    if (::pclose(p) != 0) return "";
-  }
-  while (!out.empty() && std::isspace(static_cast<unsigned char>(out.back()))) out.pop_back();
-  return out;
-}
-
-std::string Quote(const std::string& s) {
-  std::string q = "'";
-  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
-
 // Git revision of the source checkout: $FURNIHOST_SOURCE_DIR, else the folder of the first
-// graph (configs/ lives in the checkout).
+// graph (configs/ lives in the checkout). Read from its files, never by running git.
 json GitInfo(const std::string& near) {
   std::vector<std::string> dirs;
   if (const char* s = std::getenv("FURNIHOST_SOURCE_DIR")) dirs.push_back(s);
   dirs.push_back(fs::absolute(fs::path(near)).parent_path().string());
-  for (const auto& d : dirs) {
-    const std::string rev = Shell("git -C " + Quote(d) + " rev-parse HEAD 2>/dev/null");
-    if (rev.size() != 40) continue;
-    const std::string dirty = Shell("git -C " + Quote(d) + " status --porcelain --untracked-files=no 2>/dev/null");
-    return {{"revision", rev}, {"dirty", !dirty.empty()}, {"dir", d}};
-  }
-  return {{"revision", "unknown"}, {"dirty", nullptr}};
+  return app::GitInfo(dirs);
 }
 
 json MachineInfo() {
@@ -96,12 +73,6 @@ std::string UtcNow() {
   char buf[32];
   std::strftime(buf, sizeof(buf), "%Y-%m-%dT%H:%M:%SZ", &tm);
   return buf;
-}
-
-std::string FileSafe(const std::string& s) {
-  std::string o;
-  for (char c : s) o += (std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.') ? c : '_';
-  return o.empty() ? "_" : o;
 }
 
 // A length in metres as millimetres, "0.50 mm".
@@ -147,6 +118,7 @@ std::vector<std::string> IgnoredNotes(const std::vector<ConfigSummary>& configs)
 std::vector<std::string> WritePlots(const std::string& dir, const std::vector<ConfigSummary>& configs,
                                     const std::vector<std::string>& classes) {
   std::vector<std::string> files;
+  const std::vector<std::string> class_files = UniqueSafeNames(classes);
   // The paper's rule (pr_<class>) and the ScanNet rule, box IoU >= 0.25 (pr25_<class>).
   for (const bool iou : {false, true})
   for (const auto& cls : classes) {
@@ -173,7 +145,7 @@ std::vector<std::string> WritePlots(const std::string& dir, const std::vector<Co
         series.push_back(std::move(s));
       }
     }
-    const std::string stem = (iou ? "pr25_" : "pr_") + FileSafe(cls);
+    const std::string stem = (iou ? "pr25_" : "pr_") + class_files[size_t(&cls - classes.data())];
     WritePrPlot((fs::path(dir) / stem).string(),
                 cls + (iou ? ": recall vs 1 - precision, box IoU >= 0.25" : ": recall vs 1 - precision, paper rule"),
                 series);
@@ -230,6 +202,9 @@ int RunEval(const std::vector<std::string>& args) {
   for (const auto& s : dataset.scenes) truth.push_back(ReadGroundTruth(s.gt));
   const std::string hash = HashDataset(dataset);
   const std::vector<std::string> config_names = Names(graphs, names);
+  // The names of each config's files: run_<file>.json, detections/<file>/, inside --out
+  // whatever --name says.
+  const std::vector<std::string> config_files = UniqueSafeNames(config_names);
   std::vector<GraphConfig> configs;
   for (size_t i = 0; i < graphs.size(); ++i) {
     configs.push_back(common.LoadGraph(graphs[i], *reg));
@@ -255,6 +230,7 @@ int RunEval(const std::vector<std::string>& args) {
     summary.name = config_names[c];
     summary.graph = graph.path;
     run_in.name = summary.name;
+    run_in.file = config_files[c];
     if (const auto sinks = graph.Sinks(); sinks.size() > 1) {
       std::string tags;
       for (const auto* s : sinks) tags += (tags.empty() ? "" : ", ") + s->tag;
@@ -309,7 +285,7 @@ int RunEval(const std::vector<std::string>& args) {
                          {"dataset", dataset_json},
                          {"machine", machine},
                          {"figures", ToJson(summary)}};
-    WriteJson((fs::path(out) / ("run_" + FileSafe(summary.name) + ".json")).string(), record);
+    WriteJson((fs::path(out) / ("run_" + config_files[c] + ".json")).string(), record);
     summaries.push_back(std::move(summary));
   }
 
@@ -330,7 +306,7 @@ int RunEval(const std::vector<std::string>& args) {
   const std::string report = RenderReport(summaries, info);
   json summary_json = EvalSummaryJson(dataset, hash, width, summaries);
   for (size_t c = 0; c < summaries.size(); ++c)
-    summary_json["configs"][c]["run_record"] = "run_" + FileSafe(summaries[c].name) + ".json";
+    summary_json["configs"][c]["run_record"] = "run_" + config_files[c] + ".json";
   summary_json["git"] = git;
   summary_json["machine"] = machine;
   WriteJson((fs::path(out) / "summary.json").string(), summary_json);

@@ -20,11 +20,11 @@
 
 #include "cli_common.hpp"
 #include "commands.hpp"
-#include "furnihost/catalog.hpp"
-#include "furnihost/evaluation.hpp"
-#include "furnihost/io.hpp"
+#include "furnihost/host/catalog.hpp"
+#include "furnihost/host/evaluation.hpp"
+#include "furnihost/host/io.hpp"
 #include "furnihost/log.hpp"
-#include "furnihost/pipeline.hpp"
+#include "furnihost/host/pipeline.hpp"
 #include "plots.hpp"
 
 namespace fs = std::filesystem;
@@ -136,8 +136,8 @@ std::pair<std::string, nlohmann::json> ParseVariant(const std::string& text) {
     throw InputError("--sensor " + text + ": expected NAME=PARAMS, e.g. room='{\"preset\": \"room_reconstruction\"}'");
   const std::string name = text.substr(0, eq);
   if (name == "real" || name == "graph") throw InputError("--sensor " + text + ": '" + name + "' is taken; use another name");
-  nlohmann::json j = nlohmann::json::parse(text.substr(eq + 1), nullptr, false);
-  if (j.is_discarded() || !j.is_object())
+  const nlohmann::json j = ParseCliJson(text.substr(eq + 1), "--sensor " + name);
+  if (!j.is_object())
     throw InputError("--sensor " + name + ": PARAMS must be a JSON object of the training sensor's parameters");
   return {name, j};
 }
@@ -393,8 +393,8 @@ int RunGap(const std::vector<std::string>& args) {
     WriteLinePlot((fs::path(out) / "hist" / feature_names[c]).string(), feature_names[c], ax, series);
   }
   AtomicWriteText((fs::path(out) / "gap.md").string(), md.str());
-  AtomicWriteText((fs::path(out) / "gap.json").string(), report.dump(2) + "\n");
-  std::cout << md.str() << "-> " << out << "/gap.md, gap.json, hist/<column>.svg/.png\n";
+  WriteJson((fs::path(out) / "gap.json").string(), report);
+  if (!common.quiet) std::cout << md.str() << "-> " << out << "/gap.md, gap.json, hist/<column>.svg/.png\n";
   return 0;
 }
 

@@ -2,7 +2,8 @@
 
 #include "cli_common.hpp"
 #include "commands.hpp"
-#include "furnihost/registry.hpp"
+#include "furnihost/host/io.hpp"
+#include "furnihost/host/registry.hpp"
 
 namespace furnihost::app {
 
@@ -22,7 +23,7 @@ int RunPlugins(const std::vector<std::string>& args) {
       j["plugins"].push_back({{"type", p.type}, {"kind", ToString(p.kind)}, {"version", p.version},
                               {"description", p.description}, {"path", p.path}, {"params", p.params.ToJson()}});
     for (const auto& r : reg->Refusals()) j["refused"].push_back({{"path", r.path}, {"reason", r.reason}});
-    std::cout << j.dump(2) << "\n";
+    std::cout << DumpJson(j, 2) << "\n";
     return 0;
   }
   std::cout << reg->Plugins().size() << " plugins (search path:";

@@ -7,6 +7,9 @@
 //    "sensors": [{"position": [0.5, 0.5, 1.5], "yaw_deg": 45, "pitch_deg": 0}],
 //    "sensor_params": {"voxel_m": 0.03}}
 // x, y = where the model's bounding-box bottom centre stands; yaw about +z, counter-clockwise.
+// Objects may not overlap on the floor plan, except one marked "under": true (a chair pushed
+// under a table, whose seat passes below the top): the scene's author vouches that its mesh
+// clears the others.
 // Sensor pitch_deg turns about the sensor's y (left) axis, positive looks down. Without
 // "sensors": one pan-tilt scan from sensor_height_m at the room centre with a 360 deg sweep.
 //
@@ -22,16 +25,18 @@
 #include <filesystem>
 #include <iostream>
 #include <map>
+#include <optional>
 #include <set>
 #include <sstream>
+#include <unordered_map>
 
 #include "cli_common.hpp"
 #include "commands.hpp"
-#include "furnihost/catalog.hpp"
+#include "furnihost/host/catalog.hpp"
 #include "furnihost/geometry.hpp"
-#include "furnihost/io.hpp"
+#include "furnihost/host/io.hpp"
 #include "furnihost/log.hpp"
-#include "furnihost/registry.hpp"
+#include "furnihost/host/registry.hpp"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -47,6 +52,7 @@ constexpr float kOverlapTolerance = 0.005f;
 struct SceneObject {
   std::string model;
   float x = 0, y = 0, z = 0, yaw_deg = 0;
+  bool under = false;  // may overlap the others on the floor plan
 };
 struct SceneSensor {
   Eigen::Vector3f position = Eigen::Vector3f::Zero();
@@ -125,7 +131,7 @@ SceneSpec ParseScene(const json& j, const std::string& file) {
     for (size_t i = 0; i < j["objects"].size(); ++i) {
       const json& o = j["objects"][i];
       const std::string p = "/objects/" + std::to_string(i);
-      CheckKeys(o, {"model", "x", "y", "z", "yaw_deg"}, file, p);
+      CheckKeys(o, {"model", "x", "y", "z", "yaw_deg", "under"}, file, p);
       SceneObject so;
       if (!o.contains("model") || !o["model"].is_string())
         throw InputError(Ptr(file, p + "/model") + ": missing model id (a string)");
@@ -134,6 +140,10 @@ SceneSpec ParseScene(const json& j, const std::string& file) {
       so.y = Number(o, "y", file, p, std::nullopt, -1e4f, 1e4f);
       so.z = Number(o, "z", file, p, 0.f, -1e4f, 1e4f);
       so.yaw_deg = Number(o, "yaw_deg", file, p, 0.f, -3600.f, 3600.f);
+      if (o.contains("under")) {
+        if (!o["under"].is_boolean()) throw InputError(Ptr(file, p + "/under") + ": expected true or false");
+        so.under = o["under"].get<bool>();
+      }
       s.objects.push_back(so);
     }
   }
@@ -199,6 +209,69 @@ float Penetration(const Footprint& a, const Footprint& b) {
       depth = std::min(depth, std::min(ahi, bhi) - std::max(alo, blo));
     }
   return depth;
+}
+
+// The overlapping pair (k, i), k < i, with the smallest i (then k) that interpenetrates by more
+// than `tolerance`, as a loop over all pairs in order would report first; none when no two do.
+// Footprints are filed by the centre of their bounding square in a hierarchy of square grids
+// (cells doubling in size; each footprint on the finest level whose cells are at least its
+// size), and each is tested against those on its own and the coarser levels in the cells around
+// it: n log n for any layout (rows along x or y, grids, a few large among many small), where
+// all pairs took 106 s for 78,400 objects. Pairs with an object marked `under` are skipped.
+std::optional<std::pair<size_t, size_t>> FirstOverlap(const std::vector<Footprint>& feet, const std::vector<bool>& under,
+                                                     float tolerance) {
+  const size_t n = feet.size();
+  if (n < 2) return std::nullopt;
+  std::vector<Eigen::AlignedBox2f> box(n);
+  float smallest = std::numeric_limits<float>::max();
+  for (size_t i = 0; i < n; ++i) {
+    for (const auto& c : feet[i].Corners()) box[i].extend(c);
+    smallest = std::min(smallest, box[i].sizes().maxCoeff());
+  }
+  const double base = std::max(double(smallest), 1e-3);
+  auto level_of = [&](size_t i) {
+    int l = 0;
+    while (base * std::ldexp(1.0, l) < double(box[i].sizes().maxCoeff()) && l < 60) ++l;
+    return l;
+  };
+  auto key = [](int64_t x, int64_t y) { return (uint64_t(x) << 32) ^ (uint64_t(y) & 0xffffffffu); };
+  std::vector<int> level(n);
+  std::map<int, std::unordered_map<uint64_t, std::vector<size_t>>> grid;  // level -> cell -> footprints
+  for (size_t i = 0; i < n; ++i) {
+    level[i] = level_of(i);
+    const double cell = base * std::ldexp(1.0, level[i]);
+    const Eigen::Vector2f c = box[i].center();
+    grid[level[i]][key(int64_t(std::floor(c.x() / cell)), int64_t(std::floor(c.y() / cell)))].push_back(i);
+  }
+  std::optional<std::pair<size_t, size_t>> best;
+  auto consider = [&](size_t a, size_t b) {
+    const size_t lo = std::min(a, b), hi = std::max(a, b);
+    if (best && (hi > best->second || (hi == best->second && lo >= best->first))) return;
+    if (under[a] || under[b]) return;  // an object marked "under" may overlap the others
+    Eigen::AlignedBox2f grown = box[a];
+    grown.min().array() -= tolerance;
+    grown.max().array() += tolerance;
+    if (!grown.intersects(box[b]) || !(Penetration(feet[a], feet[b]) > tolerance)) return;
+    best = std::make_pair(lo, hi);
+  };
+  for (size_t i = 0; i < n; ++i)
+    for (auto it = grid.find(level[i]); it != grid.end(); ++it) {
+      // A footprint filed at this level lies within half a cell of its cell's square.
+      const double cell = base * std::ldexp(1.0, it->first);
+      const double reach = 0.5 * cell + tolerance;
+      const int64_t x0 = int64_t(std::floor((box[i].min().x() - reach) / cell)),
+                    x1 = int64_t(std::floor((box[i].max().x() + reach) / cell)),
+                    y0 = int64_t(std::floor((box[i].min().y() - reach) / cell)),
+                    y1 = int64_t(std::floor((box[i].max().y() + reach) / cell));
+      for (int64_t x = x0; x <= x1; ++x)
+        for (int64_t y = y0; y <= y1; ++y) {
+          const auto cell_it = it->second.find(key(x, y));
+          if (cell_it == it->second.end()) continue;
+          for (size_t j : cell_it->second)
+            if (j != i && (level[j] != level[i] || j > i)) consider(i, j);
+        }
+    }
+  return best;
 }
 
 // Floor (z = 0), optional walls and ceiling of the room [0, w] x [0, d] x [0, h].
@@ -288,15 +361,7 @@ int RunSimulate(const std::vector<std::string>& args) {
     throw InputError("--out " + out_path + ": unknown scan format (use .pcd, .ply or .xyz)");
   json user_params = json::object();
   if (!sensor_params_text.empty()) {
-    try {
-      // Depth-limited: messages dump offending values recursively (stack overflow at 10^4 levels).
-      user_params = json::parse(sensor_params_text, [](int depth, json::parse_event_t, json&) {
-        if (depth > 64) throw InputError("--sensor-params: nested deeper than 64 levels");
-        return true;
-      });
-    } catch (const json::exception& e) {  // parse_error, out_of_range ("1e400")
-      throw InputError(std::string("--sensor-params: not valid JSON: ") + e.what());
-    }
+    user_params = ParseCliJson(sensor_params_text, "--sensor-params");
     if (!user_params.is_object()) throw InputError("--sensor-params: expected a JSON object");
   }
 
@@ -340,13 +405,15 @@ int RunSimulate(const std::vector<std::string>& args) {
       throw InputError(scene_path + ": object " + ObjectName(i, o) + " (" + Fmt(m->size.z()) +
                        " m tall at z = " + Fmt(o.z) + ") does not fit between floor and ceiling (" +
                        Fmt(scene.height) + " m)");
-    for (size_t k = 0; k < feet.size(); ++k) {
-      const float pen = Penetration(f, feet[k]);
-      if (pen > kOverlapTolerance)
-        throw InputError(scene_path + ": objects " + ObjectName(k, scene.objects[k]) + " and " +
-                         ObjectName(i, o) + " overlap (footprints intersect by " + Fmt(pen) + " m)");
-    }
     feet.push_back(f);
+  }
+  std::vector<bool> under;
+  for (const auto& o : scene.objects) under.push_back(o.under);
+  if (const auto pair = FirstOverlap(feet, under, kOverlapTolerance)) {
+    const auto [k, i] = *pair;
+    throw InputError(scene_path + ": objects " + ObjectName(k, scene.objects[k]) + " and " +
+                     ObjectName(i, scene.objects[i]) + " overlap (footprints intersect by " +
+                     Fmt(Penetration(feet[i], feet[k])) + " m)");
   }
 
   // Sensor parameters: scene's sensor_params, then --sensor-params; the default room-centre

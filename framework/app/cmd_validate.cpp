@@ -2,8 +2,8 @@
 
 #include "cli_common.hpp"
 #include "commands.hpp"
-#include "furnihost/config.hpp"
-#include "furnihost/pipeline.hpp"
+#include "furnihost/host/config.hpp"
+#include "furnihost/host/pipeline.hpp"
 
 namespace furnihost::app {
 
@@ -26,7 +26,7 @@ int RunValidate(const std::vector<std::string>& args) {
   } catch (const StageError& e) {
     throw InputError(graph + ": " + e.what());
   }
-  if (print) std::cout << g.resolved.dump(2) << "\n";
+  if (print) std::cout << DumpJson(g.resolved, 2) << "\n";
   else std::cout << graph << ": valid (" << g.stages.size() << " stages)\n";
   return 0;
 }

@@ -8,8 +8,8 @@
 #include <vector>
 
 #include "commands.hpp"
-#include "furnihost/detector.hpp"
 #include "furnihost/error.hpp"
+#include "furnihost/host/detector.hpp"
 #include "furnihost/log.hpp"
 
 namespace {

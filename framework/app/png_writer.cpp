@@ -9,7 +9,7 @@
 #include <fstream>
 
 #include "furnihost/error.hpp"
-#include "furnihost/io.hpp"
+#include "furnihost/host/io.hpp"
 
 namespace furnihost::app {
 

@@ -1,10 +1,10 @@
 // The Markdown report of `furnihost eval` and `furnihost compare` (report.md), rendered from
-// the run figures (furnihost/evaluation.hpp) beside the plots of the same report (plots.hpp).
+// the run figures (furnihost/host/evaluation.hpp) beside the plots of the same report (plots.hpp).
 #pragma once
 #include <string>
 #include <vector>
 
-#include "furnihost/evaluation.hpp"
+#include "furnihost/host/evaluation.hpp"
 
 namespace furnihost::app {
 

@@ -11,6 +11,8 @@
 #include <string>
 #include <vector>
 
+#include "furnihost/host/catalog.hpp"
+
 namespace furnihost::fuzz {
 
 // One folder per process, so parallel fuzzers (-jobs) never share files.
@@ -46,6 +48,19 @@ inline std::vector<std::string> Split(const uint8_t* data, size_t size) {
     }
     parts.push_back(s.substr(start, at - start));
     start = at + sep.size();
+  }
+}
+
+// What every consumer of a catalog relies on: indices in range, finite metres, a height.
+// Traps (a finding) otherwise.
+inline void TrapUnlessUsable(const Catalog& c) {
+  for (const auto& m : c.models) {
+    for (const auto& t : m.mesh.triangles)
+      for (int k = 0; k < 3; ++k)
+        if (t[k] < 0 || t[k] >= static_cast<int>(m.mesh.vertices.size())) __builtin_trap();
+    for (const auto& v : m.mesh.vertices)
+      if (!v.allFinite()) __builtin_trap();
+    if (!m.size.allFinite() || !(m.size.z() > 0.f)) __builtin_trap();
   }
 }
 

@@ -3,8 +3,8 @@
 // plugins of the build tree and its stages are created. Anything but InputError, or a
 // StageError of bad input from a plugin constructor, is a finding.
 #include "fuzz_common.hpp"
-#include "furnihost/config.hpp"
-#include "furnihost/pipeline.hpp"
+#include "furnihost/host/config.hpp"
+#include "furnihost/host/pipeline.hpp"
 
 namespace {
 const furnihost::Registry& Reg() {

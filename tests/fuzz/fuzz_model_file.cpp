@@ -1,7 +1,7 @@
 // libFuzzer target: LoadModel (magic line + CBOR) on arbitrary bytes, then the checks the
 // host runs on a loaded model. Anything but InputError is a finding.
 #include "fuzz_common.hpp"
-#include "furnihost/pipeline.hpp"
+#include "furnihost/host/pipeline.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string path = furnihost::fuzz::Write("model.fhm", reinterpret_cast<const char*>(data), size);
@@ -10,9 +10,11 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     furnihost::GraphConfig g;
     g.path = "fuzz.json";
     (void)furnihost::Incompatibility(m, g, "0123456789abcdef");
-    furnihost::FeatureMatrix f;
-    f.values.setConstant(2, static_cast<Eigen::Index>(m.normaliser.min.size()), 0.5f);
-    m.normaliser.Apply(f);
+    for (const auto& [tag, voter] : m.voters) {
+      furnihost::FeatureMatrix f;
+      f.values.setConstant(2, static_cast<Eigen::Index>(voter.normaliser.min.size()), 0.5f);
+      voter.normaliser.Apply(f);
+    }
   } catch (const furnihost::InputError&) {
   }
   return 0;

@@ -1,7 +1,7 @@
 // libFuzzer target: ReadScan on arbitrary bytes. The first byte picks the format (.pcd,
 // .ply, .xyz) so one corpus covers all three readers. Anything but InputError is a finding.
 #include "fuzz_common.hpp"
-#include "furnihost/io.hpp"
+#include "furnihost/host/io.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   if (size < 1) return 0;

@@ -128,6 +128,62 @@ f 1 3 2\nf 1 4 3\nf 5 6 7\nf 5 7 8\nf 1 2 6\nf 1 6 5\nf 2 3 7\nf 2 7 6\nf 3 4 8\
 """
 
 
+# ---- meshes with bad face indices (issue 50): every format, every layout -----------------
+TRI = [(0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (0.0, 1.0, 1.0)]
+
+
+def ply_mesh_binary(faces, endian="<", fmt="binary_little_endian", index="uint"):
+    code = {"uint": "I", "int": "i", "ushort": "H"}[index]
+    head = ("ply\nformat %s 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+            "element face %d\nproperty list uchar %s vertex_indices\nend_header\n" % (fmt, len(faces), index))
+    body = b"".join(struct.pack(endian + "3f", *v) for v in TRI)
+    body += b"".join(struct.pack(endian + "B3" + code, 3, *f) for f in faces)
+    return head.encode() + body
+
+
+def gltf(indices, uri=None):
+    """A one-triangle glTF 2.0: positions and uint16 indices, the buffer embedded or at `uri`."""
+    import base64
+    import json
+    pos = b"".join(struct.pack("<3f", *v) for v in TRI)
+    idx = struct.pack("<3H", *indices) + b"\x00\x00"
+    data = pos + idx
+    buf = {"byteLength": len(data),
+           "uri": uri or "data:application/octet-stream;base64," + base64.b64encode(data).decode()}
+    doc = {"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+           "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}], "buffers": [buf],
+           "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36},
+                           {"buffer": 0, "byteOffset": 36, "byteLength": 6}],
+           "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                          "min": [0, 0, 0], "max": [1, 1, 1]},
+                         {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}]}
+    return json.dumps(doc), data
+
+
+def dae(p="0 1 2", count=9):
+    return ('<?xml version="1.0"?>\n<COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1">\n'
+            '<asset><unit meter="1"/><up_axis>Z_UP</up_axis></asset>\n<library_geometries><geometry id="g"><mesh>\n'
+            '<source id="p"><float_array id="pa" count="%d">0 0 0 1 0 0 0 1 1</float_array><technique_common>'
+            '<accessor source="#pa" count="3" stride="3"><param name="X" type="float"/><param name="Y" type="float"/>'
+            '<param name="Z" type="float"/></accessor></technique_common></source>\n'
+            '<vertices id="v"><input semantic="POSITION" source="#p"/></vertices>\n'
+            '<triangles count="1"><input semantic="VERTEX" source="#v" offset="0"/><p>%s</p></triangles>\n'
+            '</mesh></geometry></library_geometries>\n<library_visual_scenes><visual_scene id="s"><node id="n">'
+            '<instance_geometry url="#g"/></node></visual_scene></library_visual_scenes>\n'
+            '<scene><instance_visual_scene url="#s"/></scene>\n</COLLADA>\n' % (count, p))
+
+
+# The detection chain of the test-only stubs (its closing braces left to the graph that uses it).
+STUB_CHAIN = ('{"seed": 7, "catalog": "{corpus}/catalogs/tiny/catalog.json", "model_cache": "{tmp}/model.fhm",\n'
+              ' "training": {"sensor": "sim"},\n "stages": {\n'
+              '  "sim": {"type": "sensors.simulated_laser", "params": {"views": 2, "angular_resolution_deg": 2,'
+              ' "tilt_resolution_deg": 2}},\n'
+              '  "input": {"type": "sensors.scan_file"},\n'
+              '  "seg": {"type": "segmenters.hostile_stub", "inputs": ["input"]},\n'
+              '  "feat": {"type": "features.centroid", "inputs": ["seg"]},\n'
+              '  "vote": {"type": "voters.hostile_stub", "inputs": ["feat"]}')
+
+
 def catalog(models):
     import json
     return json.dumps({"furnihost_catalog": 1, "models": models}, indent=1)
@@ -270,15 +326,7 @@ def main():
           '{"stages": {"input": {"type": "sensors.scan_file"}, "seg": {"type": "segmenters.throws",'
           ' "inputs": ["input"], "params": {"throw_in_constructor": true}}}}')
     # The whole chain with the test-only stubs: trains from the tiny catalog in seconds.
-    write("graphs/stub_chain.json",
-          '{"seed": 7, "catalog": "{corpus}/catalogs/tiny/catalog.json", "model_cache": "{tmp}/model.fhm",\n'
-          ' "training": {"sensor": "sim"},\n "stages": {\n'
-          '  "sim": {"type": "sensors.simulated_laser", "params": {"views": 2, "angular_resolution_deg": 2,'
-          ' "tilt_resolution_deg": 2}},\n'
-          '  "input": {"type": "sensors.scan_file"},\n'
-          '  "seg": {"type": "segmenters.hostile_stub", "inputs": ["input"]},\n'
-          '  "feat": {"type": "features.centroid", "inputs": ["seg"]},\n'
-          '  "vote": {"type": "voters.hostile_stub", "inputs": ["feat"]}}}\n')
+    write("graphs/stub_chain.json", STUB_CHAIN + "}}\n")
 
     # -- catalogs (used through `furnihost simulate`)
     write("catalogs/tiny/cube.obj", CUBE_OBJ)
@@ -347,6 +395,87 @@ def main():
     write("catalogs/bad_scale/catalog.json", catalog([entry("../tiny/cube.obj", scale=-1)]))
     write("catalogs/overflow_scale/catalog.json", catalog([entry("../tiny/cube.obj", scale=1e300)]))
 
+    # -- issue 50: face indices past the vertices, in every format and layout (assimp's
+    # post-processing follows them unchecked: SIGSEGV before the raw-scene check)
+    write("catalogs/ply_binary_face_index/bad.ply", ply_mesh_binary([(0, 1, 2), (0, 1, 0xFFFFFFF0)]))
+    write("catalogs/ply_binary_face_index/catalog.json", catalog([entry("bad.ply")]))
+    write("catalogs/ply_big_endian_face_index/bad.ply",
+          ply_mesh_binary([(0, 1, 0x7FFFFFF0), (0, 1, 2)], endian=">", fmt="binary_big_endian", index="int"))
+    write("catalogs/ply_big_endian_face_index/catalog.json", catalog([entry("bad.ply")]))
+    write("catalogs/ply_face_after_other_element/bad.ply",
+          "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+          "element edge 1\nproperty int vertex1\nproperty int vertex2\n"
+          "element face 2\nproperty list uchar int vertex_indices\nend_header\n"
+          "0 0 0\n1 0 0\n0 1 1\n0 1\n3 0 1 2\n3 0 1 70000\n")
+    write("catalogs/ply_face_after_other_element/catalog.json", catalog([entry("bad.ply")]))
+    write("catalogs/ply_face_before_vertex/bad.ply",
+          "ply\nformat ascii 1.0\nelement face 2\nproperty list uchar int vertex_indices\n"
+          "element vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n"
+          "3 0 1 2\n4 0 1 2 4000000000\n0 0 0\n1 0 0\n0 1 1\n")
+    write("catalogs/ply_face_before_vertex/catalog.json", catalog([entry("bad.ply")]))
+    write("catalogs/obj_negative_index/bad.obj", CUBE_OBJ + "f -1 -2 -99\n")
+    write("catalogs/obj_negative_index/catalog.json", catalog([entry("bad.obj")]))
+    write("catalogs/gltf_face_index/bad.gltf", gltf((0, 1, 999))[0])
+    write("catalogs/gltf_face_index/catalog.json", catalog([entry("bad.gltf")]))
+    write("catalogs/dae_face_index/bad.dae", dae("0 1 99"))
+    write("catalogs/dae_face_index/catalog.json", catalog([entry("bad.dae")]))
+    # The same, well-formed: the checks refuse only what is broken.
+    write("catalogs/gltf_good/good.gltf", gltf((0, 1, 2))[0])
+    write("catalogs/gltf_good/catalog.json", catalog([entry("good.gltf")]))
+    write("catalogs/dae_good/good.dae", dae())
+    write("catalogs/dae_good/catalog.json", catalog([entry("good.dae")]))
+    # Counts beyond the file: 2e9 faces declared by a 300-byte PLY (assimp: std::bad_alloc).
+    write("catalogs/ply_2e9_faces/huge.ply",
+          "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+          "property float z\nelement face 2000000000\nproperty list uchar int vertex_indices\nend_header\n".encode() +
+          b"".join(struct.pack("<3f", *v) for v in TRI) + struct.pack("<B3i", 3, 0, 1, 2))
+    write("catalogs/ply_2e9_faces/catalog.json", catalog([entry("huge.ply")]))
+    write("catalogs/dae_2e9_values/huge.dae", dae(count=2000000000))
+    write("catalogs/dae_2e9_values/catalog.json", catalog([entry("huge.dae")]))
+
+    # -- issue 50: XYZ text as it comes (decimal commas, semicolons, BOMs, UTF-16, counts)
+    write("scans/xyz_semicolon_decimal_comma.xyz", "1,250;2,500;0,750\n1,5;2;0,5\n-0,25;1,75;2,125\n")
+    write("scans/xyz_blank_decimal_comma.xyz", "1,250 2,500 0,750\n1,5\t2\t0,5\n")
+    write("scans/xyz_semicolon_then_comma_list.xyz", "1,0;2,0;3,0\n1,2,3\n")
+    write("scans/xyz_comma_then_semicolon.xyz", "1,2,3\n4;5;6\n")
+    write("scans/xyz_two_points_on_a_line.xyz", "0 0 0\n1 1 1 2 2 2\n")
+    write("scans/xyz_100_values_on_a_line.xyz", " ".join(str(i % 7) for i in range(100)) + "\n")
+    write("scans/xyz_utf16le_bom.xyz", "\ufeff1 2 3\n4 5 6\n".encode("utf-16-le"))
+    write("scans/xyz_utf16be_bom.xyz", "\ufeff1 2 3\n4 5 6\n".encode("utf-16-be"))
+    write("scans/xyz_utf16le_no_bom.xyz", "1 2 3\n4 5 6\n".encode("utf-16-le"))
+    write("scans/xyz_utf8_bom.xyz", "\ufeff1 2 3\n4 5 6\n7 8 9\n".encode("utf-8"))
+    write("scans/leica_count_line.pts", "3\n0 0 0 -1200 255 0 0\n1 0 0 -1100 0 255 0\n0 1 1 -900 0 0 255\n")
+    write("scans/leica_two_scans.pts", "2\n0 0 0 10 1 2 3\n1 0 0 10 1 2 3\n2\n0 1 1 10 1 2 3\n1 1 1 10 1 2 3\n")
+    # A float colour channel holding NaN (what fuzz_ply_nan_colour.ply found, in a header that
+    # is otherwise well-formed): colour 0, never a cast of NaN to a byte.
+    write("scans/ply_nan_colour.ply",
+          ply_header("binary_little_endian", 2, props=("float x", "float y", "float z", "float red", "float green",
+                                                        "float blue")).encode() +
+          struct.pack("<6f", 1.0, 2.0, 0.5, math.nan, 3.0, math.inf) + struct.pack("<6f", 1.5, 2.0, 0.5, 1.0, 2.0, 3.0))
+    write("scans/ply_two_vertex_elements.ply",
+          "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\n"
+          "element vertex 2\nproperty float nx\nend_header\n0 0 0\n1 1 1\n0\n1\n")
+    # binary_compressed declaring 4 GB uncompressed in 600 bytes: refused by the ratio LZF allows.
+    write("scans/pcd_compressed_declares_4gb.pcd",
+          pcd_compressed(GOOD, uncompressed_size=4095 * 1048576, fields="x y z d", size="4 4 4 4",
+                         type_="F F F F", count="1 1 1 262141", width=4095, points=4095))
+    # ... and the point cap holds for binary_compressed too (header only: refused before the data).
+    write("scans/pcd_compressed_above_cap.pcd", pcd_compressed(GOOD, width=5000, points=5000))
+    write("graphs/read_cap1000.json",
+          '{"limits": {"max_points": 1000}, "stages": {"input": {"type": "sensors.scan_file"}}}\n')
+    # Stages without a model: parts (region growing, paper24) and object proposals (clusters,
+    # a height-map ground): what long runs along an axis and stray returns go through.
+    write("graphs/parts_only.json",
+          '{"stages": {"input": {"type": "sensors.scan_file"},\n'
+          ' "seg": {"type": "segmenters.region_growing", "inputs": ["input"]},\n'
+          ' "feat": {"type": "features.paper24", "inputs": ["seg"]}}}\n')
+    write("graphs/proposals_only.json",
+          '{"ground": {"kind": "height_map"}, "stages": {"input": {"type": "sensors.scan_file"},\n'
+          ' "prop": {"type": "proposals.clusters", "inputs": ["input"], "params": {"wall_normals": "both",\n'
+          ' "wall_voxel_m": 0.08, "blocks_rules": "segs", "thin_spacing_m": 0.013}}}}\n')
+    # The stub chain with the real fitter: occupancy grids from the sensor origin.
+    write("graphs/stub_fit_chain.json", STUB_CHAIN + ',\n  "fit": {"type": "fitters.ransac_upright", "inputs": ["vote"]}}}\n')
+
     # -- model files
     good = model()
     write("models/bad_magic.fhm", b"not-a-model\n" + good[len(MAGIC):])
@@ -368,7 +497,7 @@ def main():
     write("scan_readers/ply_be", b"\x01" + ply_binary(GOOD, endian=">", fmt="binary_big_endian"), SEEDS)
     write("scan_readers/xyz", b"\x02" + b"0 0 0\n1,2,3\n# c\n4;5;6 7\n", SEEDS)
     write("model_file/good", good, SEEDS)
-    write("model_file/wrong_version", model(format_version=2), SEEDS)
+    write("model_file/wrong_version", model(format_version=3), SEEDS)
     write("graph_config/chain",
           '{"seed": 3, "catalog": "c.json", "model_cache": "m.fhm", "limits": {"max_points": 100},\n'
           ' "training": {"sensor": "sim"}, "stages": {"sim": {"type": "sensors.simulated_laser"},\n'
@@ -386,6 +515,31 @@ def main():
           ' "presets": {"mine": {"pattern": "depth_camera", "flying_pixels": 0.5, "views": 2},\n'
           ' "room_reconstruction": {"fuse": 2}}}},\n'
           ' "feat": {"type": "features.centroid", "inputs": ["input"]}}}', SEEDS)
+    # -- mesh seeds (tests/fuzz/fuzz_mesh.cpp: the first byte picks .ply .obj .gltf .dae .glb; then
+    # the mesh, and after "\n---\n" lines m.mtl and m.bin)
+    tri_ply_ascii = ("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                     "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 1\n3 0 1 2\n")
+    write("mesh/ply_ascii", b"\x00" + tri_ply_ascii.encode(), SEEDS)
+    write("mesh/ply_binary", b"\x00" + ply_mesh_binary([(0, 1, 2)]), SEEDS)
+    write("mesh/obj_mtl", b"\x01" + ("mtllib m.mtl\nusemtl red\n" + CUBE_OBJ +
+                                     "\n---\nnewmtl red\nKd 1 0 0\n").encode(), SEEDS)
+    doc, data = gltf((0, 1, 2), uri="m.bin")
+    write("mesh/gltf_external", b"\x02" + doc.encode() + b"\n---\n\n---\n" + data, SEEDS)
+    write("mesh/gltf_embedded", b"\x02" + gltf((0, 1, 2))[0].encode(), SEEDS)
+    write("mesh/dae", b"\x03" + dae().encode(), SEEDS)
+    doc, data = gltf((0, 1, 2), uri=None)
+    js = doc.replace('"uri": "data:application/octet-stream;base64,', '"x": "').encode()
+    js += b" " * ((4 - len(js) % 4) % 4)
+    glb = b"glTF" + struct.pack("<II", 2, 12 + 8 + len(js) + 8 + len(data)) + struct.pack("<I", len(js)) + b"JSON" + js
+    glb += struct.pack("<I", len(data)) + b"BIN\x00" + data
+    write("mesh/glb", b"\x04" + glb, SEEDS)
+    # -- command-line JSON seeds (tests/fuzz/fuzz_cli_json.cpp: the text of one value)
+    write("cli_json/number", "0.05", SEEDS)
+    write("cli_json/array", "[0, 0, 1.5]", SEEDS)
+    write("cli_json/object", '{"preset": "room_reconstruction", "views": 4, "holes": 0.1}', SEEDS)
+    write("cli_json/presets", '{"mine": {"pattern": "depth_camera", "flying_pixels": 0.5}}', SEEDS)
+    write("cli_json/bare_word", "height_map", SEEDS)
+    write("cli_json/nested", "[[[[[[[[{\"a\": [1e400]}]]]]]]]]", SEEDS)
     write("catalog/all_formats",
           catalog([entry("a.obj", "a"), entry("b.off", "b", up="+y", height_m=0.7),
                    entry("c.ply", "c", scale=0.01), entry("d.stl", "d", up="-x")]) + "\n---\n" + CUBE_OBJ +

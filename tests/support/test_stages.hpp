@@ -8,7 +8,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "furnihost/catalog.hpp"
+#include "furnihost/host/catalog.hpp"
 #include "furnihost/geometry.hpp"
 #include "furnihost/stage.hpp"
 #include "test_support.hpp"

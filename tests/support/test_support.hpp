@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "furnihost/registry.hpp"
+#include "furnihost/host/registry.hpp"
 
 namespace furnihost::testing {
 

@@ -1,14 +1,16 @@
 // Catalog loading: up-axis / unit normalisation of every shared model, and the documented
 // errors for broken entries.
+#include <sys/stat.h>
+
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
 
-#include "furnihost/catalog.hpp"
+#include "furnihost/host/catalog.hpp"
 #include "furnihost/geometry.hpp"
-#include "furnihost/io.hpp"
+#include "furnihost/host/io.hpp"
 #include "test_support.hpp"
 
 namespace furnihost {
@@ -203,6 +205,57 @@ TEST(Catalog, BrokenEntriesAreReportedWithTheirId) {
   t.Write("other.json", R"({"objects": []})");
   EXPECT_THROW(LoadCatalog((t.dir / "other.json").string()), InputError);
   EXPECT_THROW(LoadMeshFile((t.dir / "nope.obj").string()), InputError);
+}
+
+// Face indices past the vertices, in layouts assimp's post-processing followed unchecked (a
+// binary PLY index 0xFFFFFFF0: SIGSEGV), refused with the face named; files a mesh names that
+// are FIFOs or folders are never opened (they blocked forever): an OBJ's material is skipped, a
+// glTF's buffer makes the mesh unreadable.
+TEST(Catalog, BadFaceIndicesAndNamedFilesThatAreNotRegular) {
+  TempCatalog t("hostile_meshes");
+  auto error_of = [&](const std::string& mesh) {
+    try {
+      LoadMeshFile((t.dir / mesh).string());
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  std::string ply = "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                    "property float z\nelement face 2\nproperty list uchar uint vertex_indices\nend_header\n";
+  const float v[9] = {0, 0, 0, 1, 0, 0, 0, 1, 1};
+  ply.append(reinterpret_cast<const char*>(v), sizeof v);
+  for (uint32_t far : {2u, 0xFFFFFFF0u}) {
+    const uint8_t three = 3;
+    const uint32_t f[3] = {0, 1, far};
+    ply.append(reinterpret_cast<const char*>(&three), 1);
+    ply.append(reinterpret_cast<const char*>(f), sizeof f);
+  }
+  t.Write("bad.ply", ply);
+  EXPECT_NE(error_of("bad.ply").find("face 1 of mesh 0 uses vertex 4294967280 of 3"), std::string::npos) << error_of("bad.ply");
+  t.Write("faces_later.ply",  // the face element not the one right after the vertices
+          "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+          "element edge 1\nproperty int vertex1\nproperty int vertex2\nelement face 1\n"
+          "property list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 1\n0 1\n3 0 1 7\n");
+  EXPECT_NE(error_of("faces_later.ply").find("uses vertex 7 of 3"), std::string::npos) << error_of("faces_later.ply");
+  t.Write("huge.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                      "element face 2000000000\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 1\n3 0 1 2\n");
+  EXPECT_NE(error_of("huge.ply").find("declares 2000000000 items"), std::string::npos) << error_of("huge.ply");
+
+  t.Write("m.obj", "mtllib m.mtl\nusemtl red\nv 0 0 0\nv 1 0 0\nv 0 1 1\nf 1 2 3\n");
+  ASSERT_EQ(::mkfifo((t.dir / "m.mtl").c_str(), 0644), 0);
+  EXPECT_EQ(LoadMeshFile((t.dir / "m.obj").string()).triangles.size(), 1u);
+  const std::string gltf =
+      R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+          "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}], "buffers": [{"byteLength": 36, "uri": "m.bin"}],
+          "bufferViews": [{"buffer": 0, "byteLength": 36}],
+          "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 1]}]})";
+  t.Write("m.gltf", gltf);
+  ASSERT_EQ(::mkfifo((t.dir / "m.bin").c_str(), 0644), 0);
+  EXPECT_NE(error_of("m.gltf").find("m.bin is not a regular file"), std::string::npos) << error_of("m.gltf");
+  fs::remove(t.dir / "m.bin");
+  t.Write("m.bin", std::string(reinterpret_cast<const char*>(v), sizeof v));
+  EXPECT_EQ(LoadMeshFile((t.dir / "m.gltf").string()).triangles.size(), 1u);
 }
 
 TEST(Catalog, HashCoversTheCatalogAndEveryMesh) {

@@ -11,10 +11,10 @@
 #include <fstream>
 #include <set>
 
-#include "furnihost/catalog.hpp"
+#include "furnihost/host/catalog.hpp"
 #include "furnihost/geometry.hpp"
-#include "furnihost/io.hpp"
-#include "furnihost/pipeline.hpp"
+#include "furnihost/host/io.hpp"
+#include "furnihost/host/pipeline.hpp"
 #include "furnihost/scan_reader.hpp"
 #include "test_support.hpp"
 
@@ -44,12 +44,10 @@ std::string Comparable(const std::string& detections_json) {
 
 // A model as compared: everything but the timing summary.
 std::string Comparable(const furnihost::TrainedModel& m) {
-  return nlohmann::json({{"config", m.training_config},
-                         {"hash", m.catalog_hash},
-                         {"voter", m.voter_type},
-                         {"normaliser", m.normaliser.ToJson()},
-                         {"model", m.voter_model}})
-      .dump();
+  nlohmann::json voters = nlohmann::json::object();
+  for (const auto& [tag, v] : m.voters)
+    voters[tag] = {{"voter", v.voter_type}, {"normaliser", v.normaliser.ToJson()}, {"model", v.voter_model}};
+  return nlohmann::json({{"config", m.training_config}, {"hash", m.catalog_hash}, {"voters", voters}}).dump();
 }
 
 std::string PluginDirOf(const std::string& name) {

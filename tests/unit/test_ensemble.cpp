@@ -6,7 +6,7 @@
 #include <cmath>
 
 #include "furnihost/geometry.hpp"
-#include "furnihost/pipeline.hpp"
+#include "furnihost/host/pipeline.hpp"
 
 using namespace furnihost;
 

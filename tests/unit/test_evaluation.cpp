@@ -1,8 +1,8 @@
 // Evaluation: the matcher (paper Sect. VII-A) on hand-made scenes, AP on a hand-computed
 // curve, dataset manifest errors, the Markdown report of two configs, and `furnihost eval`
 // / `furnihost compare` end to end on a tiny generated dataset.
-#include "furnihost/config.hpp"
-#include "furnihost/evaluation.hpp"
+#include "furnihost/host/config.hpp"
+#include "furnihost/host/evaluation.hpp"
 
 #include <gtest/gtest.h>
 #include <sys/wait.h>
@@ -12,7 +12,7 @@
 #include <filesystem>
 #include <fstream>
 
-#include "furnihost/io.hpp"
+#include "furnihost/host/io.hpp"
 #include "report.hpp"
 #include "test_support.hpp"
 

@@ -14,7 +14,7 @@
 #include <filesystem>
 #include <fstream>
 
-#include "furnihost/io.hpp"
+#include "furnihost/host/io.hpp"
 #include "test_support.hpp"
 
 namespace fs = std::filesystem;

@@ -9,7 +9,7 @@
 #include <thread>
 
 #include "furnihost/geometry.hpp"
-#include "furnihost/ground.hpp"
+#include "furnihost/host/ground_estimation.hpp"
 
 namespace {
 

@@ -10,10 +10,10 @@
 #include <functional>
 #include <random>
 
-#include "furnihost/evaluation.hpp"
-#include "furnihost/frame.hpp"
-#include "furnihost/ground.hpp"
-#include "furnihost/io.hpp"
+#include "furnihost/host/evaluation.hpp"
+#include "furnihost/host/frame.hpp"
+#include "furnihost/host/ground_estimation.hpp"
+#include "furnihost/host/io.hpp"
 
 namespace fs = std::filesystem;
 using namespace furnihost;

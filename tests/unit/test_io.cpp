@@ -5,7 +5,7 @@
 #include <random>
 
 #include "furnihost/geometry.hpp"
-#include "furnihost/io.hpp"
+#include "furnihost/host/io.hpp"
 #include "test_support.hpp"
 
 namespace fs = std::filesystem;
@@ -251,4 +251,140 @@ TEST(Geometry, YawSymmetryOfBoxesAPrismAndAChairShape) {
   EXPECT_EQ(YawSymmetry(prism), 0);
   EXPECT_EQ(YawSymmetry(chair), 1);
   EXPECT_EQ(YawSymmetry(Mesh{}), 1);
+}
+
+// XYZ text as it comes: decimal commas with semicolons or blanks read as decimals, never as
+// more values; styles that change mid-file, lines of several points and UTF-16 refused naming
+// the line; a UTF-8 byte-order mark and Leica .pts count lines skipped.
+TEST(Io, XyzSeparatorsDecimalCommasAndEncodings) {
+  auto dir = furnihost::testing::TempDir("io_xyz");
+  auto first = [&](const std::string& name, const std::string& text) {
+    WriteText(dir + "/" + name, text);
+    return ReadScan(dir + "/" + name).points.front();
+  };
+  EXPECT_EQ(first("semi.xyz", "1,250;2,500;0,750\n2;3;4\n"), Eigen::Vector3f(1.25f, 2.5f, 0.75f));
+  EXPECT_EQ(first("blank.xyz", "1,250 2,500\t0,750\n"), Eigen::Vector3f(1.25f, 2.5f, 0.75f));
+  EXPECT_EQ(first("blank_int.xyz", "1,25 2 0,75\n3 4,5 6\n"), Eigen::Vector3f(1.25f, 2.f, 0.75f));
+  EXPECT_EQ(first("csv.xyz", "1,2,3\n4,5,6\n"), Eigen::Vector3f(1, 2, 3));
+  EXPECT_EQ(first("csv_spaces.xyz", "1, 2, 3, 9\n4, 5, 6, 9\n"), Eigen::Vector3f(1, 2, 3));
+  EXPECT_EQ(first("bom.xyz", "\xEF\xBB\xBF" "7 8 9\n"), Eigen::Vector3f(7, 8, 9));
+  WriteText(dir + "/count.pts", "2\n1 2 3 10 0 0 0\n4 5 6 10 0 0 0\n");
+  EXPECT_EQ(ReadScan(dir + "/count.pts").points.size(), 2u);
+  WriteText(dir + "/count.xyz", "2\n1 2 3\n");  // a count line belongs to .pts only
+  EXPECT_NE(ErrorOf(dir + "/count.xyz").find("count.xyz:1: expected x y z"), std::string::npos);
+  WriteText(dir + "/mixed.xyz", "1,0;2,0;3,0\n1,2,3\n");
+  EXPECT_NE(ErrorOf(dir + "/mixed.xyz").find("mixed.xyz:2:"), std::string::npos);
+  WriteText(dir + "/two.xyz", "0 0 0\n1 1 1 2 2 2\n");
+  EXPECT_NE(ErrorOf(dir + "/two.xyz").find("two.xyz:2: holds 6 values, line 1 held 3"), std::string::npos);
+  std::string line;
+  for (int i = 0; i < 30000; ++i) line += "1.5 2.5 3.5 ";
+  WriteText(dir + "/long.xyz", line + "\n");
+  EXPECT_NE(ErrorOf(dir + "/long.xyz").find("long.xyz:1: is longer than 64 KiB"), std::string::npos);
+  WriteText(dir + "/u16.xyz", std::string("\xFF\xFE" "1\0 \0" "2\0 \0" "3\0\n\0", 16));
+  EXPECT_NE(ErrorOf(dir + "/u16.xyz").find("u16.xyz: is UTF-16 text"), std::string::npos);
+  WriteText(dir + "/u16_plain.xyz", std::string("1\0 \0" "2\0 \0" "3\0\n\0", 14));
+  const std::string e = ErrorOf(dir + "/u16_plain.xyz");
+  EXPECT_NE(e.find("u16_plain.xyz:1: holds NUL bytes"), std::string::npos) << e;
+}
+
+// A PLY with a second vertex element (normals in an element of their own) is refused by name,
+// not read as vertices with too few values.
+TEST(Io, PlyWithTwoVertexElements) {
+  auto dir = furnihost::testing::TempDir("io_ply2");
+  WriteText(dir + "/two.ply", "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+                              "property float z\nelement vertex 2\nproperty float nx\nend_header\n0 0 0\n1 1 1\n0\n1\n");
+  EXPECT_NE(ErrorOf(dir + "/two.ply").find("two.ply: PLY has two 'vertex' elements"), std::string::npos);
+}
+
+// Stray far returns are dropped with their colours and attributes, whichever axis they lie on
+// and wherever in the file; a scan without a 100 m gap keeps every point; a stray first point
+// does not decide the global shift.
+TEST(Io, StrayFarReturnsAreDroppedOnEveryAxis) {
+  auto dir = furnihost::testing::TempDir("io_stray");
+  Scan room;
+  for (int i = 0; i < 500; ++i) room.points.emplace_back(0.008f * float(i), 0.006f * float(i % 97), 0.005f * float(i % 53));
+  const size_t n = room.points.size();
+  for (const Eigen::Vector3f& far : {Eigen::Vector3f(9e5f, 0, 0), Eigen::Vector3f(0, -9e5f, 0), Eigen::Vector3f(1, 1, 5e3f)})
+    for (bool at_front : {false, true}) {
+      Scan s = room;
+      if (at_front) s.points.insert(s.points.begin(), far);
+      else s.points.push_back(far);
+      s.origin.reset();
+      WritePly(dir + "/stray.ply", s.points);
+      const Scan r = ReadScan(dir + "/stray.ply");
+      ASSERT_EQ(r.points.size(), n) << far.transpose() << " first " << at_front;
+      EXPECT_TRUE(r.frame.shift.isZero()) << r.frame.shift.transpose();
+      for (const auto& p : r.points) EXPECT_LT(p.cwiseAbs().maxCoeff(), 1e3f);
+    }
+  // A long scan without such a gap keeps every point.
+  Points corridor;
+  for (int i = 0; i < 20000; ++i) corridor.emplace_back(0.05f * float(i), float(i % 3), 1.f);
+  WritePly(dir + "/corridor.ply", corridor);
+  EXPECT_EQ(ReadScan(dir + "/corridor.ply").points.size(), corridor.size());
+  // Georeferenced points keep their shift; a stray at the file's origin is dropped, not a shift of 0.
+  Points utm = {Eigen::Vector3f(0.5f, 0.5f, 0.f)};
+  for (int i = 0; i < 2000; ++i) utm.emplace_back(0.1f * float(i % 50), 0.1f * float(i / 50), 1.f);
+  std::ofstream out(dir + "/utm.xyz");
+  out.precision(12);
+  for (size_t i = 0; i < utm.size(); ++i)
+    out << (i == 0 ? 0.5 : 651000.0 + utm[i].x()) << " " << (i == 0 ? 0.5 : 5423000.0 + utm[i].y()) << " " << utm[i].z() << "\n";
+  out.close();
+  const Scan g = ReadScan(dir + "/utm.xyz");
+  EXPECT_EQ(g.points.size(), utm.size() - 1);
+  EXPECT_EQ(g.frame.shift, Eigen::Vector3d(651000.0, 5423000.0, 0.0));
+}
+
+// Ground truth boxes of no size match nothing: refused naming the object.
+TEST(Io, GroundTruthSizesMustBePositive) {
+  auto dir = furnihost::testing::TempDir("io_gt");
+  for (const char* size : {"[0, 1, 1]", "[1, -0.5, 1]", "[1, 1, -0.0]"}) {
+    WriteText(dir + "/b.gt.json", std::string(R"({"objects": [{"class": "chair", "center": [0, 0, 0], "size": [1, 1, 1]},)") +
+                                      R"({"class": "chair", "center": [0, 0, 0], "size": )" + size + "}]}");
+    try {
+      ReadGroundTruth(dir + "/b.gt.json");
+      ADD_FAILURE() << size;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("b.gt.json:/objects/1/size: expected three positive extents"), std::string::npos)
+          << e.what();
+    }
+  }
+}
+
+// JSON from the command line: nesting is bounded as config files' is, bare words are strings
+// for --set, and errors name the option.
+TEST(Io, CommandLineJsonIsBounded) {
+  EXPECT_EQ(JsonDepth(R"({"a": [[1], "[[["], "b": {}})"), 3u);
+  EXPECT_EQ(ParseCliJson("height_map", "--set ground.kind", true), nlohmann::json("height_map"));
+  EXPECT_EQ(ParseCliJson("[1, 2]", "--set a.b", true), nlohmann::json({1, 2}));
+  const std::string deep = std::string(60000, '[') + std::string(60000, ']');
+  for (bool bare : {true, false}) {
+    try {
+      ParseCliJson(deep, "--set seg.x", bare);
+      ADD_FAILURE();
+    } catch (const InputError& e) {
+      EXPECT_EQ(std::string(e.what()), "--set seg.x: JSON nested deeper than 256 levels");
+    }
+  }
+  EXPECT_NO_THROW(ParseCliJson(std::string(256, '[') + std::string(256, ']'), "--sensor x"));
+  EXPECT_THROW(ParseCliJson("{", "--sensor x"), InputError);
+  // fuzz_cli_json: nlohmann takes a NUL byte for the end ("0\0..." parsed as 0) and invalid UTF-8
+  // reached the run record, whose dump threw (exit 1).
+  for (const std::string bad : {std::string("0\0junk", 6), std::string("/tmp/a\xff b")})
+    for (bool bare : {true, false}) EXPECT_THROW(ParseCliJson(bad, "--set fit.cloud_cache", bare), InputError);
+  EXPECT_THROW(ParseJsonText(std::string("{}\0junk", 6), "g.json"), InputError);
+  EXPECT_EQ(DumpJson(nlohmann::json("r\xffm.pcd")), "\"r\xef\xbf\xbdm.pcd\"");
+}
+
+// Output names from input names stay one path component and distinct.
+TEST(Io, SafeAndUniqueOutputNames) {
+  EXPECT_EQ(SafeName(".."), "__");
+  EXPECT_EQ(SafeName("."), "_");
+  EXPECT_EQ(SafeName(""), "_");
+  EXPECT_EQ(SafeName("../../x"), "___.._x");
+  EXPECT_EQ(SafeName("/etc/passwd"), "_etc_passwd");
+  EXPECT_EQ(SafeName(".hidden"), "_hidden");
+  EXPECT_EQ(SafeName("scene0001_00.v2"), "scene0001_00.v2");
+  EXPECT_EQ(SafeName(std::string(300, 'a')).size(), 100u);
+  EXPECT_EQ(UniqueSafeNames({"room", "room", "Room", "room_2", "a/b", "a_b"}),
+            (std::vector<std::string>{"room", "room_2", "Room_3", "room_2_2", "a_b", "a_b_2"}));
 }

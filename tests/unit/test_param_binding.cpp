@@ -3,7 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "furnihost/params.hpp"
-#include "furnihost/registry.hpp"
+#include "furnihost/host/registry.hpp"
 #include "test_support.hpp"
 
 using furnihost::InputError;

@@ -1,6 +1,6 @@
 #include <gtest/gtest.h>
 
-#include "furnihost/normaliser.hpp"
+#include "furnihost/host/normaliser.hpp"
 #include "furnihost/params.hpp"
 
 using furnihost::InputError;

@@ -10,7 +10,7 @@
 #include <fstream>
 #include <limits>
 
-#include "furnihost/io.hpp"
+#include "furnihost/host/io.hpp"
 #include "test_support.hpp"
 
 using namespace furnihost;
@@ -183,4 +183,25 @@ TEST(Pcd, RefusesInconsistentHeadersNamingTheFile) {
   const Scan s = ReadScan(dir + "/old.pcd");
   ASSERT_EQ(s.points.size(), 1u);
   EXPECT_EQ(s.points[0], Eigen::Vector3f(1, 2, 3));
+}
+
+// binary_compressed is decoded as a stream through a window: a cloud far larger than the window
+// (6.4 MB of fields, PCL's LZF with back references across every flush), with a field the reader
+// does not keep, comes back exact, and only the kept columns are held.
+TEST(Pcd, CompressedStreamLargerThanTheDecodeWindow) {
+  const auto dir = furnihost::testing::TempDir("pcd");
+  pcl::PointCloud<pcl::PointXYZINormal> cloud;
+  const size_t n = 200000;
+  cloud.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    auto& p = cloud.points[i];
+    p.x = 0.01f * float(i % 1000), p.y = 0.5f * float(i / 1000), p.z = float(i % 7);
+    p.intensity = float(i % 13), p.normal_x = 0.f, p.normal_y = 0.f, p.normal_z = 1.f, p.curvature = 0.f;
+  }
+  const std::string path = dir + "/big_compressed.pcd";
+  pcl::PCDWriter().writeBinaryCompressed(path, cloud);
+  const Scan s = ReadScan(path);
+  ASSERT_EQ(s.points.size(), n);
+  for (size_t i = 0; i < n; i += 997) EXPECT_EQ(s.points[i], Eigen::Vector3f(cloud[i].x, cloud[i].y, cloud[i].z)) << i;
+  EXPECT_EQ(s.points.back(), Eigen::Vector3f(cloud[n - 1].x, cloud[n - 1].y, cloud[n - 1].z));
 }

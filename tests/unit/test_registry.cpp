@@ -6,8 +6,8 @@
 #include <filesystem>
 #include <fstream>
 
-#include "furnihost/config.hpp"
-#include "furnihost/io.hpp"
+#include "furnihost/host/config.hpp"
+#include "furnihost/host/io.hpp"
 #include "test_support.hpp"
 
 namespace fs = std::filesystem;
@@ -281,8 +281,11 @@ TEST(Config, FanOutAndSideBySideValidateWhatCannotRunIsRefused) {
   std::vector<std::string> sinks;
   for (const auto* s : g.Sinks()) sinks.push_back(s->tag);
   EXPECT_EQ(sinks, (std::vector<std::string>{"f2", "f3", "vote2"}));
-  EXPECT_EQ(g.VoterOf(*g.Find("f2"))->tag, "vote");
-  EXPECT_EQ(g.SegmenterOfVoter(*g.Find("vote2"))->tag, "segment2");
+  EXPECT_EQ(g.ChainRoot(*g.Find("f2"))->tag, "vote");
+  EXPECT_EQ(g.SegmenterOf(*g.Find("vote2"))->tag, "segment2");
+  EXPECT_EQ(g.SegmenterOf(*g.Find("f2"))->tag, "segment");
+  EXPECT_EQ(g.Input(*g.Find("f2"), InputRole::Detections)->tag, "f1");
+  EXPECT_EQ(g.Input(*g.Find("vote"), InputRole::Proposals), nullptr);
   EXPECT_EQ(g.InputOfKind(*g.Find("vote"), StageKind::Proposer), nullptr);
 
   // A voter's features and proposals must index the parts of one segmentation.
@@ -301,13 +304,21 @@ TEST(Config, FanOutAndSideBySideValidateWhatCannotRunIsRefused) {
                                 {"vote", {{"type", "voters.nearest_neighbor"}, {"inputs", {"feat"}}}},
                                 {"f1", {{"type", "fitters.passthrough"}, {"inputs", {"vote", "prop"}}}}}}})),
             "");
+  // Proposals without parts index no segmentation: a fitter may see them after any voter.
   EXPECT_EQ(ConfigError(With({{"catalog", "cat.json"},
                               {"stages",
                                {{"prop", {{"type", "proposals.clusters"}, {"inputs", {"input"}}}},
                                 {"vote", {{"type", "voters.nearest_neighbor"}, {"inputs", {"feat"}}}},
                                 {"f1", {{"type", "fitters.passthrough"}, {"inputs", {"vote", "prop"}}}}}}})),
-            "g.json:/stages/f1/inputs: fitter 'f1' takes proposer 'prop' (no parts) after voter 'vote' (parts of "
-            "segmenter 'segment'); both must come from one segmenter");
+            "");
+  EXPECT_EQ(ConfigError(With({{"catalog", "cat.json"},
+                              {"stages",
+                               {{"segment2", {{"type", "segmenters.throws"}, {"inputs", {"input"}}}},
+                                {"prop", {{"type", "proposals.clusters"}, {"inputs", {"segment2"}}}},
+                                {"vote", {{"type", "voters.nearest_neighbor"}, {"inputs", {"feat"}}}},
+                                {"f1", {{"type", "fitters.passthrough"}, {"inputs", {"vote", "prop"}}}}}}})),
+            "g.json:/stages/f1/inputs: fitter 'f1' takes voter 'vote' (parts of segmenter 'segment') and proposer "
+            "'prop' (parts of segmenter 'segment2'); both must come from one segmenter");
   EXPECT_EQ(ConfigError(With({{"catalog", "cat.json"},
                               {"stages",
                                {{"prop", {{"type", "proposals.clusters"}, {"inputs", {"segment"}}}},
@@ -332,3 +343,19 @@ TEST(Config, FanOutAndSideBySideValidateWhatCannotRunIsRefused) {
       << mismatch;
 }
 
+
+// The kinds' names come from one table: each kind's name, and the kind of a plugin type by its
+// prefix (a proposer's is "proposals."); another prefix is no kind.
+TEST(StageKinds, NamesAndTypePrefixesComeFromTheTable) {
+  const std::vector<std::pair<StageKind, std::string>> kinds = {
+      {StageKind::Sensor, "sensors"},   {StageKind::Segmenter, "segmenters"}, {StageKind::Features, "features"},
+      {StageKind::Voter, "voters"},     {StageKind::Fitter, "fitters"},       {StageKind::Proposer, "proposals"}};
+  for (const auto& [kind, prefix] : kinds) {
+    EXPECT_EQ(KindFromTypeName(prefix + ".x"), kind) << prefix;
+    EXPECT_NE(KindTypePrefixes().find(prefix + "."), std::string::npos) << prefix;
+  }
+  EXPECT_STREQ(ToString(StageKind::Proposer), "proposer");
+  EXPECT_EQ(KindFromTypeName("gizmos.x"), std::nullopt);
+  EXPECT_EQ(KindFromTypeName("voters."), std::nullopt);
+  EXPECT_EQ(KindFromTypeName("voter.x"), std::nullopt);
+}

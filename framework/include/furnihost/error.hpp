@@ -8,10 +8,20 @@
 
 namespace furnihost {
 
+namespace detail {
+// A message quoting a file's bytes may hold NUL (a UTF-16 text): what() is a C string and
+// would end there, so NUL bytes are shown as '?'.
+inline std::string WithoutNul(std::string s) {
+  for (auto& c : s)
+    if (c == '\0') c = '?';
+  return s;
+}
+}  // namespace detail
+
 // Bad user input: file, config, parameter, data. The CLI maps it to exit code 2.
 class FURNIHOST_API InputError : public std::runtime_error {
  public:
-  explicit InputError(const std::string& what) : std::runtime_error(what) {}
+  explicit InputError(const std::string& what) : std::runtime_error(detail::WithoutNul(what)) {}
   ~InputError() override;
 };
 
@@ -20,7 +30,7 @@ class FURNIHOST_API InputError : public std::runtime_error {
 class FURNIHOST_API StageError : public std::runtime_error {
  public:
   explicit StageError(const std::string& what, bool input = true)
-      : std::runtime_error(what), input_(input) {}
+      : std::runtime_error(detail::WithoutNul(what)), input_(input) {}
   ~StageError() override;
   bool IsInputError() const { return input_; }
 

@@ -1,8 +1,19 @@
 // Small geometry helpers shared by host and plugins.
 #pragma once
+#include <functional>
+
 #include "furnihost/types.hpp"
 
 namespace furnihost {
+
+// Runs body(b, e) over disjoint sub-ranges covering [begin, end), in parallel or not (the host
+// passes one over tbb::parallel_for: the SDK itself has no thread pool). What is computed with
+// it must not depend on the partition.
+using RangeFor = std::function<void(size_t begin, size_t end, const std::function<void(size_t, size_t)>& body)>;
+// The RangeFor of one pass in the calling thread.
+inline void SerialRange(size_t begin, size_t end, const std::function<void(size_t, size_t)>& body) {
+  if (begin < end) body(begin, end);
+}
 
 // Voxel-grid downsampling: one point (the centroid, summed in double) per occupied cubic voxel
 // of edge `voxel` metres. The grid is anchored at the frame's origin (voxel (i, j, k) covers

@@ -1,7 +1,7 @@
-// The ground under a scan: one model per scan, estimated once by the pipeline (or known, for
-// simulated scans, or fixed by the user) and handed to every stage in Scan::ground. Every
-// height in the pipeline (voter gates, fitter placement, verification, plots) is a height
-// above it, never above z = 0.
+// The ground under a scan: one model per scan, estimated once by the host (or known, for
+// simulated scans, or fixed by the user; host/ground_estimation.hpp) and handed to every stage
+// in Scan::ground. Every height in the pipeline (voter gates, fitter placement, verification,
+// plots) is a height above it, never above z = 0.
 //
 // Frame: the scan's working frame (metres, z up; see Scan::frame for how it relates to the
 // file's own coordinates). Kinds:
@@ -13,7 +13,6 @@
 #pragma once
 #include <Eigen/Core>
 #include <cstdint>
-#include <functional>
 #include <nlohmann/json_fwd.hpp>
 #include <optional>
 #include <string>
@@ -22,15 +21,6 @@
 #include "furnihost/error.hpp"
 
 namespace furnihost {
-
-// Runs body(b, e) over disjoint sub-ranges covering [begin, end), in parallel or not (the host
-// passes one over tbb::parallel_for: the SDK itself has no thread pool). What is computed with
-// it must not depend on the partition.
-using RangeFor = std::function<void(size_t begin, size_t end, const std::function<void(size_t, size_t)>& body)>;
-// The RangeFor of one pass in the calling thread.
-inline void SerialRange(size_t begin, size_t end, const std::function<void(size_t, size_t)>& body) {
-  if (begin < end) body(begin, end);
-}
 
 // A floor plane z = a x + b y + c.
 struct FloorPlane {
@@ -67,37 +57,6 @@ struct FURNIHOST_API GroundModel {
   static GroundModel Level(float z, const std::string& source);
   static GroundModel Tilted(const FloorPlane& plane, const std::string& source);
 };
-
-// How the pipeline gets the ground of a scan (graph config "ground", CLI --ground).
-struct FURNIHOST_API GroundOptions {
-  // "auto" (height map when the scan shows enough floor, else a plane, else level), "level",
-  // "plane", "height_map" or "fixed" (level at fixed_z).
-  std::string kind = "auto";
-  float fixed_z = 0.f;      // [m] working-frame z of the floor when kind = "fixed"
-  float cell = 0.15f;       // [m] height-map cell
-  float step = 0.05f;       // [m] largest floor height step between neighbouring cells
-  float min_area = 0.2f;    // [m2] observed floor below which "auto" falls back to a plane
-  // Throws InputError naming the field ("ground.kind: ...") on a bad value.
-  void Check(const std::string& where) const;
-};
-FURNIHOST_API GroundOptions GroundOptionsFromJson(const nlohmann::json& j, const std::string& where);
-FURNIHOST_API nlohmann::json ToJson(const GroundOptions& o);
-
-// The ground of a cloud in its own frame (z up). Linear in the number of points (no normals:
-// the floor of a cell is the lowest 2 cm height slice holding a floor's density of points).
-// Deterministic. Empty or non-finite input: level at 0.
-FURNIHOST_API GroundModel EstimateGround(const std::vector<Eigen::Vector3f>& points, const GroundOptions& options);
-// The same, its per-voxel normals spread by `pfor`; the same ground.
-FURNIHOST_API GroundModel EstimateGround(const std::vector<Eigen::Vector3f>& points, const GroundOptions& options,
-                                         const RangeFor& pfor);
-
-// World z of the floor of a level estimate: the mean height of the densest 2 cm slice among
-// the lowest 30 % of the points. At most ~200k points are looked at. 0 without finite points.
-FURNIHOST_API float EstimateLevelZ(const std::vector<Eigen::Vector3f>& points);
-// The floor as a plane tilted at most 10 degrees: RANSAC (fixed seed) over the lowest 30 % of
-// the points for the plane with the most points within 2 cm, the level plane competing, then
-// least squares over the points within 2 cm of it.
-FURNIHOST_API FloorPlane EstimatePlane(const std::vector<Eigen::Vector3f>& points);
 
 // The ground as JSON (detections.json): kind, source, plane, and for a height map its grid
 // (heights rounded to the millimetre).

@@ -33,6 +33,14 @@ inline uint64_t SplitMix64(uint64_t x) {
   return x ^ (x >> 31);
 }
 
+// The home slot of `key` in an open-addressing table of `mask + 1` slots (a power of two).
+// Keys pack voxel coordinates (21 bits per axis) or a point's float bits, so two keys often
+// differ in one field only: a run of voxels along x, y or z. The finaliser above carries every
+// key bit into every slot bit, so such a run spreads over the table whatever its size (a
+// multiply alone leaves the low product bits blind to the high key bits: a run along the axis
+// packed highest lands on one slot, and linear probing turns quadratic).
+inline size_t HashSlot(uint64_t key, size_t mask) { return size_t(SplitMix64(key)) & mask; }
+
 // The top 53 bits of `bits` as a uniform double in (0, 1], never 0 (log-safe; 1 only where the
 // half-step rounds up): a draw from a SplitMix64 output (JitterPoints, sensors.simulated_laser).
 inline double UnitOpen(uint64_t bits) { return (double(bits >> 11) + 0.5) * (1.0 / 9007199254740992.0); }

@@ -23,13 +23,12 @@
 #include "furnihost/params.hpp"
 #include "furnihost/stage.hpp"
 
-// Covers the SDK alone: the headers error.hpp, types.hpp, ground.hpp, stage.hpp, params.hpp,
-// plugin.hpp, log.hpp, geometry.hpp, voxel_index.hpp, hash.hpp and scan_reader.hpp (the list
-// is FURNIHOST_SDK_HEADERS in framework/CMakeLists.txt) and the functions libfurnihost_sdk.so
-// defines for them. It changes whenever one of their types changes layout or one of their
-// exported functions its signature; the host's headers (pipeline, config, registry, io,
-// evaluation, ...) change freely, since no plugin includes them.
-#define FURNIHOST_ABI_VERSION 8
+// Covers the SDK alone: the headers of include/furnihost/ (not those of include/furnihost/host/)
+// and the functions libfurnihost_sdk.so defines for them. It changes whenever one of their types
+// changes layout or one of their exported functions its signature; the host's headers
+// (furnihost/host/: pipeline, config, registry, io, evaluation, ...) change freely, since no
+// plugin includes them.
+#define FURNIHOST_ABI_VERSION 9
 
 namespace furnihost {
 

@@ -13,10 +13,9 @@
 
 namespace furnihost {
 
+// The kinds of stage. What each takes and gives is the host's business (its kinds' table); a
+// plugin implements the interface of its kind below.
 enum class StageKind { Sensor, Segmenter, Features, Voter, Fitter, Proposer };
-FURNIHOST_API const char* ToString(StageKind k);  // "sensor", ...
-FURNIHOST_API std::optional<StageKind> KindFromTypeName(const std::string& type);  // "segmenters.x" -> Segmenter,
-                                                                                   // "proposals.x" -> Proposer
 
 // Run-wide facts every stage may read.
 struct RunContext {
@@ -25,10 +24,20 @@ struct RunContext {
   bool verbose = false;
 };
 
+// What a stage asks the host to prepare with every scan it is given.
+struct StageNeeds {
+  // > 0: Scan::neighbours listing at least this many nearest positions per position (itself first),
+  // which the host finds with the scan's working frame when it can (ScanNeighbours says
+  // when); a stage still checks ScanNeighbours::Describes and searches its own otherwise.
+  int neighbours = 0;
+};
+
 class FURNIHOST_API Stage {
  public:
   virtual ~Stage();
   virtual StageKind Kind() const = 0;
+  // Asked once, after construction (the parameters are set).
+  virtual StageNeeds Needs() const { return {}; }
 };
 
 // ---- sensor ----------------------------------------------------------------------------

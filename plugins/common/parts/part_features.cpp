@@ -11,6 +11,7 @@
 #include <tuple>
 #include <utility>
 
+#include "furnihost/hash.hpp"
 #include "furnihost/voxel_index.hpp"
 #include "parallel/tbb_for.hpp"
 #include "simd/left_pack.hpp"
@@ -234,7 +235,7 @@ double VoxelVolume(const Points& q, double voxel) {
   std::vector<uint64_t> table(slots, ~uint64_t(0));
   size_t occupied = 0;
   for (const uint64_t k : keys) {
-    size_t h = size_t((k * 0x9E3779B97F4A7C15ull) >> (64 - bits));  // Fibonacci hashing: the top bits
+    size_t h = HashSlot(k, slots - 1);
     while (table[h] != ~uint64_t(0) && table[h] != k) h = (h + 1) & (slots - 1);
     if (table[h] == ~uint64_t(0)) table[h] = k, ++occupied;
   }

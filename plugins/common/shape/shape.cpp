@@ -145,7 +145,7 @@ Points BlockNormals(const Points& pts, float voxel) {
   while (cap < 2 * cells) cap <<= 1;
   std::vector<int64_t> slot_key(cap, -1);
   std::vector<uint32_t> slot_cell(cap, 0);
-  auto home = [cap](int64_t k) { return size_t((uint64_t(k) * 0x9E3779B97F4A7C15ull) >> 20) & (cap - 1); };
+  auto home = [cap](int64_t k) { return HashSlot(uint64_t(k), cap - 1); };
   for (size_t c = 0; c < cells; ++c) {
     const int64_t k = by_key[start[c]].first;
     size_t h = home(k);

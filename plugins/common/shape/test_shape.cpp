@@ -5,7 +5,7 @@
 // frame give the shape a k-d tree of the working points gives.
 #include "shape/shape.hpp"
 
-#include "furnihost/frame.hpp"
+#include "furnihost/host/frame.hpp"
 
 #include <gtest/gtest.h>
 
@@ -120,11 +120,12 @@ TEST(LocalShape, TheFramesNeighboursGiveTheTreesShape) {
   for (int i = 0; i < 500; ++i) room.push_back(room[size_t(i * 7)]);  // copies
   const Eigen::Isometry3f turn(Eigen::AngleAxisf(0.7f, Eigen::Vector3f::UnitZ()));
   for (auto& p : room) p = turn * p;
+  constexpr int kAsked = 17;  // what proposals.clusters asks for (StageNeeds): its 16 and itself
   ScanNeighbours nb;
-  const Eigen::Isometry3d c = EstimateCanonicalFrame(room, &nb);
+  const Eigen::Isometry3d c = EstimateCanonicalFrame(room, &nb, kAsked);
   EXPECT_TRUE(c.isApprox(EstimateCanonicalFrame(room), 0.0)) << "the frame changed";
   ASSERT_TRUE(nb.Describes(room.size()));
-  ASSERT_EQ(nb.k, kScanNeighbours);
+  ASSERT_EQ(nb.k, kAsked);
   EXPECT_EQ(nb.Positions(), room.size() - 500);
   // Each position's list: itself first, then its nearest, as a brute-force search (distances).
   for (size_t v = 0; v < nb.Positions(); v += 97) {
@@ -132,7 +133,7 @@ TEST(LocalShape, TheFramesNeighboursGiveTheTreesShape) {
     std::vector<float> all;
     for (size_t w = 0; w < nb.Positions(); ++w) all.push_back((room[nb.members[nb.start[w]]] - q).squaredNorm());
     std::sort(all.begin(), all.end());
-    ASSERT_EQ(nb.count[v], kScanNeighbours);
+    ASSERT_EQ(nb.count[v], kAsked);
     EXPECT_EQ(nb.nearest[v * size_t(nb.k)], v);
     for (int j = 0; j < nb.k; ++j)
       EXPECT_NEAR((room[nb.members[nb.start[nb.nearest[v * size_t(nb.k) + size_t(j)]]]] - q).squaredNorm(), all[size_t(j)], 1e-6f);
@@ -153,21 +154,23 @@ TEST(LocalShape, TheFramesNeighboursGiveTheTreesShape) {
     EXPECT_NEAR(shared.nn4[i], tree.nn4[i], 1e-6f) << i;
   }
   EXPECT_GT(double(exact), 0.98 * double(work.size()));  // measured 98.8 %: the grid's ties
-  // The pipeline keeps them with the scan only when asked (its graph has a proposer).
-  for (const bool asked : {false, true}) {
+  // The frame keeps them with the scan only when asked (a stage of the graph needs them), as
+  // many as asked, and never fewer than the 12 of its own plane fits.
+  for (const int asked : {0, 5, kAsked, 30}) {
     Scan scan;
     scan.points = room;
     FrameOptions fo;
     fo.neighbours = asked;
     ToWorkingFrame(scan, fo);
-    EXPECT_EQ(scan.neighbours != nullptr, asked);
-    if (asked) {
-      EXPECT_TRUE(CanUse(scan.neighbours.get(), scan.points, 16));
+    ASSERT_EQ(scan.neighbours != nullptr, asked > 0);
+    if (asked > 0) {
+      EXPECT_EQ(scan.neighbours->k, std::max(asked, 12));
+      EXPECT_EQ(CanUse(scan.neighbours.get(), scan.points, 16), asked >= kAsked);
     }
   }
   // A cloud the frame samples (more than ~60k points) gets none.
   ScanNeighbours none;
-  EstimateCanonicalFrame(RandomCloud(70000, 4), &none);
+  EstimateCanonicalFrame(RandomCloud(70000, 4), &none, kAsked);
   EXPECT_EQ(none.k, 0);
   EXPECT_FALSE(CanUse(&none, work, 16));
 }

@@ -12,6 +12,8 @@
 // output arrays need kAppendSlack elements of room after the most values the call could keep.
 #include <atomic>
 #include <cstdint>
+#include <cstdlib>
+#include <cstring>
 
 #if defined(__x86_64__) || defined(__i386__)
 #include <immintrin.h>
@@ -36,19 +38,29 @@ inline bool CpuHasAvx2() {
   return false;
 #endif
 }
+// FURNIHOST_SIMD=scalar in the environment forces the scalar loops, so that anyone can run
+// the suite (or a detection) both ways on one machine and compare.
+inline bool ScalarForced() {
+  const char* e = std::getenv("FURNIHOST_SIMD");
+  return e && std::strcmp(e, "scalar") == 0;
+}
 }  // namespace internal
 
-// Whether the AVX2 paths run: the CPU has AVX2, unless SetAvx2(false) switched them off.
+// Whether the AVX2 paths run: the CPU has AVX2, unless FURNIHOST_SIMD=scalar is set or
+// SetAvx2(false) switched them off.
 inline bool UseAvx2() {
   int f = internal::Avx2Flag().load(std::memory_order_relaxed);
   if (f < 0) {
-    f = internal::CpuHasAvx2() ? 1 : 0;
+    f = internal::CpuHasAvx2() && !internal::ScalarForced() ? 1 : 0;
     internal::Avx2Flag().store(f, std::memory_order_relaxed);
   }
   return f == 1;
 }
-// For tests and comparisons: on = AVX2 where the CPU has it; off = the scalar loops.
-inline void SetAvx2(bool on) { internal::Avx2Flag().store(on && internal::CpuHasAvx2() ? 1 : 0); }
+// For tests and comparisons: on = AVX2 where the CPU has it (and FURNIHOST_SIMD does not force
+// the scalar loops); off = the scalar loops.
+inline void SetAvx2(bool on) {
+  internal::Avx2Flag().store(on && internal::CpuHasAvx2() && !internal::ScalarForced() ? 1 : 0);
+}
 
 #if FURNIHOST_SIMD_X86
 namespace internal {

@@ -3,7 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
+#include <string>
 #include <limits>
 #include <random>
 #include <vector>
@@ -118,7 +120,28 @@ TEST_F(LeftPack, SwitchedOffMeansScalar) {
   simd::SetAvx2(false);
   EXPECT_FALSE(simd::UseAvx2());
   simd::SetAvx2(true);
-  EXPECT_EQ(simd::UseAvx2(), bool(__builtin_cpu_supports("avx2")));  // never AVX2 on a CPU without it
+  // Never AVX2 on a CPU without it, nor with FURNIHOST_SIMD=scalar in the environment.
+  const char* env = std::getenv("FURNIHOST_SIMD");
+  const bool forced = env && std::string(env) == "scalar";
+  EXPECT_EQ(simd::UseAvx2(), bool(__builtin_cpu_supports("avx2")) && !forced);
+}
+
+// FURNIHOST_SIMD=scalar switches the AVX2 paths off for the whole process (CI runs the tests of
+// the SIMD paths once more that way); other values leave the CPU's choice.
+TEST_F(LeftPack, EnvironmentForcesTheScalarLoops) {
+  const char* env = std::getenv("FURNIHOST_SIMD");
+  const std::string saved = env ? env : "";
+  ::setenv("FURNIHOST_SIMD", "scalar", 1);
+  simd::SetAvx2(true);
+  EXPECT_FALSE(simd::UseAvx2());
+  ::setenv("FURNIHOST_SIMD", "avx2", 1);
+  simd::SetAvx2(true);
+  EXPECT_EQ(simd::UseAvx2(), bool(__builtin_cpu_supports("avx2")));
+  if (env)
+    ::setenv("FURNIHOST_SIMD", saved.c_str(), 1);
+  else
+    ::unsetenv("FURNIHOST_SIMD");
+  simd::SetAvx2(true);
 }
 
 }  // namespace

@@ -6,6 +6,7 @@
 #include <nanoflann.hpp>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -326,14 +327,33 @@ uint64_t ModelCloud::CacheKey(const CatalogModel& model, const SamplingOptions& 
   return h;
 }
 
-void ModelCloud::Save(const std::string& path, uint64_t key) const {
+void WriteCacheFile(const std::string& path, const std::function<void(std::ostream&)>& write) {
   namespace fs = std::filesystem;
+  static std::atomic<uint64_t> calls{0};
   std::ostringstream tag;
-  tag << ".tmp." << ::getpid() << "." << std::hash<std::thread::id>()(std::this_thread::get_id()) << "." << this;
+  tag << ".tmp." << ::getpid() << "." << std::hash<std::thread::id>()(std::this_thread::get_id()) << "." << calls++;
   const fs::path tmp = path + tag.str();
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     if (!out) throw StageError("cannot write " + tmp.string());
+    write(out);
+    out.close();
+    if (!out) {
+      std::error_code ec;
+      fs::remove(tmp, ec);
+      throw StageError("cannot write " + tmp.string());
+    }
+  }
+  std::error_code ec;
+  fs::rename(tmp, path, ec);
+  if (ec) {
+    fs::remove(tmp, ec);
+    throw StageError("cannot rename " + tmp.string() + " to " + path);
+  }
+}
+
+void ModelCloud::Save(const std::string& path, uint64_t key) const {
+  WriteCacheFile(path, [&](std::ostream& out) {
     out.write(kCacheMagic, sizeof(kCacheMagic));
     Put(out, key);
     PutVec(out, points_);
@@ -353,19 +373,7 @@ void ModelCloud::Save(const std::string& path, uint64_t key) const {
     PutVec(out, blocks_);
     PutVec(out, cells_);
     out.write(kCacheMagic, sizeof(kCacheMagic));
-    out.close();
-    if (!out) {
-      std::error_code ec;
-      fs::remove(tmp, ec);
-      throw StageError("cannot write " + tmp.string());
-    }
-  }
-  std::error_code ec;
-  fs::rename(tmp, path, ec);
-  if (ec) {
-    fs::remove(tmp, ec);
-    throw StageError("cannot rename " + tmp.string() + " to " + path);
-  }
+  });
 }
 
 std::unique_ptr<ModelCloud> ModelCloud::Load(const std::string& path, uint64_t key, const std::string& id) {

@@ -5,6 +5,8 @@
 // Frame: the catalog model frame (metres, z up, bounding-box bottom centre at the origin).
 #pragma once
 #include <cstdint>
+#include <functional>
+#include <iosfwd>
 #include <memory>
 #include <string>
 #include <vector>
@@ -59,6 +61,11 @@ class RadiusGrid {
   std::vector<float> x_, y_, z_;
   std::unique_ptr<PointIndex> fallback_;
 };
+
+// Writes a cache file: `write` fills a temporary file beside `path` (named by process, thread and
+// call), renamed onto `path` when complete, so a reader never sees half a file; StageError on an
+// I/O error.
+void WriteCacheFile(const std::string& path, const std::function<void(std::ostream&)>& write);
 
 // One sampled model. All arrays have one entry per point.
 class ModelCloud {

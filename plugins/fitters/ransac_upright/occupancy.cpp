@@ -48,6 +48,11 @@ inline uint64_t Morton(uint64_t p) {
 struct KeyBox {
   int lo[3] = {0, 0, 0}, n[3] = {0, 0, 0};
   size_t Bits() const { return size_t(n[0]) * n[1] * n[2]; }
+  bool Holds(const octomap::OcTreeKey& k) const {
+    for (int d = 0; d < 3; ++d)
+      if (int(k[d]) < lo[d] || int(k[d]) >= lo[d] + n[d]) return false;
+    return true;
+  }
   size_t Index(const octomap::OcTreeKey& k) const {
     return (size_t(k[2] - lo[2]) * n[1] + (k[1] - lo[1])) * n[0] + (k[0] - lo[0]);
   }
@@ -159,8 +164,49 @@ std::shared_ptr<const octomap::OcTree> BuildOccupancy(const Points& points, cons
   Stopwatch sw;
   auto tree = std::make_shared<octomap::OcTree>(opt.resolution);
   const octomap::point3d o(origin.x(), origin.y(), origin.z());
+  if (!origin.allFinite()) throw StageError("the sensor origin is not finite");
+  // Rays are traced inside the points' box grown by kClipMargin only: a sensor origin outside it
+  // (1.3 km from a room) starts each ray where it enters the box, so the grid and the rays cost
+  // what the scan spans, not the origin's distance. An origin inside it (every scan seen from
+  // within) traces whole rays, as OctoMap would.
+  constexpr float kClipMargin = 2.f;
+  Eigen::AlignedBox3f clip;
+  for (const auto& p : points)
+    if (p.allFinite()) clip.extend(p);
+  if (clip.isEmpty()) clip.extend(origin);
+  clip.min().array() -= kClipMargin;
+  clip.max().array() += kClipMargin;
+  const float range = float(32767.0 * opt.resolution);  // OctoMap's 16-bit keys reach this far
+  clip.min() = clip.min().cwiseMax(-range);
+  clip.max() = clip.max().cwiseMin(range);
   octomap::OcTreeKey okey;
-  if (!tree->coordToKeyChecked(o, okey)) throw StageError("sensor origin outside the occupancy grid's range");
+  const bool clipped = !clip.contains(origin) || !tree->coordToKeyChecked(o, okey);
+  // Where the ray from the origin to `e` enters the clip box, and its voxel; false when it
+  // misses the box (a clear-only end short of it).
+  auto ray_start = [&](const octomap::point3d& e, octomap::point3d& s, octomap::OcTreeKey& k) {
+    if (!clipped) {
+      s = o;
+      k = okey;
+      return true;
+    }
+    double t0 = 0.0, t1 = 1.0;
+    for (int d = 0; d < 3; ++d) {
+      const double from = o(d), dir = double(e(d)) - from;
+      const double lo = clip.min()[d], hi = clip.max()[d];
+      if (std::abs(dir) < 1e-12) {
+        if (from < lo || from > hi) return false;
+        continue;
+      }
+      double ta = (lo - from) / dir, tb = (hi - from) / dir;
+      if (ta > tb) std::swap(ta, tb);
+      t0 = std::max(t0, ta);
+      t1 = std::min(t1, tb);
+    }
+    if (!(t0 <= t1)) return false;
+    s = octomap::point3d(float(o(0) + t0 * (double(e(0)) - o(0))), float(o(1) + t0 * (double(e(1)) - o(1))),
+                         float(o(2) + t0 * (double(e(2)) - o(2))));
+    return tree->coordToKeyChecked(s, k);
+  };
 
   // 1. Endpoint voxel of every point; points beyond max_range end at max_range and only clear.
   constexpr uint64_t kNone = ~uint64_t(0), kClearOnly = uint64_t(1) << 63;
@@ -193,13 +239,27 @@ std::shared_ptr<const octomap::OcTree> BuildOccupancy(const Points& points, cons
     if (e & kClearOnly) clear_ends.push_back(e & ~kClearOnly);
     else occupied.push_back(e);
   }
+  if (clipped)  // a clear-only end outside the clip box ends a ray that never reaches it
+    clear_ends.erase(std::remove_if(clear_ends.begin(), clear_ends.end(),
+                                    [&](uint64_t e) {
+                                      const octomap::point3d c = tree->keyToCoord(Unpack(e));
+                                      return !clip.contains(Eigen::Vector3f(c.x(), c.y(), c.z()));
+                                    }),
+                     clear_ends.end());
   if (stats) stats->ms_keys = sw.Ms();
 
   // 2. Trace one ray per distinct endpoint voxel into a dense bit set over the keys' box
   //    (per-thread copies OR-ed together: no atomics on the crowded voxels near the origin).
   KeyBox box;
   {
-    int lo[3] = {okey[0], okey[1], okey[2]}, hi[3] = {okey[0], okey[1], okey[2]};
+    int lo[3], hi[3];
+    // Whole rays span the origin's voxel and the ends; clipped ones the clip box.
+    octomap::OcTreeKey from = okey, to = okey;
+    if (clipped &&
+        (!tree->coordToKeyChecked(octomap::point3d(clip.min().x(), clip.min().y(), clip.min().z()), from) ||
+         !tree->coordToKeyChecked(octomap::point3d(clip.max().x(), clip.max().y(), clip.max().z()), to)))
+      throw StageError("the scan lies outside the occupancy grid's range");
+    for (int d = 0; d < 3; ++d) lo[d] = std::min<int>(from[d], to[d]), hi[d] = std::max<int>(from[d], to[d]);
     for (const auto* list : {&occupied, &clear_ends})
       for (uint64_t e : *list) {
         const octomap::OcTreeKey k = Unpack(e);
@@ -223,7 +283,11 @@ std::shared_ptr<const octomap::OcTree> BuildOccupancy(const Points& points, cons
       std::vector<uint64_t>& bits = local.local();
       for (size_t i = r.begin(); i < r.end(); ++i) {
         const octomap::OcTreeKey end = ray_end(i);
-        TraceRay(*tree, o, okey, end, [&](const octomap::OcTreeKey& k) {
+        octomap::point3d s;
+        octomap::OcTreeKey start;
+        if (!ray_start(tree->keyToCoord(end), s, start)) continue;
+        TraceRay(*tree, s, start, end, [&](const octomap::OcTreeKey& k) {
+          if (clipped && !box.Holds(k)) return;
           const size_t b = box.Index(k);
           bits[b >> 6] |= uint64_t(1) << (b & 63);
         });
@@ -255,7 +319,10 @@ std::shared_ptr<const octomap::OcTree> BuildOccupancy(const Points& points, cons
       std::vector<uint64_t>& v = local.local();
       for (size_t i = r.begin(); i < r.end(); ++i) {
         const octomap::OcTreeKey end = ray_end(i);
-        TraceRay(*tree, o, okey, end, [&](const octomap::OcTreeKey& k) { v.push_back(Pack(k)); });
+        octomap::point3d s;
+        octomap::OcTreeKey start;
+        if (!ray_start(tree->keyToCoord(end), s, start)) continue;
+        TraceRay(*tree, s, start, end, [&](const octomap::OcTreeKey& k) { v.push_back(Pack(k)); });
         if (i >= occupied.size()) v.push_back(Pack(end));
       }
       std::sort(v.begin(), v.end());

@@ -11,7 +11,10 @@
 #include <limits>
 #include <random>
 
+#include <octomap/OcTree.h>
+
 #include "model_cloud.hpp"
+#include "occupancy.hpp"
 #include "synthetic_scene.hpp"
 #include "test_support.hpp"
 
@@ -168,4 +171,41 @@ TEST(RadiusGrid, SameAnswersAsTheKdTree) {
   const RadiusGrid sparse(&wide, 0.02f);
   EXPECT_TRUE(sparse.AnyWithin({1000.f, 1000.f, 1000.01f}));
   EXPECT_FALSE(sparse.AnyWithin({500.f, 500.f, 500.f}));
+}
+
+// The occupancy grid of a sensor origin far outside the scan (1.3 km, or 5 km past OctoMap's
+// range) spans the scan, not the way to the origin: its rays start where they enter the
+// points' box grown by 2 m. The free space in front of the wall the far sensor sees is there;
+// an origin inside the room gives whole rays.
+TEST(Occupancy, FarSensorOriginCostsWhatTheScanSpans) {
+  Points room;  // a floor of 4 x 4 m and a wall at x = 4
+  for (int i = 0; i <= 80; ++i)
+    for (int j = 0; j <= 80; ++j) {
+      room.emplace_back(0.05f * float(i), 0.05f * float(j), 0.f);
+      room.emplace_back(4.f, 0.05f * float(i), 0.05f * float(j) * 0.6f);
+    }
+  OccupancyOptions opt;
+  for (const Eigen::Vector3f& origin : {Eigen::Vector3f(1300.f, 2.f, 1.5f), Eigen::Vector3f(2.f, -5000.f, 1.5f),
+                                       Eigen::Vector3f(2.f, 2.f, 1.5f)}) {
+    OccupancyStats st;
+    const auto tree = BuildOccupancy(room, origin, opt, &st);
+    double x0, y0, z0, x1, y1, z1;
+    tree->getMetricMin(x0, y0, z0);
+    tree->getMetricMax(x1, y1, z1);
+    EXPECT_GE(x0, -2.1) << origin.transpose();
+    EXPECT_LE(x1, 6.1) << origin.transpose();
+    EXPECT_GE(y0, -2.1) << origin.transpose();
+    EXPECT_LE(y1, 6.1) << origin.transpose();
+    EXPECT_GT(st.free, 0u) << origin.transpose();
+  }
+  // Seen from x = 1300 m, the space just in front of the wall (x = 4.5) is free, behind it
+  // unknown; seen from inside, the other way round.
+  const auto far = BuildOccupancy(room, Eigen::Vector3f(1300.f, 2.f, 1.5f), opt);
+  const octomap::OcTreeNode* front = far->search(4.5, 2.0, 1.0);
+  ASSERT_NE(front, nullptr);
+  EXPECT_FALSE(far->isNodeOccupied(front));
+  EXPECT_EQ(far->search(3.5, 2.0, 1.0), nullptr);
+  const auto inside = BuildOccupancy(room, Eigen::Vector3f(2.f, 2.f, 1.5f), opt);
+  ASSERT_NE(inside->search(3.5, 2.0, 1.0), nullptr);
+  EXPECT_EQ(inside->search(4.5, 2.0, 1.0), nullptr);
 }

@@ -113,6 +113,9 @@ struct ClustersOptions {
   float top_min = 0.55f, top_max = 0.86f;  // heights a work top may have [m] (desks 0.72-0.8, counters 0.9)
   float top_cover = 0.4f;         // share of the cluster's top-view cells the work top occupies
   float top_above = 0.05f;        // share of the cluster's points more than 8 cm over it
+  bool support_splits = false;    // clusters holding a support surface: also its parts without it
+  float support_min = 0.35f, support_max = 1.1f;  // heights a support surface may have [m]
+  float support_area = 0.22f;     // least top-view area of a support surface [m2]
   bool split_ridges = true;       // also cut in two at the strongest ridge or valley of the profile
   float fronts_length = 0.f;      // "fronts" rule: wall segments are at least this long (0 = no such rule) [m]
   std::string wall_normals = "points";  // normals the walls are found by: "points" (k-NN), "blocks", "auto", "both"
@@ -169,6 +172,15 @@ const ParamBinding<ClustersOptions>& Binding() {
                   "top-view cells the work top's upward-facing points occupy, as a share of those the whole cluster occupies")
           .Number("work_top_above", &O::top_above, 0, 1, "",
                   "share of the cluster's points that must lie more than 8 cm over the work top")
+          .Bool("support_splits", &O::support_splits,
+                "a cluster holding a large upward-facing level between support_min_m and support_max_m (a table or "
+                "desk top) also gives, as alternatives, each part of real size that remains when the level is taken "
+                "out (a chair pushed under the table or standing against it, a monitor on it) and the level with the "
+                "remains too small to be objects (its legs): what stands under a table top is not the table")
+          .Number("support_min_m", &O::support_min, 0, 5, "m", "lowest height of a support surface")
+          .Number("support_max_m", &O::support_max, 0, 5, "m", "highest height of a support surface")
+          .Number("support_area_m2", &O::support_area, 0.01, 100, "m2",
+                  "least top-view area of a support surface (a chair seat is about 0.2 m2)")
           .Bool("split_ridges", &O::split_ridges,
                 "a long cluster (shorter than 1.7 x split_length_m) is also cut in two at the centre of the strongest "
                 "ridge or valley of its top-view height profile near the middle (two armchairs meet at their armrests)")
@@ -277,6 +289,8 @@ class ClusterProposer : public Proposer {
  public:
   static ParamSchema Schema() { return Binding().Schema(); }
   explicit ClusterProposer(const nlohmann::json& p) : o_(Binding().Parse(p)) {}
+  // Each point's k nearest neighbours besides itself, when the host finds them with the frame.
+  StageNeeds Needs() const override { return {o_.neighbours + 1}; }
 
   Proposals Propose(const Scan& scan, const Segmentation*, const RunContext& ctx) override {
     const size_t n = scan.points.size();
@@ -522,6 +536,7 @@ class ClusterProposer : public Proposer {
       std::string rule, how;
       int parent = -1;
       int set = 0;
+      double radius = 0.0;  // the clustering radius [x spacing]
     };
     std::vector<Raw> raw;
     // The rules' clusterings are independent: one task each.
@@ -547,22 +562,66 @@ class ClusterProposer : public Proposer {
           r.rule = rule;
           r.how = rule + "/r" + Fixed1(o_.radii[mi]);
           r.set = k / nrules;
+          r.radius = o_.radii[mi];
           raw.push_back(std::move(r));
         }
     }
     const size_t clusters = raw.size();
     for (size_t i = 0; i < clusters; ++i) raw[i].parent = int(i);
+    // Support splits: the parts of a cluster without its support surface, and the surface with
+    // its legs.
+    if (o_.support_splits) {
+      const size_t upto = raw.size();
+      // A cluster that repeats an earlier one (another rule or radius found the same points)
+      // gives the same splits: it is split once.
+      std::vector<size_t> first(upto);
+      {
+        std::unordered_map<uint64_t, std::vector<size_t>> seen;
+        for (size_t i = 0; i < upto; ++i) {
+          first[i] = i;
+          auto& list = seen[Fnv1a(raw[i].idx.data(), raw[i].idx.size() * sizeof(int))];
+          for (size_t j : list)
+            if (raw[j].idx == raw[i].idx && raw[j].radius == raw[i].radius) {
+              first[i] = j;
+              break;
+            }
+          if (first[i] == i) list.push_back(i);
+        }
+      }
+      std::vector<std::vector<std::vector<int>>> sup(upto);
+      // Only the clusters of the walls' "all" removal (those chairs and tables are scored on):
+      // the "segs" removal keeps low cabinet fronts, which stand on no table top.
+      tbb::parallel_for(size_t(0), upto, [&](size_t i) {
+        if (first[i] == i && (raw[i].rule == "all" || raw[i].rule == "all_blocks"))
+          sup[i] = SupportSplit(P, hz, ls, sp, raw[i].idx, raw[i].radius, adaptive);
+      });
+      for (size_t i = 0; i < upto; ++i)
+        if (first[i] != i) sup[i] = sup[first[i]];
+      for (size_t i = 0; i < upto; ++i)
+        for (size_t k = 0; k < sup[i].size(); ++k) {
+          Raw r;
+          r.idx = std::move(sup[i][k]);
+          r.rule = raw[i].rule;
+          r.how = raw[i].how + (k == 0 ? "+support" : "+under" + std::to_string(k));
+          r.parent = raw[i].parent;
+          r.set = raw[i].set;
+          r.radius = raw[i].radius;
+          raw.push_back(std::move(r));
+        }
+    }
     // The clusters' cuts are independent: found in parallel, appended in cluster order.
-    std::vector<std::vector<std::pair<std::vector<int>, int>>> parts(clusters);
-    tbb::parallel_for(size_t(0), clusters, [&](size_t i) { parts[i] = SplitLong(P, hz, raw[i].idx); });
-    for (size_t i = 0; i < clusters; ++i)
+    const size_t to_split = clusters;
+    std::vector<std::vector<std::pair<std::vector<int>, int>>> parts(to_split);
+    tbb::parallel_for(size_t(0), to_split, [&](size_t i) { parts[i] = SplitLong(P, hz, raw[i].idx); });
+    for (size_t i = 0; i < to_split; ++i)
       for (auto& part : parts[i]) {
         Raw r;
         r.idx = std::move(part.first);
         r.rule = raw[i].rule;
         r.how = raw[i].how + "+split" + std::to_string(part.second);
-        r.parent = int(i);
+        r.parent = raw[i].parent;
         r.set = raw[i].set;
+        r.radius = raw[i].radius;
         raw.push_back(std::move(r));
       }
     // Work-top variants: a cluster holding a large horizontal level at table height with more
@@ -645,6 +704,79 @@ class ClusterProposer : public Proposer {
   }
 
  private:
+  // Of (top-view cell, height bin) pairs sorted by cell (`nb` bins), the window of two adjacent
+  // bins that the most cells reach, each cell counted once per window; its lower bin (-1 when no
+  // cell reaches any), and in *cells how many cells reach it.
+  static int BusiestLevel(const std::vector<std::pair<uint64_t, int>>& level, int nb, size_t* cells) {
+    std::vector<size_t> occupied(size_t(nb), 0);
+    for (size_t a = 0; a < level.size();) {
+      int last = -1;
+      size_t e = a;
+      for (; e < level.size() && level[e].first == level[a].first; ++e)
+        for (int w : {level[e].second - 1, level[e].second})
+          if (w > last && w >= 0 && w + 1 < nb) ++occupied[size_t(w)], last = w;
+      a = e;
+    }
+    *cells = 0;
+    int k = -1;
+    for (int b = 0; b + 1 < nb; ++b)
+      if (occupied[size_t(b)] > *cells) *cells = occupied[size_t(b)], k = b;
+    return k;
+  }
+
+  // Support splits of cluster `idx` (clustered at `radius` spacings): nothing, or first the
+  // support surface with the remains too small to be objects (min_points), then each part of
+  // real size that remains when the surface is taken out. The support surface is the 4 cm
+  // level between support_min_m and support_max_m above the ground whose upward-facing points
+  // (|n_z| > 0.9) occupy the most top-view cells (as WorkTop's), of support_area_m2 or more;
+  // its points are those within 4 cm of the level in its cells, whatever their normals (the
+  // top's rounded edges). Only when some part of real size remains.
+  std::vector<std::vector<int>> SupportSplit(const Points& P, const std::vector<float>& hz, const shape::LocalShape& ls,
+                                             float sp, const std::vector<int>& idx, double radius, bool adaptive) const {
+    constexpr float bin = 0.02f;
+    const int nb = int(std::ceil((o_.support_max - o_.support_min) / bin));
+    if (nb < 2 || idx.size() < size_t(2 * o_.min_points)) return {};
+    const float cell = std::max(0.05f, 2.5f * sp);
+    auto key = [&](const Eigen::Vector3f& p) {
+      return (uint64_t(uint32_t(int32_t(std::floor(p.x() / cell)))) << 32) | uint32_t(int32_t(std::floor(p.y() / cell)));
+    };
+    std::vector<std::pair<uint64_t, int>> level;
+    for (int i : idx) {
+      const float h = hz[size_t(i)];
+      if (!(std::abs(ls.normals[size_t(i)].z()) > 0.9f) || !(h >= o_.support_min) || !(h < o_.support_max)) continue;
+      level.emplace_back(key(P[size_t(i)]), std::min(nb - 1, int((h - o_.support_min) / bin)));
+    }
+    std::sort(level.begin(), level.end());
+    size_t best = 0;
+    const int k = BusiestLevel(level, nb, &best);
+    if (k < 0 || double(best) * cell * cell < o_.support_area) return {};
+    const float lo = o_.support_min + float(k) * bin, hi = lo + 2.f * bin;
+    std::unordered_set<uint64_t> top_cells;
+    for (const auto& [c, b] : level)
+      if (b == k || b == k + 1) top_cells.insert(c);
+    std::vector<int> surface;
+    std::vector<uint32_t> rest;
+    for (int i : idx) {
+      const float h = hz[size_t(i)];
+      if (h >= lo - 0.02f && h <= hi + 0.02f && top_cells.count(key(P[size_t(i)]))) surface.push_back(i);
+      else rest.push_back(uint32_t(i));
+    }
+    const auto parts = Cluster(P, rest, ls.nn4, sp, {radius}, adaptive).front();
+    if (parts.empty()) return {};
+    std::vector<std::vector<int>> out;
+    out.push_back(surface);
+    std::vector<uint8_t> in_part(P.size(), 0);
+    for (const auto& part : parts)
+      for (int i : part) in_part[size_t(i)] = 1;
+    for (uint32_t i : rest)
+      if (!in_part[i]) out.front().push_back(int(i));
+    std::sort(out.front().begin(), out.front().end());
+    for (const auto& part : parts) out.push_back(part);
+    spdlog::trace("support: {} pts, level {:.2f} m, {} cells, {} surface points, {} parts", idx.size(), lo, best,
+                  surface.size(), parts.size());
+    return out;
+  }
+
   // The points of cluster `idx` at or below its work top, or nothing. The work top is the 4 cm
   // level between work_top_min_m and work_top_max_m above the ground whose upward-facing points
   // (|n_z| > 0.9) occupy the most top-view cells (2.5 spacings, >= 5 cm: a count of cells, not of
@@ -672,22 +804,9 @@ class ClusterProposer : public Proposer {
     }
     std::sort(all.begin(), all.end());
     const size_t cells = size_t(std::unique(all.begin(), all.end()) - all.begin());
-    // Cells per window (bins b and b + 1): each cell's bins in ascending order, each window it
-    // touches counted once.
     std::sort(level.begin(), level.end());
-    std::vector<size_t> occupied(size_t(nb), 0);
-    for (size_t a = 0; a < level.size();) {
-      int last = -1;
-      size_t e = a;
-      for (; e < level.size() && level[e].first == level[a].first; ++e)
-        for (int w : {level[e].second - 1, level[e].second})
-          if (w > last && w >= 0 && w + 1 < nb) ++occupied[size_t(w)], last = w;
-      a = e;
-    }
     size_t best = 0;
-    int k = -1;
-    for (int b = 0; b + 1 < nb; ++b)
-      if (occupied[size_t(b)] > best) best = occupied[size_t(b)], k = b;
+    const int k = BusiestLevel(level, nb, &best);
     if (k < 0 || double(best) < o_.top_cover * double(cells)) return {};
     const float level_top = o_.top_min + float(k + 2) * bin;  // the window's upper edge
     std::vector<int> out;
@@ -1046,33 +1165,69 @@ class ClusterProposer : public Proposer {
       base[a] = m * sp;
       reach = std::max(reach, rmax[a]);
     }
-    VoxelIndex index;
-    index.Build(uniq, reach);
     std::vector<UnionFind> uf(R, UnionFind(uniq.size()));
+    auto join = [&](uint32_t i, uint32_t j, float d2) {
+      for (size_t a = 0; a < R; ++a) {
+        if (!(d2 < r2[a])) continue;
+        const float lim = adaptive ? std::max(base[a], ms[a] * std::max(lsp[i], lsp[j])) : base[a];
+        if (d2 < lim * lim) uf[a].Join(i, j);
+      }
+    };
+    // Single views: the edge of a pair grows with the sparser point's local spacing, so the
+    // search reach is set by the sparsest points (the 99th percentile), while nearly every pair
+    // of the dense majority is far shorter. Two searches find the same pairs: every pair within
+    // the reach of points no sparser than the 90th percentile, then every pair within the full
+    // reach that has a sparser point, searched from that point.
+    float near_reach = reach;
+    float sparse_from = INFINITY;
+    if (adaptive) {
+      sparse_from = Quantile(lsp, 0.9);
+      near_reach = 0.f;
+      for (size_t a = 0; a < R; ++a) near_reach = std::max(near_reach, std::min(rmax[a], std::max(base[a], ms[a] * sparse_from)));
+      if (!(near_reach < reach)) near_reach = reach, sparse_from = INFINITY;
+    }
     // Every pair once: the later slots of a point's own cell and the cells after it (cells are
     // numbered in key order). Joins in any order give the same components (a root is always its
     // component's smallest index), and half the distances of visiting all 27 cells from both ends.
-    const float reach2 = reach * reach;
-    for (int c = 0; c < index.NumCells(); ++c) {
-      for (int s = index.cell_start[c]; s < index.cell_start[c + 1]; ++s) {
-        const uint32_t i = index.order[size_t(s)];
-        const float px = index.x[size_t(s)], py = index.y[size_t(s)], pz = index.z[size_t(s)];
-        for (int k = index.nb_start[c]; k < index.nb_start[c + 1]; ++k) {
-          const int nc = index.nb[size_t(k)];
-          if (nc < c) continue;
-          for (int t = nc == c ? s + 1 : index.cell_start[nc]; t < index.cell_start[nc + 1]; ++t) {
-            const float dx = index.x[size_t(t)] - px, dy = index.y[size_t(t)] - py, dz = index.z[size_t(t)] - pz;
-            const float d2 = dx * dx + dy * dy + dz * dz;
-            if (!(d2 < reach2)) continue;
-            const uint32_t j = index.order[size_t(t)];
-            for (size_t a = 0; a < R; ++a) {
-              if (!(d2 < r2[a])) continue;
-              const float lim = adaptive ? std::max(base[a], ms[a] * std::max(lsp[i], lsp[j])) : base[a];
-              if (d2 < lim * lim) uf[a].Join(i, j);
+    {
+      VoxelIndex index;
+      index.Build(uniq, near_reach);
+      const float reach2 = near_reach * near_reach;
+      for (int c = 0; c < index.NumCells(); ++c) {
+        for (int s = index.cell_start[c]; s < index.cell_start[c + 1]; ++s) {
+          const uint32_t i = index.order[size_t(s)];
+          const float px = index.x[size_t(s)], py = index.y[size_t(s)], pz = index.z[size_t(s)];
+          for (int k = index.nb_start[c]; k < index.nb_start[c + 1]; ++k) {
+            const int nc = index.nb[size_t(k)];
+            if (nc < c) continue;
+            for (int t = nc == c ? s + 1 : index.cell_start[nc]; t < index.cell_start[nc + 1]; ++t) {
+              const float dx = index.x[size_t(t)] - px, dy = index.y[size_t(t)] - py, dz = index.z[size_t(t)] - pz;
+              const float d2 = dx * dx + dy * dy + dz * dz;
+              if (d2 < reach2) join(i, index.order[size_t(t)], d2);
             }
           }
         }
       }
+    }
+    if (sparse_from < INFINITY) {
+      VoxelIndex index;
+      index.Build(uniq, reach);
+      const float reach2 = reach * reach;
+      for (int c = 0; c < index.NumCells(); ++c)
+        for (int s = index.cell_start[c]; s < index.cell_start[c + 1]; ++s) {
+          const uint32_t i = index.order[size_t(s)];
+          if (!(lsp[i] > sparse_from)) continue;
+          const float px = index.x[size_t(s)], py = index.y[size_t(s)], pz = index.z[size_t(s)];
+          for (int k = index.nb_start[c]; k < index.nb_start[c + 1]; ++k) {
+            const int nc = index.nb[size_t(k)];
+            for (int t = index.cell_start[nc]; t < index.cell_start[nc + 1]; ++t) {
+              if (t == s) continue;
+              const float dx = index.x[size_t(t)] - px, dy = index.y[size_t(t)] - py, dz = index.z[size_t(t)] - pz;
+              const float d2 = dx * dx + dy * dy + dz * dz;
+              if (d2 < reach2) join(i, index.order[size_t(t)], d2);
+            }
+          }
+        }
     }
     for (size_t a = 0; a < R; ++a) {
       std::unordered_map<uint32_t, size_t> slot;
@@ -1270,6 +1425,6 @@ class ClusterProposer : public Proposer {
 }  // namespace
 }  // namespace furnihost
 
-FURNIHOST_PLUGIN(furnihost::ClusterProposer, "proposals.clusters", "1.6.0",
+FURNIHOST_PLUGIN(furnihost::ClusterProposer, "proposals.clusters", "1.7.0",
                  "object proposals: ground, walls and ceiling removed, Euclidean clusters at radii scaled to the scan's "
                  "point spacing, long clusters split, floating ones extended to the ground")

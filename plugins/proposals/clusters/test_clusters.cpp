@@ -12,7 +12,7 @@
 #include <set>
 #include <tuple>
 
-#include "furnihost/ground.hpp"
+#include "furnihost/host/ground_estimation.hpp"
 #include "furnihost/stage.hpp"
 #include "test_stages.hpp"
 

@@ -3,7 +3,7 @@
 // scan without an origin keeps every point.
 #include <gtest/gtest.h>
 
-#include "furnihost/io.hpp"
+#include "furnihost/host/io.hpp"
 #include "furnihost/scan_reader.hpp"
 #include "furnihost/stage.hpp"
 #include "test_stages.hpp"

@@ -75,6 +75,9 @@ struct SimulatedLaserOptions {
   double holes = 0.0;              // share of the surface lost in patches of hole_size_m
   double hole_size_m = 0.1;        // edge of the world-anchored cells a hole takes out [m]
   std::string preset = "none";     // the preset whose values fill the parameters not given (Resolve)
+  // Embree's kernels: "portable" (the x86-64 baseline's, the same points on every CPU), "native"
+  // (the CPU's widest) or one instruction set by name.
+  std::string embree_isa = "portable";
 };
 
 // The presets' values (ParamSchema::Resolve applies them to the parameters a config leaves out).
@@ -161,6 +164,12 @@ const ParamBinding<SimulatedLaserOptions>& Binding() {
                   "hand-held reconstruction: walk around the object, fused, 2 cm voxels, holes, no floor contacts), "
                   "'depth_camera' (a raw Kinect-class frame: range noise, disparity steps, flying pixels, dropout) "
                   "or 'none'; see presets")
+          .Enum("embree_isa", &O::embree_isa, {"portable", "native", "sse2", "sse4.2", "avx", "avx2", "avx512"},
+                "the ray tracer's kernels: 'portable' casts every ray with the x86-64 baseline's (SSE2) kernels, so "
+                "a scan, and a model trained on such scans, is the same bit for bit on every CPU; 'native' takes "
+                "the CPU's widest (AVX2's and AVX-512's fused multiply-adds round differently, so the points "
+                "differ in their last bits from CPU to CPU); an instruction set's name takes its kernels (the "
+                "CPU must have it): what a CPU whose widest they are computes")
           .Object("presets", Presets(),
                   "the presets' values by name; a config's own entries add presets or redefine these",
                   [](O&, const nlohmann::json&) {})
@@ -247,6 +256,27 @@ const EmbreeApi& Embree() {
     return a;
   }();
   return api;
+}
+
+// Whether the CPU has the instructions of Embree's kernels for `isa` (an embree_isa name):
+// Embree's AVX2 kernels also use FMA3 and BMI1/2, its AVX-512 ones the Skylake-server set.
+bool CpuRuns(const std::string& isa) {
+#if defined(__x86_64__) || defined(__i386__)
+  __builtin_cpu_init();
+  if (isa == "sse2") return __builtin_cpu_supports("sse2");
+  if (isa == "sse4.2") return __builtin_cpu_supports("sse4.2");
+  if (isa == "avx") return __builtin_cpu_supports("avx");
+  if (isa == "avx2")
+    return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") && __builtin_cpu_supports("bmi") &&
+           __builtin_cpu_supports("bmi2");
+  if (isa == "avx512")
+    return CpuRuns("avx2") && __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq") &&
+           __builtin_cpu_supports("avx512cd") && __builtin_cpu_supports("avx512bw") &&
+           __builtin_cpu_supports("avx512vl");
+  return false;
+#else
+  return isa == "sse2";  // Embree's NEON build maps its SSE2 kernels
+#endif
 }
 
 // ---- Embree RAII -------------------------------------------------------------------------
@@ -655,11 +685,19 @@ class SimulatedLaser : public Sensor {
   }
 
   SimulatedLaserOptions opt_;
-  // The Embree device, made on the first simulation (Acquire may run on several threads).
+  // The Embree device, made on the first simulation (Acquire may run on several threads), with
+  // the kernels embree_isa names (Embree's own choice is the CPU's widest).
   RTCDevice Device() const {
     std::call_once(device_once_, [this] {
-      device_.reset(Embree().NewDevice("verbose=0"));
-      if (!device_) throw StageError("embree: cannot create a device", false);
+      const std::string isa = opt_.embree_isa == "portable" ? "sse2" : opt_.embree_isa;
+      // Embree runs the kernels it is told to whatever the CPU has: a missing instruction set
+      // would end in SIGILL, so it is refused here.
+      if (isa != "native" && !CpuRuns(isa))
+        throw StageError("embree_isa '" + isa + "': this CPU lacks the instructions of Embree's " + isa + " kernels",
+                         true);
+      const std::string config = isa == "native" ? "verbose=0" : "verbose=0,isa=" + isa;
+      device_.reset(Embree().NewDevice(config.c_str()));
+      if (!device_) throw StageError("embree: cannot create a device (" + config + ")", false);
     });
     return device_.get();
   }
@@ -669,6 +707,6 @@ class SimulatedLaser : public Sensor {
 
 }  // namespace furnihost::sensors
 
-FURNIHOST_PLUGIN(furnihost::sensors::SimulatedLaser, "sensors.simulated_laser", "1.2.0",
+FURNIHOST_PLUGIN(furnihost::sensors::SimulatedLaser, "sensors.simulated_laser", "1.3.0",
                  "simulated pan-tilt laser / depth camera: Embree ray casting of catalog models "
                  "with range noise (paper Sect. IV)")

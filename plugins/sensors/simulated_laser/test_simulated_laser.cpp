@@ -137,6 +137,37 @@ TEST(SimulatedLaser, NoiselessCubePointsLieOnTheVisibleFaces) {
   EXPECT_NEAR(*s.truth[0].yaw, kCubeYawDeg * float(M_PI) / 180.f, 1e-5f);
 }
 
+// A scan is the same on every CPU. Embree takes the CPU's widest kernels unless told otherwise,
+// and AVX2's and AVX-512's fused multiply-adds round the hit distances differently from the
+// baseline's: a CPU with AVX2 alone got other points than one with AVX-512, then other training
+// views, other models and another `furnihost gap` table. By default every ray goes through the
+// x86-64 baseline's (SSE2) kernels, which every such CPU has: what a CPU with SSE2 alone computes.
+TEST(SimulatedLaser, SameScanOnEveryCpu) {
+  auto points = [](const json& extra) {
+    json p = CubeParams();
+    p.update(extra);
+    const auto scans = ScanCube(p, 7);
+    EXPECT_EQ(scans.size(), 1u);
+    return scans.empty() ? Points{} : scans[0].points;
+  };
+  auto same = [](const Points& a, const Points& b) {
+    return a.size() == b.size() && std::equal(a.begin(), a.end(), b.begin(), [](const auto& x, const auto& y) {
+             return x.x() == y.x() && x.y() == y.y() && x.z() == y.z();
+           });
+  };
+  const Points dflt = points(json::object());
+  ASSERT_GT(dflt.size(), 1000u);
+  EXPECT_TRUE(same(dflt, points({{"embree_isa", "portable"}})));
+  EXPECT_TRUE(same(dflt, points({{"embree_isa", "sse2"}}))) << "the default scan is not a baseline CPU's";
+  // The CPU's own kernels: the same rays, hits within a few rounding steps of the portable ones
+  // (noise is drawn per ray, so the points pair up in order).
+  const Points native = points({{"embree_isa", "native"}});
+  ASSERT_EQ(native.size(), dflt.size());
+  float worst = 0.f;
+  for (size_t i = 0; i < dflt.size(); ++i) worst = std::max(worst, (native[i] - dflt[i]).norm());
+  EXPECT_LT(worst, 1e-4f);
+}
+
 TEST(SimulatedLaser, RangeNoiseMatchesTheModel) {
   json p = CubeParams();
   p["noise_a"] = 0.01;

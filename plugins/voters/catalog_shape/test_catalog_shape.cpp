@@ -8,7 +8,7 @@
 #include <optional>
 #include <set>
 
-#include "furnihost/ground.hpp"
+#include "furnihost/host/ground_estimation.hpp"
 #include "furnihost/stage.hpp"
 #include "test_stages.hpp"
 

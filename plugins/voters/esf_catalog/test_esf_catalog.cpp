@@ -9,7 +9,7 @@
 #include <filesystem>
 
 #include "furnihost/geometry.hpp"
-#include "furnihost/pipeline.hpp"
+#include "furnihost/host/pipeline.hpp"
 #include "furnihost/stage.hpp"
 #include "test_stages.hpp"
 

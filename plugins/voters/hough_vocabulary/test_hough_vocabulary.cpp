@@ -6,6 +6,7 @@
 #include <cmath>
 #include <functional>
 
+#include "furnihost/host/ground_estimation.hpp"
 #include "test_support.hpp"
 #include "voting/synthetic_views.hpp"
 

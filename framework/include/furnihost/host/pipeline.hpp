@@ -1,0 +1,87 @@
+// The pipeline: a graph's stages, created once, run on scans (detection) or on the catalog
+// (training). The shared entry of the CLI, `furnihost eval` and the tests. Its parts, each in a
+// header of its own and all included here: the scan input (scan_input.hpp), the model file and
+// cache (model_file.hpp, model_cache.hpp), the ensemble (ensemble.hpp) and the detections'
+// JSON (detections.hpp); the executor and the stage kinds' runners are the host's own
+// (framework/src/host/graph/).
+#pragma once
+#include <functional>
+#include <map>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "furnihost/host/catalog.hpp"
+#include "furnihost/host/config.hpp"
+#include "furnihost/host/detections.hpp"
+#include "furnihost/host/ensemble.hpp"
+#include "furnihost/host/frame.hpp"
+#include "furnihost/host/model_cache.hpp"
+#include "furnihost/host/model_file.hpp"
+#include "furnihost/host/registry.hpp"
+#include "furnihost/host/scan_input.hpp"
+#include "furnihost/stage.hpp"
+
+namespace furnihost {
+
+namespace graph {
+struct StageInstances;
+}
+
+// Not thread-safe: a Pipeline runs one Detect or Train at a time (copies share its stages).
+class FURNIHOST_API Pipeline {
+ public:
+  Pipeline(const GraphConfig& graph, const Registry& registry);
+  const GraphConfig& Graph() const { return graph_; }
+
+  // Whether the graph has a stage that gives detections.
+  bool HasDetectionChain() const;
+  std::vector<std::string> MissingStages() const;  // kinds absent from the detection chain
+
+  // Trains every trained stage (voter) of the graph on the catalog (the stages' runners on the
+  // training sensor's views of each model).
+  TrainedModel Train(const Catalog& catalog, const RunContext& ctx);
+
+  using SceneInput = furnihost::SceneInput;
+  // The detections, and the outputs behind them: the fields below `scans` hold those of the
+  // stages the first sink takes, directly or not (of every stage when the graph has no sink),
+  // the first of each in execution order.
+  struct Result {
+    std::vector<Scan> scans;
+    std::vector<Segmentation> segmentations;
+    std::vector<Proposals> proposals;     // one per scan when the chain has a proposer
+    std::vector<FeatureMatrix> features;  // what its voter voted with (normalised), else raw
+    size_t clamped_features = 0;          // of every voter
+    VoteResult votes;
+    // Every sink's detections in execution order of the sinks; with several sinks each names
+    // its sink in Detection::chain.
+    std::vector<Detection> detections;
+    std::vector<std::string> sinks;  // the tags of the sinks that ran
+    bool voted = false, fitted = false;
+    // The world frame (detections, votes) is the first scan's working frame; this maps it to
+    // the frame the user gave the scans in: the first scan's z-up frame, moved by its --pose.
+    Eigen::Isometry3f world_to_user = Eigen::Isometry3f::Identity();
+    StageTimes timings_ms;  // stage tag -> ms, in order
+  };
+  // Runs the chain on the scenes (fused into one vote space when there are several).
+  // `model` may be null when the graph has no voter. `before_stages`, when given, is called
+  // once the scans are read, framed and grounded, before the first stage reads `model` or
+  // `catalog`: a caller may fill those meanwhile on another thread and wait for it there.
+  // With the graph's ensemble (EnsembleOptions) the chain runs ensemble.runs times: first on
+  // the scans as read, then on jittered copies; the detections are the runs' fused
+  // (FuseDetections), every other field is the first run's (the timings summed). ensemble.cpp.
+  Result Detect(const std::vector<SceneInput>& scenes, const TrainedModel* model,
+                const Catalog* catalog, const RunContext& ctx, const std::function<void()>& before_stages = {});
+
+ private:
+  // One run of the chain: the scans read (scan_input.hpp), then the stages (the executor).
+  Result DetectOnce(const std::vector<SceneInput>& scenes, const TrainedModel* model, const Catalog* catalog,
+                    const RunContext& ctx, const std::function<void()>& before_stages, const RunJitter& jitter);
+  GraphConfig graph_;
+  std::shared_ptr<graph::StageInstances> stages_;
+  const StageConfig* input_ = nullptr;  // the detection sensor
+  int neighbours_ = 0;                  // what the stages ask of each scan (StageNeeds::neighbours)
+};
+
+}  // namespace furnihost
