@@ -280,9 +280,9 @@ TEST(Io, XyzSeparatorsDecimalCommasAndEncodings) {
   for (int i = 0; i < 30000; ++i) line += "1.5 2.5 3.5 ";
   WriteText(dir + "/long.xyz", line + "\n");
   EXPECT_NE(ErrorOf(dir + "/long.xyz").find("long.xyz:1: is longer than 64 KiB"), std::string::npos);
-  WriteText(dir + "/u16.xyz", std::string("\xFF\xFE" "1\0 \0" "2\0 \0" "3\0\n\0", 16));
+  WriteText(dir + "/u16.xyz", std::string("\xFF\xFE" "1\0 \0" "2\0 \0" "3\0\n\0", 14));
   EXPECT_NE(ErrorOf(dir + "/u16.xyz").find("u16.xyz: is UTF-16 text"), std::string::npos);
-  WriteText(dir + "/u16_plain.xyz", std::string("1\0 \0" "2\0 \0" "3\0\n\0", 14));
+  WriteText(dir + "/u16_plain.xyz", std::string("1\0 \0" "2\0 \0" "3\0\n\0", 12));
   const std::string e = ErrorOf(dir + "/u16_plain.xyz");
   EXPECT_NE(e.find("u16_plain.xyz:1: holds NUL bytes"), std::string::npos) << e;
 }
@@ -369,7 +369,7 @@ TEST(Io, CommandLineJsonIsBounded) {
   EXPECT_THROW(ParseCliJson("{", "--sensor x"), InputError);
   // fuzz_cli_json: nlohmann takes a NUL byte for the end ("0\0..." parsed as 0) and invalid UTF-8
   // reached the run record, whose dump threw (exit 1).
-  for (const std::string bad : {std::string("0\0junk", 6), std::string("/tmp/a\xff b")})
+  for (const std::string& bad : {std::string("0\0junk", 6), std::string("/tmp/a\xff b")})
     for (bool bare : {true, false}) EXPECT_THROW(ParseCliJson(bad, "--set fit.cloud_cache", bare), InputError);
   EXPECT_THROW(ParseJsonText(std::string("{}\0junk", 6), "g.json"), InputError);
   EXPECT_EQ(DumpJson(nlohmann::json("r\xffm.pcd")), "\"r\xef\xbf\xbdm.pcd\"");

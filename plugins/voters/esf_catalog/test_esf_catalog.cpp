@@ -365,19 +365,21 @@ TEST(EsfCatalog, BadParametersNameTheParameter) {
 TEST(EsfCatalog, ModelFileRoundTrip) {
   const auto& cat = Trained();
   TrainedModel tm;
-  tm.voter_type = "voters.esf_catalog";
-  tm.voter_model = TrainedModel3();
+  tm.voters["vote"].voter_type = "voters.esf_catalog";
+  tm.voters["vote"].voter_model = TrainedModel3();
   const std::string dir = testing::TempDir("esf_catalog"), path = dir + "/model.fhm";
   SaveModel(path, tm);
   const TrainedModel back = LoadModel(path);
   std::filesystem::remove_all(dir);
-  EXPECT_EQ(back.voter_type, "voters.esf_catalog");
-  EXPECT_EQ(back.voter_model, TrainedModel3());
+  const TrainedVoter* voter = back.FindVoter("vote");
+  ASSERT_NE(voter, nullptr);
+  EXPECT_EQ(voter->voter_type, "voters.esf_catalog");
+  EXPECT_EQ(voter->voter_model, TrainedModel3());
 
   const Scene sc = SceneOf(cat.table);
   auto from_memory = Make<Voter>("voters.esf_catalog"), from_file = Make<Voter>("voters.esf_catalog");
   from_memory->Load(TrainedModel3());
-  from_file->Load(back.voter_model);
+  from_file->Load(voter->voter_model);
   const VoteResult a = VoteOn(*from_memory, sc), b = VoteOn(*from_file, sc);
   ASSERT_FALSE(a.hypotheses.empty());
   ASSERT_EQ(a.hypotheses.size(), b.hypotheses.size());
