@@ -191,8 +191,8 @@ class Graph:
 
     def train(self):
         """Trains the model from the graph's catalog now and writes its cache (unless this Graph
-        has just trained it, its cache missing or stale); returns the training summary (models,
-        views, parts per class, time per stage)."""
+        has just trained it, its cache missing or stale); returns the training summary (models;
+        per voter by stage tag its views and parts, per class; time per stage)."""
         return self._graph.train()
 
     def run(self, points, colors=None, origin=None, up="+z", transform=None):

@@ -32,7 +32,8 @@ def test_train_writes_the_cache_and_detect_uses_it(tmp_path):
     graph.write_text(json.dumps({"extends": str(EXAMPLES), "model_cache": str(tmp_path / "m.fhm")}))
     g = furnihost.Graph(graph, plugin_path=BUILD / "examples" / "plugins")
     summary = g.train()
-    assert summary["models"] == 6 and summary["views"] > 0, summary
+    assert summary["models"] == 6 and all(v["views"] > 0 for v in summary["voters"].values()), summary
+    assert summary["voters"], summary
     assert (tmp_path / "m.fhm").is_file()
     points, _ = furnihost.read_scan(SOURCE / "data" / "demo" / "room.pcd")
     trained = [d.to_dict() for d in g.detect(points)]
