@@ -1009,6 +1009,27 @@ void FinishScan(const std::string& path, const Tally& tally, const ShiftOption& 
                  path, strays, stats.read, static_cast<int>(kStrayGap));
   if (stats_out) *stats_out = stats;
 }
+
+// The points taken by `take` (a file read, or points in memory) with the shift rules: the given
+// shift, else the automatic one, taken again with the shift the bulk calls for when the first
+// point was a stray return (BetterShift); then FinishScan.
+template <class Take>
+Scan TakeShifted(const std::string& name, const ShiftOption& shift, ReadStats* stats_out, Take take) {
+  Tally tally;
+  tally.shift = shift.shift;
+  tally.auto_shift = shift.automatic && !shift.shift;
+  Scan scan = take(tally);
+  if (tally.auto_shift)
+    if (const auto better = BetterShift(tally)) {
+      Tally again;
+      again.shift = *better;
+      again.auto_shift = false;
+      scan = take(again);
+      tally = std::move(again);
+    }
+  FinishScan(name, tally, shift, scan, stats_out);
+  return scan;
+}
 }  // namespace
 
 Scan ReadScan(const std::string& path, ReadStats* stats_out, size_t max_points, const ShiftOption& shift) {
@@ -1016,20 +1037,7 @@ Scan ReadScan(const std::string& path, ReadStats* stats_out, size_t max_points, 
   const std::string ext = Lower(fs::path(path).extension().string());
   if (ext != ".pcd" && ext != ".ply" && ext != ".xyz" && ext != ".txt" && ext != ".pts" && ext != ".asc")
     throw InputError(path + ": unknown scan format '" + ext + "' (expected .pcd, .ply, .xyz or .txt)");
-  Tally tally;
-  tally.shift = shift.shift;
-  tally.auto_shift = shift.automatic && !shift.shift;
-  Scan scan = ReadFormat(path, ext, tally, max_points);
-  if (tally.auto_shift)
-    if (const auto better = BetterShift(tally)) {
-      Tally again;
-      again.shift = *better;
-      again.auto_shift = false;
-      scan = ReadFormat(path, ext, again, max_points);
-      tally = std::move(again);
-    }
-  FinishScan(path, tally, shift, scan, stats_out);
-  return scan;
+  return TakeShifted(path, shift, stats_out, [&](Tally& tally) { return ReadFormat(path, ext, tally, max_points); });
 }
 
 std::optional<Eigen::Vector3d> ScanFileOrigin(const std::string& path) {
@@ -1045,8 +1053,7 @@ std::optional<Eigen::Vector3d> ScanFileOrigin(const std::string& path) {
 
 Scan ScanFromPoints(const std::string& name, const double* xyz, size_t n, const uint8_t* rgb, ReadStats* stats_out,
                     const ShiftOption& shift) {
-  // The points taken once with `tally`'s shift rules, as ReadFormat reads a file.
-  auto take = [&](Tally& tally) {
+  return TakeShifted(name, shift, stats_out, [&](Tally& tally) {
     Scan scan;
     scan.source = name;
     scan.points.reserve(n);
@@ -1059,21 +1066,7 @@ Scan ScanFromPoints(const std::string& name, const double* xyz, size_t n, const 
       if (rgb) scan.colors.push_back({rgb[3 * i], rgb[3 * i + 1], rgb[3 * i + 2]});
     }
     return scan;
-  };
-  Tally tally;
-  tally.shift = shift.shift;
-  tally.auto_shift = shift.automatic && !shift.shift;
-  Scan scan = take(tally);
-  if (tally.auto_shift)
-    if (const auto better = BetterShift(tally)) {  // as ReadScan: the bulk decides, not the first point
-      Tally again;
-      again.shift = *better;
-      again.auto_shift = false;
-      scan = take(again);
-      tally = std::move(again);
-    }
-  FinishScan(name, tally, shift, scan, stats_out);
-  return scan;
+  });
 }
 
 }  // namespace furnihost

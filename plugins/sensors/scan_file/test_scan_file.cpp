@@ -3,6 +3,10 @@
 // scan without an origin keeps every point.
 #include <gtest/gtest.h>
 
+#include <filesystem>
+#include <fstream>
+#include <vector>
+
 #include "furnihost/host/io.hpp"
 #include "furnihost/scan_reader.hpp"
 #include "furnihost/stage.hpp"
@@ -105,6 +109,32 @@ TEST(ScanFile, ScanFromPointsFollowsTheReadersRules) {
   } catch (const InputError& e) {
     EXPECT_EQ(std::string(e.what()), "empty rows: holds no finite points");
   }
+}
+
+// ScanFromPoints follows the readers' shift and stray-return rules as ReadScan does on a file of
+// the same points: a stray first point near the origin does not decide the global shift (the
+// bulk is taken again with its own), and a return far above the bulk is dropped.
+TEST(ScanFile, ScanFromPointsTakesStrayReturnsAsTheReaders) {
+  std::vector<double> xyz = {0.5, 0.5, 0.0};  // the stray first point
+  for (int i = 0; i < 2000; ++i)
+    xyz.insert(xyz.end(), {651000.0 + 0.1 * (i % 50), 5423000.0 + 0.1 * (i / 50), 1.0});
+  xyz.insert(xyz.end(), {651001.0, 5423001.0, 501.0});  // 500 m above the room
+  const size_t n = xyz.size() / 3;
+  const std::string dir = testing::TempDir("scan_file_stray"), path = dir + "/utm.xyz";
+  {
+    std::ofstream out(path);
+    out.precision(12);
+    for (size_t i = 0; i < n; ++i) out << xyz[3 * i] << " " << xyz[3 * i + 1] << " " << xyz[3 * i + 2] << "\n";
+  }
+  ReadStats stats;
+  const Scan held = ScanFromPoints("utm", xyz.data(), n, nullptr, &stats);
+  const Scan read = ReadScan(path);
+  std::filesystem::remove_all(dir);
+  EXPECT_EQ(stats.read, n);
+  ASSERT_EQ(held.points.size(), 2000u);
+  EXPECT_EQ(held.frame.shift, Eigen::Vector3d(651000.0, 5423000.0, 0.0));
+  EXPECT_EQ(held.points, read.points);
+  EXPECT_EQ(held.frame.shift, read.frame.shift);
 }
 
 }  // namespace
