@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
-"""Writes docs/plugins/: one page per plugin (docs/plugins/<type>.md) and an index (README.md),
-generated from the schemas the plugins declare (`furnihost plugins --json`: type, kind, version,
+"""Writes docs/plugins/: one page per plugin (docs/plugins/<type>.md), one of the host's own
+sections of a graph config (host.md: ground, frame, ensemble) and an index (README.md),
+generated from the schemas the plugins and the host declare (`furnihost plugins --json`: type, kind, version,
 description, and every parameter with its type, default, range or choices, unit and help).
 
   scripts/plugin_docs.py --furnihost build/bin/furnihost --plugin-dir build/plugins --out docs/plugins
@@ -51,7 +52,7 @@ def read_plugins(furnihost, plugin_dir):
             plugins.append(p)
     if not plugins:
         fail(f"no plugin found in {plugin_dir}")
-    return plugins
+    return plugins, listing.get("host_sections", {})
 
 
 def cell(text):
@@ -78,6 +79,28 @@ def allowed(p):
     return f"[{lo if lo is not None else '-inf'}, {hi if hi is not None else 'inf'}]"
 
 
+def param_table(params):
+    lines = ["| name | type | default | allowed | unit | what it does |", "|---|---|---|---|---|---|"]
+    for s in params:
+        what = s.get("help", "")
+        if s.get("detection_only"):
+            what += " *(detection only)*"
+        lines.append(f"| `{s['name']}` | {s['type']} | {cell(value(s.get('default')))} | "
+                     f"{cell(allowed(s))} | {cell(s.get('unit', ''))} | {cell(what)} |")
+    return lines
+
+
+def host_page(sections):
+    lines = ["# The host's sections of a graph config", "", HEADER, "",
+             "Beside `stages`, a graph config may hold these objects; each parameter is declared once "
+             "by the host, as a plugin declares its own. Set them in the config (`\"ground\": "
+             "{\"kind\": \"plane\"}`) or with `--set <section>.<name>=<value>`; a `comment` key is allowed.", ""]
+    for name in sorted(sections):
+        lines += [f"## {name}", ""] + param_table(sections[name]) + [""]
+    lines += ["Back to [all plugins](README.md).", ""]
+    return "\n".join(lines)
+
+
 def page(p):
     lines = [f"# {p['type']}", "", HEADER, "",
              f"**Kind:** {p['kind']} · **version:** {p['version']} · **library:** "
@@ -89,15 +112,7 @@ def page(p):
         lines += ["## Parameters", "",
                   "Set in a graph config under `stages.<tag>.params`, or on the command line with "
                   "`--set <tag>.<name>=<value>`. *Detection only*: changing it does not retrain the "
-                  "model.", "",
-                  "| name | type | default | allowed | unit | what it does |",
-                  "|---|---|---|---|---|---|"]
-        for s in params:
-            what = s.get("help", "")
-            if s.get("detection_only"):
-                what += " *(detection only)*"
-            lines.append(f"| `{s['name']}` | {s['type']} | {cell(value(s.get('default')))} | "
-                         f"{cell(allowed(s))} | {cell(s.get('unit', ''))} | {cell(what)} |")
+                  "model.", ""] + param_table(params)
         lines.append("")
     lines += ["Back to [all plugins](README.md).", ""]
     return "\n".join(lines)
@@ -108,7 +123,8 @@ def index(plugins):
              "Every plugin the project builds, by stage kind, with its parameters as the plugin "
              "declares them. What the kinds are and what each may take: "
              "[architecture.md](../architecture.md#the-graph); how to write a plugin: "
-             "[writing-a-plugin.md](../writing-a-plugin.md).", ""]
+             "[writing-a-plugin.md](../writing-a-plugin.md). The host's own sections of a graph "
+             "config (ground, frame, ensemble): [host.md](host.md).", ""]
     for kind in KIND_ORDER + sorted({p["kind"] for p in plugins} - set(KIND_ORDER)):
         of_kind = [p for p in plugins if p["kind"] == kind]
         if not of_kind:
@@ -120,10 +136,12 @@ def index(plugins):
     return "\n".join(lines)
 
 
-def write(plugins, out):
+def write(plugins, sections, out):
     out.mkdir(parents=True, exist_ok=True)
     want = {f"{p['type']}.md": page(p) for p in plugins}
     want["README.md"] = index(plugins)
+    if sections:
+        want["host.md"] = host_page(sections)
     for old in out.glob("*.md"):
         if old.name not in want:
             old.unlink()
@@ -159,16 +177,17 @@ def main():
     args = ap.parse_args()
     if not pathlib.Path(args.plugin_dir).is_dir():
         fail(f"--plugin-dir {args.plugin_dir}: not a folder")
-    plugins = sorted(read_plugins(args.furnihost, args.plugin_dir), key=lambda p: p["type"])
+    plugins, sections = read_plugins(args.furnihost, args.plugin_dir)
+    plugins = sorted(plugins, key=lambda p: p["type"])
     if args.out:
-        write(plugins, pathlib.Path(args.out))
+        write(plugins, sections, pathlib.Path(args.out))
         print(f"plugin_docs: {len(plugins)} plugin pages in {args.out}")
         return 0
     checked = pathlib.Path(args.check)
     if not checked.is_dir():
         fail(f"--check {args.check}: not a folder")
     with tempfile.TemporaryDirectory(prefix="plugin_docs.") as tmp:
-        write(plugins, pathlib.Path(tmp))
+        write(plugins, sections, pathlib.Path(tmp))
         problems = compare(pathlib.Path(tmp), checked)
     for p in problems:
         print(p)

@@ -123,7 +123,7 @@ void FrameCli::ApplyGround(GraphConfig& g) const {
     if (!std::isfinite(z) || std::abs(z) > 1e4)
       throw InputError("--ground: a fixed floor height must be finite and within 10 km, got '" + ground + "'");
     o.kind = "fixed";
-    o.fixed_z = static_cast<float>(z);
+    o.z_m = static_cast<float>(z);
   } else {
     o.kind = ground;
   }

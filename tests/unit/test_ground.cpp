@@ -9,9 +9,11 @@
 #include <fstream>
 #include <functional>
 #include <random>
+#include <set>
 
 #include "furnihost/host/evaluation.hpp"
 #include "furnihost/host/frame.hpp"
+#include "furnihost/host/config.hpp"
 #include "furnihost/host/ground_estimation.hpp"
 #include "furnihost/host/io.hpp"
 
@@ -67,7 +69,7 @@ TEST(Ground, LevelFloorBelowTheOrigin) {
   }
   EXPECT_EQ(EstimateGround(room, Kind("auto")).kind, GroundKind::HeightMap);
   GroundOptions fixed = Kind("fixed");
-  fixed.fixed_z = -1.25f;
+  fixed.z_m = -1.25f;
   const GroundModel f = EstimateGround(room, fixed);
   EXPECT_EQ(f.kind, GroundKind::Level);
   EXPECT_EQ(f.source, "fixed");
@@ -148,7 +150,34 @@ TEST(Ground, OptionsAreChecked) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("g.json:/ground/kind"), std::string::npos) << e.what();
   }
-  EXPECT_EQ(GroundOptionsFromJson({{"kind", "fixed"}, {"z_m", -1.2}}, "x").fixed_z, -1.2f);
+  EXPECT_EQ(GroundOptionsFromJson({{"kind", "fixed"}, {"z_m", -1.2}}, "x").z_m, -1.2f);
+  // The binding's defaults are the struct's, and the resolved section names its members.
+  const GroundOptions d = GroundOptionsFromJson(nullptr, "x");
+  EXPECT_EQ(ToJson(d), ToJson(GroundOptions{}));
+  EXPECT_EQ(GroundOptionsFromJson(ToJson(d), "x").cell_m, GroundOptions{}.cell_m);
+  // Check() reports at the command line's option as at a config's pointer.
+  GroundOptions bad;
+  bad.step_m = 0;
+  try {
+    bad.Check("--ground: ");
+    ADD_FAILURE() << "step_m 0 accepted";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), "--ground: step_m: must be above 0");
+  }
+}
+
+// Every number of the host's sections has a unit or is a ratio, as `furnihost plugins` lists it.
+TEST(Ground, HostSectionsDeclareEveryParameterOnce) {
+  std::set<std::string> sections;
+  for (const auto& [name, schema] : HostSectionSchemas()) {
+    sections.insert(name);
+    for (const auto& s : schema.Specs()) {
+      if (s.type == ParamType::Number && s.name != "join_iou") {
+        EXPECT_FALSE(s.unit.empty()) << name << "." << s.name;
+      }
+    }
+  }
+  EXPECT_EQ(sections, (std::set<std::string>{"ground", "frame", "ensemble"}));
 }
 
 // Up axes keep frames right-handed; the optical frame (-y up) becomes ROS's camera_link axes.

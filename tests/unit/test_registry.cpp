@@ -219,11 +219,17 @@ TEST(Config, EnsembleIsValidatedAndDefaultsToOneRun) {
   EXPECT_EQ(ConfigError(With({{"ensemble", {{"runs", 0}}}})), "g.json:/ensemble/runs: expected an integer in [1, 64], got 0");
   EXPECT_EQ(ConfigError(With({{"ensemble", {{"runs", 2.5}}}})), "g.json:/ensemble/runs: expected an integer in [1, 64], got 2.5");
   EXPECT_EQ(ConfigError(With({{"ensemble", {{"jitter_m", -1}}}})),
-            "g.json:/ensemble/jitter_m: expected a number in (0, 0.1] (metres), got -1");
+            "g.json:/ensemble/jitter_m: expected a number in [0, 0.1], got -1");
+  EXPECT_EQ(ConfigError(With({{"ensemble", {{"jitter_m", 0}}}})), "g.json:/ensemble: jitter_m: must be above 0");
   EXPECT_EQ(ConfigError(With({{"ensemble", {{"join_iou", "x"}}}})),
-            "g.json:/ensemble/join_iou: expected a number in (0, 1], got \"x\"");
+            "g.json:/ensemble/join_iou: expected a number in [0, 1], got \"x\"");
   EXPECT_EQ(ConfigError(With({{"ensemble", {{"run", 2}}}})),
-            "g.json:/ensemble/run: unknown key (ensemble takes runs, jitter_m and join_iou)");
+            "g.json:/ensemble/run: unknown parameter; valid: runs, jitter_m, join_iou");
+  EXPECT_EQ(ConfigError(With({{"frame", {{"level", 1}}}})), "g.json:/frame/level: expected true or false, got 1");
+  EXPECT_EQ(ConfigError(With({{"ground", {{"cell_m", 5}}}})), "g.json:/ground/cell_m: expected a number in [0.02, 2], got 5");
+  // A "comment" is the reader's, in every host section.
+  AtomicWriteText(dir + "/c.json", With({{"frame", {{"comment", "x"}, {"level", true}}}, {"ground", {{"comment", "y"}}}}));
+  EXPECT_TRUE(LoadGraph(dir + "/c.json", reg).frame.level);
   EXPECT_NE(ConfigError(With({{"ensemble", 5}})).find("g.json:/ensemble: expected an object"), std::string::npos);
 }
 

@@ -279,8 +279,14 @@ class ParamBinding {
   const ParamSchema& Schema() const { return schema_; }
 
   // `params`: the stage's resolved parameters (missing ones take their defaults).
-  O Parse(const nlohmann::json& params) const {
-    const nlohmann::json r = schema_.Resolve(params, "");
+  O Parse(const nlohmann::json& params) const { return Parse(params, "", false); }
+  // The same for a section of a file: errors are InputErrors that start with `where` (a
+  // "file:/json/pointer"), "where/<parameter>: ..." or, for a rule, "where: <message>".
+  O Parse(const nlohmann::json& params, const std::string& where) const { return Parse(params, where, true); }
+
+ private:
+  O Parse(const nlohmann::json& params, const std::string& where, bool located) const {
+    const nlohmann::json r = schema_.Resolve(params, where);
     O o{};
     const auto& specs = schema_.Specs();
     for (size_t i = 0; i < specs.size(); ++i)
@@ -288,12 +294,13 @@ class ParamBinding {
     for (const auto& [name, parse] : objects_) parse(o, r.at(name));
     for (const auto& rule : rules_) {
       const std::string message = rule(o);
-      if (!message.empty()) throw StageError(message);
+      if (message.empty()) continue;
+      if (located) throw InputError(where + ": " + message);
+      throw StageError(message);
     }
     return o;
   }
 
- private:
   template <class M>
   param_detail::FieldType<O, M> Default(const M& m) const {
     O d{};

@@ -189,43 +189,10 @@ GraphConfig ValidateGraph(const std::string& path, const nlohmann::json& config,
   // Before anything runs (a typo in the ground's kind must not surface after training).
   g.ground = GroundOptionsFromJson(config.value("ground", nlohmann::json()), w + "/ground");
   resolved["ground"] = ToJson(g.ground);
-  if (config.contains("frame")) {
-    const auto& f = config["frame"];
-    if (!f.is_object()) throw InputError(w + "/frame: expected an object such as {\"canonical\": true}, got " + Shown(f));
-    for (auto it = f.begin(); it != f.end(); ++it) {
-      if (it.key() == "comment") continue;
-      if (it.key() != "canonical" && it.key() != "level")
-        throw InputError(w + "/frame/" + it.key() + ": unknown key (frame takes canonical and level)");
-      if (!it->is_boolean()) throw InputError(w + "/frame/" + it.key() + ": expected true or false, got " + Shown(*it));
-      (it.key() == "canonical" ? g.canonical_frame : g.level_frame) = it->get<bool>();
-    }
-  }
-  resolved["frame"] = {{"canonical", g.canonical_frame}, {"level", g.level_frame}};
-  if (config.contains("ensemble")) {
-    const auto& e = config["ensemble"];
-    const std::string at = w + "/ensemble";
-    if (!e.is_object()) throw InputError(at + ": expected an object such as {\"runs\": 5}, got " + Shown(e));
-    for (auto it = e.begin(); it != e.end(); ++it) {
-      const std::string& k = it.key();
-      if (k == "comment") continue;
-      if (k == "runs") {
-        if (!(it->is_number_unsigned() && it->get<uint64_t>() >= 1 && it->get<uint64_t>() <= 64))
-          throw InputError(at + "/runs: expected an integer in [1, 64], got " + Shown(*it));
-        g.ensemble.runs = it->get<int>();
-      } else if (k == "jitter_m") {
-        if (!(it->is_number() && it->get<double>() > 0 && it->get<double>() <= 0.1))
-          throw InputError(at + "/jitter_m: expected a number in (0, 0.1] (metres), got " + Shown(*it));
-        g.ensemble.jitter_m = it->get<double>();
-      } else if (k == "join_iou") {
-        if (!(it->is_number() && it->get<double>() > 0 && it->get<double>() <= 1))
-          throw InputError(at + "/join_iou: expected a number in (0, 1], got " + Shown(*it));
-        g.ensemble.join_iou = it->get<double>();
-      } else {
-        throw InputError(at + "/" + Clipped(k) + ": unknown key (ensemble takes runs, jitter_m and join_iou)");
-      }
-    }
-  }
-  resolved["ensemble"] = {{"runs", g.ensemble.runs}, {"jitter_m", g.ensemble.jitter_m}, {"join_iou", g.ensemble.join_iou}};
+  g.frame = FrameSectionFromJson(config.value("frame", nlohmann::json()), w + "/frame");
+  resolved["frame"] = ToJson(g.frame);
+  g.ensemble = EnsembleOptionsFromJson(config.value("ensemble", nlohmann::json()), w + "/ensemble");
+  resolved["ensemble"] = ToJson(g.ensemble);
   if (config.contains("catalog")) g.catalog = config["catalog"].get<std::string>();
   if (config.contains("model_cache")) g.model_cache = config["model_cache"].get<std::string>();
   if (config.contains("limits")) {

@@ -11,45 +11,6 @@
 
 namespace furnihost {
 
-// ---- options -------------------------------------------------------------------------------
-
-void GroundOptions::Check(const std::string& where) const {
-  static const char* kinds[] = {"auto", "level", "plane", "height_map", "fixed"};
-  if (std::find(std::begin(kinds), std::end(kinds), kind) == std::end(kinds))
-    throw InputError(where + "kind: '" + kind + "' is not one of auto, level, plane, height_map, fixed");
-  if (!std::isfinite(fixed_z) || std::abs(fixed_z) > 1e4f)
-    throw InputError(where + "z_m: expected a finite height within 10 km, got " + std::to_string(fixed_z));
-  if (!(cell >= 0.02f && cell <= 2.f)) throw InputError(where + "cell_m: expected a number in [0.02, 2]");
-  if (!(step > 0.f && step <= 1.f)) throw InputError(where + "step_m: expected a number in (0, 1]");
-  if (!(min_area >= 0.f && min_area <= 1e6f)) throw InputError(where + "min_area_m2: expected a number in [0, 1e6]");
-}
-
-GroundOptions GroundOptionsFromJson(const nlohmann::json& j, const std::string& where) {
-  GroundOptions o;
-  if (j.is_null()) return o;
-  if (!j.is_object()) throw InputError(where + ": expected an object {\"kind\": ...}");
-  for (auto it = j.begin(); it != j.end(); ++it) {
-    const std::string& k = it.key();
-    const std::string at = where + "/" + k;
-    if (k == "kind") {
-      if (!it->is_string()) throw InputError(at + ": expected a string");
-      o.kind = it->get<std::string>();
-    } else if (k == "z_m" || k == "cell_m" || k == "step_m" || k == "min_area_m2") {
-      if (!it->is_number()) throw InputError(at + ": expected a number");
-      const float v = it->get<float>();
-      (k == "z_m" ? o.fixed_z : k == "cell_m" ? o.cell : k == "step_m" ? o.step : o.min_area) = v;
-    } else {
-      throw InputError(at + ": unknown key (ground takes kind, z_m, cell_m, step_m, min_area_m2)");
-    }
-  }
-  o.Check(where + "/");
-  return o;
-}
-
-nlohmann::json ToJson(const GroundOptions& o) {
-  return {{"kind", o.kind}, {"z_m", o.fixed_z}, {"cell_m", o.cell}, {"step_m", o.step}, {"min_area_m2", o.min_area}};
-}
-
 // ---- level and plane ----------------------------------------------------------------------
 
 namespace {
@@ -226,7 +187,7 @@ std::optional<GroundModel> HeightMap(const Points& w, const GroundOptions& o, co
     lo = lo.cwiseMin(p.head<2>());
     hi = hi.cwiseMax(p.head<2>());
   }
-  float cell = o.cell;
+  float cell = o.cell_m;
   while (double((hi.x() - lo.x()) / cell + 2) * double((hi.y() - lo.y()) / cell + 2) > kMaxCells) cell *= 2.f;
   // Cells on the lattice of multiples of `cell` (not from the scan's corner): the scan's
   // canonical frame then lays them the same way on it whichever quarter turn it came in.
@@ -260,7 +221,7 @@ std::optional<GroundModel> HeightMap(const Points& w, const GroundOptions& o, co
     std::nth_element(z.begin() + long(b), at, z.begin() + long(e));
     h[c] = *at;
   }
-  // Flood fill from the cells at the seed level, across steps of at most o.step (diagonal
+  // Flood fill from the cells at the seed level, across steps of at most o.step_m (diagonal
   // steps 1.5 x): follows a warped floor, stops at seats, table tops and beds.
   std::vector<uint8_t> acc(cells, 0);
   std::deque<uint32_t> queue;
@@ -269,7 +230,7 @@ std::optional<GroundModel> HeightMap(const Points& w, const GroundOptions& o, co
       acc[c] = 1;
       queue.push_back(uint32_t(c));
     }
-  const float step = o.step * cell / 0.15f;
+  const float step = o.step_m * cell / 0.15f;
   while (!queue.empty()) {
     const uint32_t c = queue.front();
     queue.pop_front();
@@ -288,7 +249,7 @@ std::optional<GroundModel> HeightMap(const Points& w, const GroundOptions& o, co
   size_t seen = 0;
   for (uint8_t a : acc) seen += a;
   const float area = float(seen) * cell * cell;
-  if (area < o.min_area || seen < 4) return std::nullopt;
+  if (area < o.min_area_m2 || seen < 4) return std::nullopt;
   GroundModel g;
   g.kind = GroundKind::HeightMap;
   g.source = "estimated";
@@ -389,7 +350,7 @@ GroundModel EstimateGround(const Points& points, const GroundOptions& o) {
 }
 
 GroundModel EstimateGround(const Points& points, const GroundOptions& o, const RangeFor& pfor) {
-  if (o.kind == "fixed") return GroundModel::Level(o.fixed_z, "fixed");
+  if (o.kind == "fixed") return GroundModel::Level(o.z_m, "fixed");
   Points w;
   w.reserve(points.size());
   for (const auto& p : points)

@@ -72,12 +72,12 @@ SceneScans ReadScenes(const std::vector<SceneInput>& scenes, const GraphConfig& 
     Stopwatch sg;
     for (auto& s : got) {
       FrameOptions fo = sc.frame;
-      fo.canonical = fo.canonical && graph.canonical_frame;
+      fo.canonical = fo.canonical && graph.frame.canonical;
       fo.neighbours = neighbours;
-      fo.level = fo.level || graph.level_frame;
+      fo.level = fo.level || graph.frame.level;
       ToWorkingFrame(s, fo);
       GroundOptions go = graph.ground;
-      go.fixed_z += float(s.frame.canonical.translation().z());  // given in the z-up frame
+      go.z_m += float(s.frame.canonical.translation().z());  // given in the z-up frame
       if (!s.ground || graph.ground.kind == "fixed") s.ground = Ground(s.points, go);
       const GroundModel& g = *s.ground;
       spdlog::info("{}: ground {} ({}): z = {:.4f} x + {:.4f} y + {:.3f} m{}", s.source, ToString(g.kind), g.source,

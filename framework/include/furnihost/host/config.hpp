@@ -42,9 +42,11 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "furnihost/host/ground_estimation.hpp"
+#include "furnihost/params.hpp"
 #include "furnihost/host/registry.hpp"
 
 namespace furnihost {
@@ -76,6 +78,25 @@ struct EnsembleOptions {
   double join_iou = 0.3;
 };
 
+// How stages see each scan ("frame" key): in its canonical frame (`canonical`, the default; see
+// EstimateCanonicalFrame), else in its z-up frame as given; `level` levels a tilted up axis on
+// the floor (FrameOptions::level).
+struct FrameSection {
+  bool canonical = true;
+  bool level = false;
+};
+
+// The host's own sections of a graph config ("ground", "frame", "ensemble"; null: the
+// defaults), each parameter declared once with its range and unit (host_options.cpp), as a
+// plugin's are. InputError naming `where`/<key> on an unknown key or a bad value; a "comment"
+// key is allowed. `furnihost plugins` lists them (HostSectionSchemas).
+FURNIHOST_API FrameSection FrameSectionFromJson(const nlohmann::json& j, const std::string& where);
+FURNIHOST_API EnsembleOptions EnsembleOptionsFromJson(const nlohmann::json& j, const std::string& where);
+FURNIHOST_API nlohmann::json ToJson(const FrameSection& f);
+FURNIHOST_API nlohmann::json ToJson(const EnsembleOptions& e);
+// Each host section's name and schema, for listings.
+FURNIHOST_API std::vector<std::pair<std::string, ParamSchema>> HostSectionSchemas();
+
 struct StageConfig {
   std::string tag;
   std::string type;
@@ -95,11 +116,7 @@ struct FURNIHOST_API GraphConfig {
   std::string model_cache; // absolute or empty
   std::string training_sensor;  // tag, or empty
   GroundOptions ground;         // how the pipeline gets each scan's ground ("ground" key)
-  // Stages see each scan in its canonical frame ("frame": {"canonical": true}, the default;
-  // see EstimateCanonicalFrame), else in its z-up frame as given.
-  bool canonical_frame = true;
-  // Level a tilted up axis on the floor ("frame": {"level": true}; FrameOptions::level).
-  bool level_frame = false;
+  FrameSection frame;           // "frame" key
   EnsembleOptions ensemble;  // "ensemble" key
   std::vector<StageConfig> stages;  // in execution (topological) order
 

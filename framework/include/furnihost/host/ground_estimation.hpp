@@ -11,18 +11,22 @@
 
 namespace furnihost {
 
-// How the host gets the ground of a scan (graph config "ground", CLI --ground).
+// How the host gets the ground of a scan (graph config "ground", CLI --ground). The members
+// are the config's keys; the parameters are declared once, in GroundOptionsFromJson's binding
+// (host_options.cpp), with their ranges and units.
 struct FURNIHOST_API GroundOptions {
   // "auto" (height map when the scan shows enough floor, else a plane, else level), "level",
-  // "plane", "height_map" or "fixed" (level at fixed_z).
+  // "plane", "height_map" or "fixed" (level at z_m).
   std::string kind = "auto";
-  float fixed_z = 0.f;      // [m] working-frame z of the floor when kind = "fixed"
-  float cell = 0.15f;       // [m] height-map cell
-  float step = 0.05f;       // [m] largest floor height step between neighbouring cells
-  float min_area = 0.2f;    // [m2] observed floor below which "auto" falls back to a plane
-  // Throws InputError naming the field ("ground.kind: ...") on a bad value.
+  float z_m = 0.f;           // [m] working-frame z of the floor when kind = "fixed"
+  float cell_m = 0.15f;      // [m] height-map cell
+  float step_m = 0.05f;      // [m] largest floor height step between neighbouring cells
+  float min_area_m2 = 0.2f;  // [m2] observed floor below which "auto" falls back to a plane
+  // Throws InputError naming the field ("--ground: kind: ...") on a bad value.
   void Check(const std::string& where) const;
 };
+// The "ground" object of a graph config (null: the defaults); InputError naming
+// `where`/<key> on an unknown key or a bad value.
 FURNIHOST_API GroundOptions GroundOptionsFromJson(const nlohmann::json& j, const std::string& where);
 FURNIHOST_API nlohmann::json ToJson(const GroundOptions& o);
 
