@@ -15,31 +15,28 @@
 //   size (top >= 1.5 m, >= 1.2 m tall, >= 0.6 m long) so a low cabinet's front survives. An
 //   optional third rule, "fronts" (fronts_length_m, off by default), also needs a segment to be
 //   longer than a cabinet or wardrobe unit, so a tall cabinet's front survives too (the "segs"
-//   rule takes 2.3 m wardrobes for walls). On the dev rooms, cabinets scored on "fronts" of
-//   1.3 m: in-sample cabinet AP25 0.064 -> 0.102-0.116, but held out (leave one space out)
-//   0.085 -> 0.085 and paper-rule AP 0.220 -> 0.176: not shipped in scannet.json.
+//   rule takes 2.3 m wardrobes for walls); held out (leave one space out) on the dev rooms it
+//   does not help cabinets, so scannet.json does not use it.
 //   The walls are found by a Hough transform over the points' normals: by default their k
 //   nearest neighbours' planes; wall_normals "blocks" takes each point's 3x3x3 block of voxels
-//   instead, for a raw depth camera whose range noise reaches the point spacing on far walls
-//   (synthetic views at a raw Kinect's noise: 12 -> 45 walls found in 10 views, sofa AP25 0.25 ->
-//   0.75; rgbd_view.json uses it). wall_normals "both" makes a second set of removals from the
-//   blocks' walls, whose proposals carry the rule names "all_blocks", "segs_blocks" (and
-//   "fronts_blocks"), so a recogniser can score each class on the walls that suit it (ScanNet dev,
-//   held out, the blocks' walls suit cabinets; scannet.json scores its cabinets on them,
-//   docs/configs.md).
+//   instead, for a raw depth camera whose range noise reaches the point spacing on far walls,
+//   where k-NN normals leave most walls unfound (rgbd_view.json uses it). wall_normals "both"
+//   makes a second set of removals from the blocks' walls, whose proposals carry the rule names
+//   "all_blocks", "segs_blocks" (and "fronts_blocks"), so a recogniser can score each class on
+//   the walls that suit it (ScanNet dev, held out, the blocks' walls suit cabinets; scannet.json
+//   scores its cabinets on them, docs/configs.md).
 // - Splits: two armchairs side by side or a chair against a table end form one cluster longer
 //   than any catalog chair; it is cut at the sparsest slice near the middle, but only where the
 //   top-view height profile has a gap, valley or ridge (not across a flat seat or table top),
 //   and (in two, clusters too short for three) at the centre of the profile's strongest ridge or
 //   valley near the middle: two armchairs meet at their armrests, a ridge of dense vertical
-//   faces, so their sparsest slices lie in the flat seats (on the dev rooms chair AP25 0.536 ->
-//   0.611 in-sample, held out 0.469 -> 0.517).
+//   faces, so their sparsest slices lie in the flat seats.
 // - Extend down: thin legs and floor contacts are often missing in reconstructions, and the
 //   objects' boxes include them.
 // - The spacing the radii scale with is not taken from duplicates or twins: exact duplicates are
 //   proposed on once, and the spacing is at least 0.45 x the median 4th-neighbour distance
-//   (what points strewn at random give; 0.48-0.55 on the dev rooms, which it leaves alone). Each
-//   point twice made every dev room propose nothing (AP 0); a second pass 2 mm off did too.
+//   (what points strewn at random give; the dev rooms lie above it and keep their own): a
+//   scan holding each point twice, or a second pass 2 mm off, would otherwise propose nothing.
 //   `thin_spacing_m` proposes a scan denser than that on a seeded random subset about that far
 //   apart (scannet.json: 1.3 cm, just under its densest dev room): a density, not a count, so a
 //   space several ScanNet rooms large at their density keeps every point, where a cap on the
