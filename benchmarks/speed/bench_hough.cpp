@@ -12,7 +12,7 @@
 #include "furnihost/geometry.hpp"
 #include "furnihost/host/registry.hpp"
 #include "furnihost/host/ground_estimation.hpp"
-#include "voting/synthetic_views.hpp"
+#include "synthetic_views.hpp"
 
 namespace {
 

@@ -1,7 +1,7 @@
 // Test scaffolding shared by the tests of segmenters.cgal_region_growing and
 // segmenters.cgal_efficient_ransac: creating the segmenter through the registry, and a
 // labelled floor + wall + cylinder scene. (The box scene every segmenter is compared on is
-// plugins/segmenters/pcl_region_growing/box_scene.hpp.)
+// tests/support/box_scene.hpp.)
 #pragma once
 #include <cmath>
 #include <memory>

@@ -8,7 +8,7 @@
 
 #include "furnihost/host/ground_estimation.hpp"
 #include "test_support.hpp"
-#include "voting/synthetic_views.hpp"
+#include "synthetic_views.hpp"
 
 namespace furnihost {
 namespace {

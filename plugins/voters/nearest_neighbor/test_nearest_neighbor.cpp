@@ -5,7 +5,7 @@
 #include <algorithm>
 
 #include "test_support.hpp"
-#include "voting/synthetic_views.hpp"
+#include "synthetic_views.hpp"
 
 namespace furnihost {
 namespace {

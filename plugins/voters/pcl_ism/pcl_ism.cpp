@@ -79,6 +79,8 @@ inline std::time_t SeededTime(std::time_t*) { return seed_value; }
 #undef time
 
 #include "furnihost/plugin.hpp"
+#include "model_io.hpp"
+#include "options.hpp"
 
 namespace furnihost::voters {
 
@@ -91,7 +93,6 @@ using Ism = pcl::ism::ImplicitShapeModelEstimation<kBins, pcl::PointXYZ, pcl::No
 using Cloud = pcl::PointCloud<pcl::PointXYZ>;
 using NormalCloud = pcl::PointCloud<pcl::Normal>;
 using VoteList = pcl::features::ISMVoteList<pcl::PointXYZ>;
-using IsmModel = pcl::features::ISMModel;
 using PeakVector = std::vector<pcl::ISMPeak, Eigen::aligned_allocator<pcl::ISMPeak>>;
 
 // FPFH whose undefined histograms are zeros (ISM skips those) instead of NaN (ISM keeps those).
@@ -171,83 +172,6 @@ Oriented Orient(const Points& world, const Eigen::Vector3f& viewpoint, float nor
   return o;
 }
 
-// A unique temp file, removed when this goes out of scope.
-class TempFile {
- public:
-  TempFile() {
-    std::string pattern = (std::filesystem::temp_directory_path() / "furnihost_pcl_ism_XXXXXX").string();
-    const int fd = ::mkstemp(pattern.data());
-    if (fd < 0) throw StageError("cannot create a temporary file in " + pattern, false);
-    ::close(fd);
-    path_ = pattern;
-  }
-  ~TempFile() {
-    std::error_code ec;
-    std::filesystem::remove(path_, ec);
-  }
-  TempFile(const TempFile&) = delete;
-  TempFile& operator=(const TempFile&) = delete;
-  std::string& path() { return path_; }
-
- private:
-  std::string path_;
-};
-
-// PCL writes and reads its model only through files.
-std::string ModelToText(IsmModel& model) {
-  TempFile f;
-  if (!model.saveModelToFile(f.path())) throw StageError("ISM: cannot write " + f.path(), false);
-  std::ifstream in(f.path());
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-std::shared_ptr<IsmModel> ModelFromText(const std::string& text) {
-  TempFile f;
-  {
-    std::ofstream out(f.path());
-    out << text;
-    if (!out) throw StageError("ISM: cannot write " + f.path(), false);
-  }
-  auto model = std::make_shared<IsmModel>();
-  if (!model->loadModelFromfile(f.path())) throw StageError("ISM: cannot read " + f.path(), false);
-  return model;
-}
-
-// Zeroes what would not survive PCL's text format (NaN, inf); returns how many values changed.
-size_t Sanitize(IsmModel& m) {
-  size_t fixed = 0;
-  for (unsigned w = 0; w < m.number_of_visual_words_; ++w) {
-    const bool ok = std::isfinite(m.learned_weights_[w]) && m.directions_to_center_.row(w).allFinite();
-    if (ok) continue;
-    // A word without a defined direction must not vote: ISM drops votes of weight ~0.
-    m.learned_weights_[w] = 0.f;
-    m.directions_to_center_.row(w).setZero();
-    ++fixed;
-  }
-  for (auto& per_class : m.statistical_weights_)
-    for (float& s : per_class)
-      if (!std::isfinite(s)) s = 0.f, ++fixed;
-  for (float& s : m.sigmas_)
-    if (!std::isfinite(s)) s = 0.f, ++fixed;
-  for (Eigen::Index i = 0; i < m.clusters_centers_.size(); ++i)
-    if (!std::isfinite(m.clusters_centers_.data()[i])) m.clusters_centers_.data()[i] = 0.f, ++fixed;
-  return fixed;
-}
-
-std::vector<std::string> SplitList(const std::string& s) {
-  std::vector<std::string> out;
-  std::stringstream ss(s);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    item.erase(0, item.find_first_not_of(" \t"));
-    item.erase(item.find_last_not_of(" \t") + 1);
-    if (!item.empty()) out.push_back(item);
-  }
-  return out;
-}
-
 // Merges the votes falling into one cube of edge `cell` into a vote at their strength-weighted
 // mean with the summed strength, in order of first appearance (PCL's peak search starts from
 // votes spread evenly through the list). cell <= 0 keeps every vote. Returns x, y, z, strength.
@@ -290,102 +214,6 @@ void RunParallel(int threads, size_t n, F&& f) {
 }
 
 }  // namespace
-
-// Options of the wrapper; training ones are stored in the model, detection ones are not.
-struct IsmOptions {
-  // Training (ISM's own pipeline).
-  float sampling_size_m = 0.05f;  // voxel edge of ISM's key points [m] (ISM's setSamplingSize)
-  float normal_radius_m = 0.08f;  // normal estimation radius [m]
-  float fpfh_radius_m = 0.15f;    // FPFH support radius [m]
-  int number_of_clusters = 40;    // codebook size k
-  float sigma_fraction = 0.2f;    // vote kernel sigma / class radius (half 3-D diagonal)
-  bool n_vot = true;              // ISM's 1/#votes-of-the-word normalisation of the weights
-  // Detection.
-  float peak_radius_fraction = 1.0f;  // non-maxima radius / class footprint radius
-  std::map<std::string, float> thresholds;
-  float default_threshold = 0.f;
-  int max_hypotheses = 10;           // per class
-  std::string classes_text;          // comma-separated, as given
-  std::vector<std::string> classes;  // split classes_text; empty = every trained class
-  float viewpoint_height_m = 1.5f;   // normals face (scene centre x, y, this) when no origin
-  float floor_cut_m = 0.05f;         // scene points below this world height are dropped
-  float grid_cell_m = 0.05f;
-  int max_plot_votes = 200000;       // 0 = keep every vote
-  double min_vote_weight = 1e-3;     // votes below this x the class's top weight are dropped
-  float vote_cell_fraction = 0.25f;  // votes merged per cell of this x sigma; 0 = raw votes
-  int max_votes = 200000;            // per class, after merging
-
-  float Threshold(const std::string& cls) const {
-    const auto it = thresholds.find(cls);
-    return it == thresholds.end() ? default_threshold : it->second;
-  }
-};
-
-// Each parameter declared once; its default is IsmOptions{}'s.
-const ParamBinding<IsmOptions>& Binding() {
-  using O = IsmOptions;
-  static const auto b =
-      ParamBinding<O>()
-          .Number("sampling_size_m", &O::sampling_size_m, 0.005, 1.0, "m", "voxel edge of ISM's key points in views and scenes")
-          .Number("normal_radius_m", &O::normal_radius_m, 0.005, 2.0, "m", "normal estimation radius")
-          .Number("fpfh_radius_m", &O::fpfh_radius_m, 0.01, 2.0, "", "FPFH support radius [m]; > normal_radius_m")
-          .Int("number_of_clusters", &O::number_of_clusters, 2, 100000, "",
-               "ISM codebook size k (paper's vocabulary k = 40; PCL's default 184)")
-          .Number("sigma_fraction", &O::sigma_fraction, 0.01, 2.0, "",
-                  "vote kernel sigma = this x class radius (half the 3-D diagonal). PCL's rule of thumb "
-                  "0.1 makes ISM's learned weights so small that tables cast no vote at all")
-          .Bool("n_vot", &O::n_vot, "ISM's normalisation of vote weights by the number of votes of a word")
-          .Number("peak_radius_fraction", &O::peak_radius_fraction, 0.05, 4.0, "",
-                  "non-maxima radius of findStrongestPeaks = this x class footprint radius")
-          .DetectionOnly()
-          .NumberMap("thresholds", &O::thresholds, 0.0, std::nullopt, "",
-                     "minimum score per class (score = ISM peak density x number of the class's words, "
-                     "about the number of agreeing key points)")
-          .DetectionOnly()
-          .Number("default_threshold", &O::default_threshold, 0.0, 1e9, "", "minimum score of classes not in thresholds")
-          .DetectionOnly()
-          .Int("max_hypotheses", &O::max_hypotheses, 1, 1000, "",
-               "at most this many hypotheses per class, strongest first")
-          .DetectionOnly()
-          .String("classes", &O::classes_text, "comma-separated classes to detect (empty = every trained class)")
-          .DetectionOnly()
-          .Number("floor_cut_m", &O::floor_cut_m, -1e3, 1e3, "",
-                  "scene points below this world height [m] are dropped before voting (the floor: ISM "
-                  "learns isolated objects and a floor votes like a huge seat or table top); -1e3 = keep all")
-          .DetectionOnly()
-          .Number("viewpoint_height_m", &O::viewpoint_height_m, -100.0, 100.0, "",
-                  "scenes without sensor origin: normals face (centroid x, centroid y, this height)")
-          .DetectionOnly()
-          .Number("grid_cell_m", &O::grid_cell_m, 0.005, 1.0, "m", "cell of the per-class vote density grids")
-          .DetectionOnly()
-          .Int("max_plot_votes", &O::max_plot_votes, 0, 1e9, "",
-               "raw votes kept for plots (every n-th, weight x n); 0 = all")
-          .DetectionOnly()
-          .Number("min_vote_weight", &O::min_vote_weight, 0.0, 1.0, "",
-                  "a vote is dropped when its strength is below this x the class's largest statistical "
-                  "weight, or below FLT_EPSILON (PCL's own cut), whichever is lower; 0 = PCL's cut only, "
-                  "which lets almost no vote through once the training set has ~1e5 words")
-          .DetectionOnly()
-          .Number("vote_cell_fraction", &O::vote_cell_fraction, 0.0, 1.0, "",
-                  "votes in one cube of this x sigma are merged (mean position, summed strength) before "
-                  "ISM's mean shift, whose cost grows with the votes within 3 sigma; 0 = PCL's raw votes")
-          .DetectionOnly()
-          .Int("max_votes", &O::max_votes, 1000, 2e9, "",
-               "per class, merged votes beyond this are thinned (every n-th, strength x n)")
-          .DetectionOnly()
-          .Rule([](const O& o) {
-            return o.fpfh_radius_m > o.sampling_size_m
-                       ? ""
-                       : "fpfh_radius_m: must exceed sampling_size_m, or key points have no FPFH neighbours";
-          });
-  return b;
-}
-
-IsmOptions ParseOptions(const nlohmann::json& p) {
-  IsmOptions o = Binding().Parse(p);
-  o.classes = SplitList(o.classes_text);
-  return o;
-}
 
 class PclIsmVoter : public Voter {
  public:

@@ -1,4 +1,4 @@
-// Test scene shared by the segmenter tests of this folder: a closed box floating above a
+// Test scene shared by the segmenter tests (segmenters.pcl_region_growing): a closed box floating above a
 // floor, every face sampled on a regular grid, with Gaussian noise. Each point carries the
 // index of the plane it was sampled from, so a segmentation can be scored against it.
 #pragma once

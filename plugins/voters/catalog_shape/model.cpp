@@ -1,0 +1,253 @@
+// voters.catalog_shape: the model: every catalog model's size, the top-view height profile of its
+// views fused and its one-eye profiles, from the training views or the mesh (Train, Load).
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <map>
+#include <set>
+#include <tuple>
+#include <unordered_map>
+
+#include <spdlog/spdlog.h>
+
+#include "furnihost/geometry.hpp"
+#include "furnihost/hash.hpp"
+#include "furnihost/plugin.hpp"
+#include "shape/shape.hpp"
+#include "catalog_shape.hpp"
+
+namespace furnihost::catalog_shape {
+
+namespace {
+
+// The share of a model's inner footprint (model frame: bounding-box bottom centre at the
+// origin, size = extents) whose floor one of its training views' sensors sees: the segment
+// from the floor cell's centre to the sensor passes no point of that view within 3 cm.
+float OpenFloor(const std::vector<const TrainingView*>& views, const Eigen::Vector3f& size) {
+  constexpr float clear = 0.03f;
+  int cells = 0, open = 0;
+  auto key = [&](const Eigen::Vector3f& p, int dx = 0, int dy = 0, int dz = 0) {
+    const int64_t x = int64_t(std::floor(p.x() / clear)) + dx, y = int64_t(std::floor(p.y() / clear)) + dy,
+                  z = int64_t(std::floor(p.z() / clear)) + dz;
+    return (uint64_t(x & 0x1fffff) << 42) | (uint64_t(y & 0x1fffff) << 21) | uint64_t(z & 0x1fffff);
+  };
+  std::vector<std::unordered_map<uint64_t, std::vector<Eigen::Vector3f>>> occupied(views.size());
+  for (size_t v = 0; v < views.size(); ++v)
+    for (const auto& p : views[v]->scan.points) {
+      const Eigen::Vector3f w = views[v]->scan.pose * p;
+      occupied[v][key(w)].push_back(w);
+    }
+  auto near = [&](size_t v, const Eigen::Vector3f& q) {
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          auto it = occupied[v].find(key(q, dx, dy, dz));
+          if (it == occupied[v].end()) continue;
+          for (const auto& p : it->second)
+            if ((p - q).squaredNorm() < clear * clear) return true;
+        }
+    return false;
+  };
+  ForEachInnerCell(Eigen::Vector2f::Zero(), std::max(size.x(), size.y()), std::min(size.x(), size.y()),
+                   size.x() >= size.y() ? 0.f : float(M_PI / 2), [&](const Eigen::Vector2f& q) {
+                     ++cells;
+                     const Eigen::Vector3f g(q.x(), q.y(), 0.01f);
+                     for (size_t v = 0; v < views.size(); ++v) {
+                       if (!views[v]->scan.origin) continue;
+                       const Eigen::Vector3f o = views[v]->scan.pose * *views[v]->scan.origin;
+                       const float len = (o - g).norm();
+                       bool blocked = false;
+                       for (float t = 0.04f; t < len && !blocked; t += 0.02f) blocked = near(v, g + (o - g) * (t / len));
+                       if (!blocked) {
+                         ++open;
+                         return;
+                       }
+                     }
+                   });
+  return cells ? float(open) / float(cells) : 0.f;
+}
+
+// The same two from the model's mesh, as a sensor around it at 1.4 m sees it (8 eyes 1.5 m
+// beyond its footprint): dense surface samples, the visible ones for the profile; the floor
+// under a cell is seen when the segment to an eye passes no sample within 3 cm. Noiseless, so
+// a column's top is the surface's, not a range error above it.
+struct MeshShape {
+  shape::Profile profile;
+  float open = 0.f;
+  std::vector<shape::Profile> views;  // the profile each eye around it sees alone
+};
+MeshShape FromMesh(const CatalogModel& m, float cell) {
+  double area = 0;
+  const int nv = int(m.mesh.vertices.size());
+  for (const auto& t : m.mesh.triangles)
+    if (t.minCoeff() >= 0 && t.maxCoeff() < nv)
+      area += 0.5 * double((m.mesh.vertices[t[1]] - m.mesh.vertices[t[0]]).cross(m.mesh.vertices[t[2]] - m.mesh.vertices[t[0]]).norm());
+  const Points samples = area > 0 ? SampleSurface(m.mesh, float(40000.0 / area), 0) : Points{};
+  const Eigen::Vector3f size = m.size;
+  const Points eyes = shape::EyesAround(size);
+  // The profile of the samples some eye of `from` sees: all eyes fused, then each alone.
+  auto profile_seen = [&](const Points& from) {
+    const std::vector<uint8_t> vis = shape::VisibleFrom(samples, from);
+    std::vector<Eigen::Vector2f> xy;
+    std::vector<float> h;
+    for (size_t i = 0; i < samples.size(); ++i)
+      if (vis[i]) xy.push_back(samples[i].head<2>()), h.push_back(samples[i].z());
+    return shape::TopViewProfile(xy, h, size.z(), cell);
+  };
+  const shape::Profile prof = profile_seen(eyes);
+  std::vector<shape::Profile> views;
+  views.reserve(eyes.size());
+  for (const auto& e : eyes) views.push_back(profile_seen(Points{e}));
+  // Open floor: blockers are every 4th sample, hashed in 3 cm cells.
+  constexpr float clear = 0.03f;
+  auto key = [&](const Eigen::Vector3f& p, int dx, int dy, int dz) {
+    const int64_t x = int64_t(std::floor(p.x() / clear)) + dx, y = int64_t(std::floor(p.y() / clear)) + dy,
+                  z = int64_t(std::floor(p.z() / clear)) + dz;
+    return (uint64_t(x & 0x1fffff) << 42) | (uint64_t(y & 0x1fffff) << 21) | uint64_t(z & 0x1fffff);
+  };
+  std::unordered_map<uint64_t, std::vector<Eigen::Vector3f>> blockers;
+  for (size_t i = 0; i < samples.size(); i += 4) blockers[key(samples[i], 0, 0, 0)].push_back(samples[i]);
+  auto near = [&](const Eigen::Vector3f& q) {
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          auto it = blockers.find(key(q, dx, dy, dz));
+          if (it == blockers.end()) continue;
+          for (const auto& p : it->second)
+            if ((p - q).squaredNorm() < clear * clear) return true;
+        }
+    return false;
+  };
+  int cells = 0, open = 0;
+  ForEachInnerCell(Eigen::Vector2f::Zero(), size.x(), size.y(), 0.f, [&](const Eigen::Vector2f& q) {
+    ++cells;
+    const Eigen::Vector3f g(q.x(), q.y(), 0.01f);
+    for (const auto& e : eyes) {
+      const float len = (e - g).norm();
+      const int steps = int(std::ceil(len / 0.02f));
+      bool blocked = false;
+      for (int s = 0; s < steps && !blocked; ++s) {
+        const float t = 0.02f + 0.98f * float(s) / float(std::max(steps - 1, 1));
+        blocked = near(g + t * (e - g));
+      }
+      if (!blocked) {
+        ++open;
+        return;
+      }
+    }
+  });
+  return {prof, cells ? float(open) / float(cells) : 0.f, std::move(views)};
+}
+
+}  // namespace
+
+nlohmann::json CatalogShapeVoter::Train(const std::vector<TrainingView>& views, const RunContext&) {
+  // One entry per model: its size and the profile of all its views fused.
+  std::map<std::string, std::pair<const TrainingView*, std::vector<const TrainingView*>>> by_model;
+  std::vector<std::string> order;
+  for (const auto& v : views) {
+    auto [it, fresh] = by_model.try_emplace(v.model_id, &v, std::vector<const TrainingView*>{});
+    if (fresh) order.push_back(v.model_id);
+    it->second.second.push_back(&v);
+  }
+  nlohmann::json models = nlohmann::json::array();
+  for (const auto& id : order) {
+    const auto& [first, vs] = by_model.at(id);
+    const Eigen::Vector3f s = first->object_size;
+    MeshShape ms;
+    if (first->model && !first->model->mesh.triangles.empty()) {
+      ms = FromMesh(*first->model, o_.cell);
+    } else {  // views without their mesh: what the views saw, fused and one by one
+      std::vector<Eigen::Vector2f> xy;
+      std::vector<float> h;
+      for (const TrainingView* v : vs) {
+        const size_t from = xy.size();
+        for (const auto& p : v->scan.points) {
+          const Eigen::Vector3f w = v->scan.pose * p;
+          xy.push_back(w.head<2>());
+          h.push_back(v->scan.HeightAboveGround(w));
+        }
+        if (xy.size() > from)
+          ms.views.push_back(shape::TopViewProfile({xy.begin() + long(from), xy.end()},
+                                                   {h.begin() + long(from), h.end()}, s.z(), o_.cell));
+      }
+      ms.profile = shape::TopViewProfile(xy, h, s.z(), o_.cell);
+      ms.open = OpenFloor(vs, s);
+    }
+    const shape::Profile& prof = ms.profile;
+    models.push_back({{"id", id},
+                      {"class", first->cls},
+                      {"size", {s.x(), s.y(), s.z()}},
+                      {"profile", std::vector<float>(prof.begin(), prof.end())},
+                      {"open", ms.open}});
+    if (!ms.views.empty()) {
+      nlohmann::json vp = nlohmann::json::array();
+      for (const auto& v : ms.views) vp.push_back(std::vector<float>(v.begin(), v.end()));
+      models.back()["view_profiles"] = std::move(vp);
+    }
+  }
+  return {{"format", "catalog_shape/1"}, {"profile_cell_m", o_.cell}, {"models", models}};
+}
+
+void CatalogShapeVoter::Load(const nlohmann::json& m) {
+  if (!m.is_object() || m.value("format", "") != "catalog_shape/1")
+    throw InputError("not a voters.catalog_shape model (format catalog_shape/1)");
+  models_.clear();
+  for (const auto& j : m.at("models")) {
+    Model md;
+    md.id = j.at("id").get<std::string>();
+    const std::string cls = j.at("class").get<std::string>();
+    auto it = o_.class_map.find(cls);
+    md.cls = it == o_.class_map.end() ? cls : it->second;
+    const auto size = j.at("size").get<std::vector<float>>();
+    const auto prof = j.at("profile").get<std::vector<float>>();
+    if (size.size() != 3 || prof.size() != size_t(shape::kProfileBins))
+      throw InputError("catalog_shape model " + md.id + ": bad size or profile");
+    for (float v : size)
+      if (!(v > 0.f) || !std::isfinite(v)) throw InputError("catalog_shape model " + md.id + ": bad size");
+    md.length = std::max(size[0], size[1]);
+    md.width = std::min(size[0], size[1]);
+    md.height = size[2];
+    md.wide = size[0] >= size[1];
+    std::copy(prof.begin(), prof.end(), md.profile.begin());
+    md.open = j.value("open", 0.f);
+    if (j.contains("view_profiles")) {
+      const auto& vs = j.at("view_profiles");
+      if (!vs.is_array()) throw InputError("catalog_shape model " + md.id + ": bad view_profiles");
+      for (const auto& v : vs) {
+        const bool numbers = v.is_array() && std::all_of(v.begin(), v.end(), [](const auto& x) { return x.is_number(); });
+        const auto f = numbers ? v.get<std::vector<float>>() : std::vector<float>();
+        if (f.size() != size_t(shape::kProfileBins) ||
+            !std::all_of(f.begin(), f.end(), [](float x) { return std::isfinite(x) && x >= 0.f; }))
+          throw InputError("catalog_shape model " + md.id + ": bad view profile");
+        shape::Profile q{};
+        std::copy(f.begin(), f.end(), q.begin());
+        md.views.push_back(q);
+      }
+    }
+    if (!(md.open >= 0.f && md.open <= 1.f)) throw InputError("catalog_shape model " + md.id + ": bad open share");
+    spdlog::debug("catalog_shape: model {} ({}) {:.2f} x {:.2f} x {:.2f} m, open floor {:.2f}, profile {:.3f}", md.id,
+                  md.cls, md.length, md.width, md.height, md.open, fmt::join(md.profile, " "));
+    models_.push_back(md);
+  }
+  classes_.clear();
+  for (const auto& md : models_)
+    if (std::find(classes_.begin(), classes_.end(), md.cls) == classes_.end()) classes_.push_back(md.cls);
+  // Which proposals each class is scored on.
+  source_.clear();
+  for (const auto& c : classes_) {
+    std::string src = o_.Of(c).source;
+    if (src == "catalog") {
+      std::vector<float> h;
+      for (const auto& md : models_)
+        if (md.cls == c) h.push_back(md.height);
+      std::nth_element(h.begin(), h.begin() + h.size() / 2, h.end());
+      src = h[h.size() / 2] > o_.tall_class ? "segs" : "all";
+    }
+    source_[c] = src;
+  }
+}
+
+}  // namespace furnihost::catalog_shape
