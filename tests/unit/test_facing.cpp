@@ -8,7 +8,9 @@
 #include <sstream>
 
 #include "furnihost/host/catalog.hpp"
+#include "furnihost/host/evaluation.hpp"
 #include "furnihost/host/io.hpp"
+#include "test_meshes.hpp"
 #include "test_support.hpp"
 
 namespace furnihost {
@@ -17,17 +19,7 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-// An axis-aligned box [lo, hi] as 12 triangles appended to `m`.
-void AddBox(Mesh& m, const Eigen::Vector3f& lo, const Eigen::Vector3f& hi) {
-  const int b = int(m.vertices.size());
-  for (int k = 0; k < 8; ++k)
-    m.vertices.emplace_back(k & 1 ? hi.x() : lo.x(), k & 2 ? hi.y() : lo.y(), k & 4 ? hi.z() : lo.z());
-  const int f[6][4] = {{0, 1, 3, 2}, {4, 6, 7, 5}, {0, 4, 5, 1}, {2, 3, 7, 6}, {0, 2, 6, 4}, {1, 5, 7, 3}};
-  for (const auto& q : f) {
-    m.triangles.emplace_back(b + q[0], b + q[1], b + q[2]);
-    m.triangles.emplace_back(b + q[0], b + q[2], b + q[3]);
-  }
-}
+using testing::AddBox;
 
 // Catalog frame (z up, bottom centre at the origin). A chair whose back stands at -y: it faces +y.
 Mesh Chair() {
@@ -148,8 +140,13 @@ TEST(Front, AMissingFrontIsEstimatedAndLogged) {
   ASSERT_EQ(r.code, 0) << r.err;
   // The log says which model's front is estimated, which way and on what evidence.
   EXPECT_NE(r.err.find("1 of 2 model(s) have no \"front\""), std::string::npos) << r.err;
-  EXPECT_NE(r.err.find("model plain_chair: no \"front\", estimated +y (open depth"), std::string::npos) << r.err;
-  EXPECT_EQ(r.err.find("model known_sofa: no"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("estimated from its mesh: plain_chair estimated +y\n"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("known_sofa"), std::string::npos) << r.err;
+  // With -vv (debug), the depths it chose on.
+  const auto v = testing::RunFurnihost("simulate -vv --catalog " + dir + "/catalog.json --scene " + dir +
+                                       "/scene.json --out " + dir + "/room_v.pcd");
+  ASSERT_EQ(v.code, 0) << v.err;
+  EXPECT_NE(v.err.find("model plain_chair: no \"front\", estimated +y (open depth"), std::string::npos) << v.err;
   // The ground truth gives the way the chair faces: its estimated front (+y) turned by 90 deg.
   const auto truth = ReadGroundTruth(dir + "/room.gt.json");
   ASSERT_EQ(truth.size(), 1u);
@@ -240,6 +237,84 @@ TEST(Facing, TurningAModelsFileAndItsFrontLeavesTheReportedFacing) {
   EXPECT_LT(AngleDeg(ya, yb), 5.0) << "facing " << ya << " against " << yb << " rad";
   EXPECT_LT(AngleDeg(ya, *truth[0].yaw), 20.0) << "facing " << ya << ", the chair faces " << *truth[0].yaw;
   if (!HasFailure()) fs::remove_all(dir);
+}
+
+// An object of `cls` at (x, y) standing on the floor, `size` its axis-aligned extents, facing `yaw_deg`.
+GroundTruthObject Object(const std::string& cls, float x, float y, const Eigen::Vector3f& size, float yaw_deg) {
+  GroundTruthObject g;
+  g.cls = cls;
+  g.center = Eigen::Vector3f(x, y, 0.5f * size.z());
+  g.size = size;
+  g.yaw = yaw_deg * float(M_PI) / 180.f;
+  return g;
+}
+
+// A detection with a placed model and its box along the scan's axes.
+Detection Placed(const std::string& cls, float x, float y, const Eigen::Vector3f& size, float yaw_deg, float score) {
+  Detection d;
+  d.cls = cls;
+  d.center = Eigen::Vector3f(x, y, 0.5f * size.z());
+  d.score = score;
+  d.model = cls + "_model";
+  d.verified = true;
+  d.yaw = yaw_deg * float(M_PI) / 180.f;
+  OrientedBox b;
+  b.center = d.center;
+  b.size = size;
+  d.box = b;
+  return d;
+}
+
+// The Scan2CAD rule: centre within 0.2 m, facing within 20 deg folded by the object's symmetry,
+// mean extent ratio within 20 %; each criterion on its own.
+TEST(Alignment, CentreFacingAndSizeEachDecide) {
+  const Eigen::Vector3f chair(0.5f, 0.5f, 0.8f);
+  const GroundTruthObject g = Object("chair", 2.f, 2.f, chair, 30.f);
+  EXPECT_EQ(AlignmentMiss(Placed("chair", 2.1f, 2.1f, chair, 45.f, 1.f), g), "");
+  EXPECT_EQ(AlignmentMiss(Placed("chair", 2.2f, 2.1f, chair, 30.f, 1.f), g), "centre 0.22 m off");
+  EXPECT_EQ(AlignmentMiss(Placed("chair", 2.f, 2.f, chair, -150.f, 1.f), g), "facing 180 deg off");
+  EXPECT_EQ(AlignmentMiss(Placed("chair", 2.f, 2.f, 1.3f * chair, 30.f, 1.f), g), "size 30 % off");
+  Detection unplaced = Placed("chair", 2.f, 2.f, chair, 30.f, 1.f);
+  unplaced.model.clear();
+  EXPECT_EQ(AlignmentMiss(unplaced, g), "no model placed");
+  // A rectangular table (2-fold): facing the other way is the same table; a quarter turn is not.
+  GroundTruthObject table = Object("table", 4.f, 2.f, Eigen::Vector3f(1.6f, 0.8f, 0.75f), 0.f);
+  table.yaw_symmetry = 2;
+  EXPECT_TRUE(Aligned(Placed("table", 4.f, 2.f, Eigen::Vector3f(1.6f, 0.8f, 0.75f), 175.f, 1.f), table));
+  EXPECT_EQ(AlignmentMiss(Placed("table", 4.f, 2.f, Eigen::Vector3f(1.6f, 0.8f, 0.75f), 90.f, 1.f), table),
+            "facing 90 deg off");
+}
+
+// Alignment accuracy: the share of objects with a yaw that an accepted detection aligns, each
+// detection at most one object; the dataset's class symmetry stands in where an object has none.
+TEST(Alignment, AccuracyPerClassAndTheDatasetsClassSymmetry) {
+  const Eigen::Vector3f chair(0.5f, 0.5f, 0.8f), desk(1.4f, 0.7f, 0.75f);
+  std::vector<GroundTruthObject> truth = {Object("chair", 1.f, 1.f, chair, 0.f), Object("chair", 1.4f, 1.f, chair, 0.f),
+                                          Object("chair", 3.f, 1.f, chair, 90.f), Object("table", 5.f, 5.f, desk, 0.f)};
+  truth.push_back(truth[0]);
+  truth.back().yaw.reset();  // no yaw: not counted
+  Detection rejected = Placed("chair", 3.f, 1.f, chair, 90.f, 0.9f);
+  rejected.verified = false;
+  const std::vector<Detection> dets = {Placed("chair", 1.15f, 1.f, chair, 5.f, 0.8f),  // aligns the first
+                                       rejected,                                       // not accepted
+                                       Placed("table", 5.f, 5.f, desk, 180.f, 0.7f)};  // the desk turned round
+  ClassMap classes;
+  classes.classes = {"chair", "table"};
+  const EvalMetrics plain = Evaluate({{dets, truth, true, "room", {}}}, classes, WidthConvention::Max);
+  ASSERT_EQ(plain.classes.size(), 2u);
+  EXPECT_EQ(plain.classes[0].alignment.objects, 3);
+  EXPECT_EQ(plain.classes[0].alignment.aligned, 1);
+  EXPECT_NEAR(plain.classes[0].alignment.accuracy, 1.0 / 3.0, 1e-12);
+  EXPECT_EQ(plain.classes[1].alignment.aligned, 0);
+  EXPECT_EQ(plain.alignment.objects, 4);
+  EXPECT_EQ(plain.alignment.aligned, 1);
+  classes.yaw_symmetry["table"] = 2;
+  const EvalMetrics folded = Evaluate({{dets, truth, true, "room", {}}}, classes, WidthConvention::Max);
+  EXPECT_EQ(folded.classes[1].alignment.aligned, 1);
+  EXPECT_NEAR(folded.alignment.accuracy, 0.5, 1e-12);
+  int aligned_records = 0;
+  for (const auto& r : folded.objects) aligned_records += r.alignment == "aligned";
+  EXPECT_GE(aligned_records, 2);
 }
 
 }  // namespace

@@ -647,15 +647,19 @@ Catalog LoadCatalog(const std::string& path, bool strict) {
     cat.models.push_back(std::move(r.model));
   }
   cat.hash = Hex64(h);
-  std::vector<std::string> estimated;
+  // Which models face the way their mesh suggests: one line naming each with its estimate, and
+  // (at debug level) the depths each was chosen on.
+  std::string estimated;
+  size_t n_estimated = 0;
   for (const auto& m : cat.models)
     if (const ModelFront& f = cat.fronts.at(m.id); f.source != "catalog") {
-      estimated.push_back(m.id);
-      spdlog::info("{}: model {}: no \"front\", {}", path, m.id, f.source);
+      const std::string way = f.source.substr(0, f.source.find(" ("));
+      estimated += (n_estimated++ ? ", " : "") + m.id + " " + way;
+      spdlog::debug("{}: model {}: no \"front\", {}", path, m.id, f.source);
     }
-  if (!estimated.empty())
-    spdlog::info("{}: {} of {} model(s) have no \"front\": the way each faces is estimated from its mesh", path,
-                 estimated.size(), cat.models.size());
+  if (n_estimated)
+    spdlog::info("{}: {} of {} model(s) have no \"front\", the way each faces is estimated from its mesh: {}", path,
+                 n_estimated, cat.models.size(), estimated);
   if (!cat.skipped.empty())
     spdlog::warn("{}: {} model(s) loaded, {} skipped", path, cat.models.size(), cat.skipped.size());
   else
