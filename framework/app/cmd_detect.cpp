@@ -1,4 +1,4 @@
-// `furnihost --graph G SCAN...` (detection) and `furnihost train --graph G`.
+// `furnihost [--graph G] SCAN...` (detection) and `furnihost train --graph G`.
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
@@ -12,11 +12,12 @@
 #include "cli_common.hpp"
 #include "mpi_train.hpp"
 #include "commands.hpp"
-#include "furnihost/host/catalog.hpp"
 #include "furnihost/geometry.hpp"
+#include "furnihost/host/catalog.hpp"
+#include "furnihost/host/detector.hpp"
 #include "furnihost/host/io.hpp"
 #include "furnihost/log.hpp"
-#include "furnihost/host/pipeline.hpp"
+#include "furnihost/scan_reader.hpp"
 #if __has_include("birdseye.hpp")
 #include "birdseye.hpp"
 #define FURNIHOST_HAVE_BIRDSEYE 1
@@ -204,34 +205,70 @@ int RunTrain(const std::vector<std::string>& args) {
   app.add_flag("--strict", strict, "invalid catalog entries are fatal instead of skipped");
   if (auto rc = Parse(app, args)) return *rc;
   common.Apply();
-  auto reg = common.MakeRegistry();
+  std::shared_ptr<const Registry> reg = common.MakeRegistry();
   GraphConfig g = common.LoadGraph(graph, *reg);
   if (!out.empty()) {
     CheckModelCacheTarget(out, "--out ");
     g.model_cache = out;
   }
   if (g.model_cache.empty()) throw InputError(graph + ":/model_cache: missing (or pass --out)");
-  Catalog catalog = LoadCatalog(g.catalog, strict);
-  Pipeline p(g, *reg);
+  // The model is trained with the graph's seed, which its cache records: --seed sets it.
+  if (common.seed) g.seed = *common.seed;
+  DetectorOptions options;
+  options.strict_catalog = strict;
   // Under mpirun the ranks share the catalog's models; rank 0 writes the model.
   const World& world = World::Get();
-  TrainedModel m = EnsureModelShared(world, p, catalog, common.Context(g.seed), true);
+  if (world.Shared())
+    options.ensure_model = [&world](Pipeline& p, const Catalog& catalog, const RunContext& ctx, bool force) {
+      return EnsureModelShared(world, p, catalog, ctx, force);
+    };
+  Detector detector(g, reg, common.Context(g.seed), options);
+  const TrainedModel& m = detector.Train();
   if (world.Root())
     std::cout << "trained " << g.model_cache << ": " << m.summary.dump() << ", time per step [ms] "
               << m.timings_ms.dump() << "\n";
   return 0;
 }
 
+namespace {
+// The graph of a run without --graph (DefaultGraph), chosen by whether the scans have a sensor
+// origin (--origin, or each file's own), said in one log line.
+std::string ChooseDefaultGraph(const std::vector<std::string>& scans, bool origin_given) {
+  size_t with_origin = 0;
+  std::string why;
+  for (const auto& scan : scans) {
+    const std::optional<Eigen::Vector3d> o = ScanFileOrigin(scan);
+    if (origin_given || o) ++with_origin;
+    if (why.empty() && o)
+      why = fmt::format("{} has a sensor origin (VIEWPOINT {:g} {:g} {:g})", scan, o->x(), o->y(), o->z());
+  }
+  if (with_origin > 0 && with_origin < scans.size())
+    throw InputError("no --graph given, and " + std::to_string(with_origin) + " of the " + std::to_string(scans.size()) +
+                     " scans have a sensor origin (VIEWPOINT) and the others none: give --graph G.json or --origin x,y,z");
+  const bool one_spot = with_origin > 0;
+  if (origin_given) why = "--origin gives a sensor origin";
+  if (!one_spot) why = scans.size() == 1 ? scans.front() + " has no sensor origin (no VIEWPOINT, no --origin)"
+                                         : "the scans have no sensor origin (no VIEWPOINT, no --origin)";
+  const std::string graph = DefaultGraph(one_spot);
+  spdlog::info("no --graph: {}: the {} route, --graph {}", why, one_spot ? "one-spot laser scan" : "room reconstruction",
+               graph);
+  return graph;
+}
+}  // namespace
+
 int RunDetect(const std::vector<std::string>& args) {
   CLI::App app{"Detect furniture in scans: segment, describe parts, vote, fit and verify CAD models.\n"
-               "usage: furnihost [detect] --graph G.json SCAN [SCAN ...] [options]", "detect"};
+               "usage: furnihost [detect] SCAN [SCAN ...] [--graph G.json] [options]", "detect"};
   CommonOptions common;
   std::string graph, out, origin_text;
   std::vector<std::string> scans, poses;
   bool fuse = false, save_parts = false, retrain = false, strict = false;
   FrameCli frame_cli;
   common.Add(app);
-  app.add_option("--graph,-g", graph, "graph config (JSON), e.g. configs/paper.json")->required();
+  app.add_option("--graph,-g", graph,
+                 "graph config (JSON), e.g. configs/paper.json; default: configs/laser_room.json for scans with a "
+                 "sensor origin (a PCD's VIEWPOINT, or --origin), configs/room.json for scans without (room "
+                 "reconstructions)");
   app.add_option("scans", scans, "scan files (.pcd, .ply, .xyz)")->required();
   app.add_option("--out,-o", out, "output folder (default furnihost-out/<scan stem>/)");
   app.add_option("--origin", origin_text, "sensor origin x,y,z (in the file's coordinates) for scans without VIEWPOINT");
@@ -246,11 +283,8 @@ int RunDetect(const std::vector<std::string>& args) {
   app.add_flag("--strict", strict, "invalid catalog entries are fatal instead of skipped");
   if (auto rc = Parse(app, args)) return *rc;
   common.Apply();
-  auto reg = common.MakeRegistry();
+  std::shared_ptr<const Registry> reg = common.MakeRegistry();
   const FrameOptions frame = frame_cli.Frame();  // bad values exit 2 before the graph loads
-  GraphConfig g = common.LoadGraph(graph, *reg);
-  frame_cli.ApplyGround(g);
-  RunContext ctx = common.Context(g.seed);
   if (!poses.empty() && poses.size() != scans.size())
     throw InputError("--pose: given " + std::to_string(poses.size()) + " times for " + std::to_string(scans.size()) + " scans");
   std::optional<Eigen::Vector3f> origin;
@@ -263,6 +297,9 @@ int RunDetect(const std::vector<std::string>& args) {
         throw InputError("--origin: " + origin_text + " lies beyond 1e8 m of the file's origin");
     origin = Eigen::Vector3f(o[0], o[1], o[2]);
   }
+  if (graph.empty()) graph = ChooseDefaultGraph(scans, origin.has_value());
+  GraphConfig g = common.LoadGraph(graph, *reg);
+  frame_cli.ApplyGround(g);
   // Checked before any work, so a bad --out never wastes a training run.
   if (!out.empty() && fs::exists(out) && !fs::is_directory(out))
     throw InputError("--out " + out + ": exists and is not a folder");
@@ -276,32 +313,24 @@ int RunDetect(const std::vector<std::string>& args) {
     if (!poses.empty()) in.pose = ParsePose(poses, i);
     inputs.push_back(in);
   }
-  Pipeline pipeline(g, *reg);
-  const bool chain = pipeline.HasDetectionChain();
-  Catalog catalog;
-  TrainedModel model;
+  DetectorOptions options;
+  options.strict_catalog = strict;
+  options.retrain = retrain;
+  Detector detector(g, reg, common.Context(g.seed), options);
+  const RunContext& ctx = detector.Context();
   // The catalog and the model (loaded from the cache, or trained) are made on a worker while
   // the first scan is read, framed and grounded, which need neither: the start of a detection
   // left a core idle (~0.04 s of a 0.3 s detection of a 50k-point room). Detect waits for them
-  // before its first stage; an error of theirs is thrown there. Declared after what its task
-  // uses; if the scan fails first, `unwind` cancels the loading and waits for it.
-  tbb::task_group loading;
-  CancelOnUnwind unwind(loading);
-  bool loaded = !chain;
-  if (chain)
-    loading.run([&] {
-      catalog = LoadCatalog(g.catalog, strict);
-      model = EnsureModel(pipeline, catalog, ctx, retrain);
-    });
+  // before its first stage; an error of theirs is thrown there.
+  detector.StartLoading();
 #ifdef FURNIHOST_HAVE_BIRDSEYE
-  if (chain) loading.run([] { WarmUpPlotFonts(); });  // the plots' first text, off the tail
+  // The plots' first text, off the tail. Declared after what its task uses; if the scan fails
+  // first, `unwind` cancels it and waits for it.
+  tbb::task_group fonts;
+  CancelOnUnwind unwind(fonts);
+  if (detector.HasDetectionChain()) fonts.run([] { WarmUpPlotFonts(); });
 #endif
-  auto await_loading = [&] {
-    if (loaded) return;
-    loaded = true;
-    loading.wait();
-  };
-  auto missing = pipeline.MissingStages();
+  const auto missing = detector.MissingStages();
   if (!missing.empty()) {
     std::string m;
     for (const auto& s : missing) m += (m.empty() ? "" : ", ") + s;
@@ -327,8 +356,10 @@ int RunDetect(const std::vector<std::string>& args) {
     const std::string dir = !out.empty() ? (groups.size() > 1 ? (fs::path(out) / folders[gi]).string() : out)
                                          : (fs::path("furnihost-out") / folders[gi]).string();
     Stopwatch total;
-    auto r = pipeline.Detect(group, chain ? &model : nullptr, chain ? &catalog : nullptr, ctx, await_loading);
-    await_loading();  // Detect may return before its stages (a scan with no points)
+    auto r = detector.Detect(group);
+#ifdef FURNIHOST_HAVE_BIRDSEYE
+    fonts.wait();  // before the plots draw text
+#endif
     fs::create_directories(dir);
     if (save_parts) {
       for (size_t i = 0; i < r.segmentations.size(); ++i) {
@@ -342,34 +373,8 @@ int RunDetect(const std::vector<std::string>& args) {
       if (r.segmentations.empty() && r.proposals.empty())
         spdlog::warn("--save-parts: the graph has no segmenter or proposer");
     }
-    nlohmann::json j;
-    j["scan"] = group.size() == 1 ? nlohmann::json(group.front().path) : nlohmann::json(nlohmann::json::array());
-    if (group.size() > 1)
-      for (const auto& in : group) j["scan"].push_back(in.path);
-    j["graph"] = graph;
-    j["seed"] = ctx.seed;
-    j["points"] = 0;
-    for (const auto& s : r.scans) j["points"] = j["points"].get<size_t>() + s.points.size();
-    j["parts"] = 0;
-    for (const auto& s : r.segmentations) j["parts"] = j["parts"].get<size_t>() + s.parts.size();
-    j["stages_run"] = nlohmann::json::array();
-    for (const auto& [tag, ms] : r.timings_ms) j["stages_run"].push_back(tag);
-    if (!missing.empty()) j["missing_stages"] = missing;
-    // Geometry is written in the (first) scan's file frame; the frames and grounds say how.
+    const nlohmann::json j = DetectionsDocument(r, group, graph, ctx.seed, missing, total.Ms());
     const Scan* frame_scan = r.scans.empty() ? nullptr : &r.scans.front();
-    j["frames"] = nlohmann::json::array();
-    j["ground"] = nlohmann::json::array();
-    for (const auto& s : r.scans) {
-      j["frames"].push_back(ToJson(s.frame));
-      j["ground"].push_back(s.ground ? ToJson(*s.ground) : nlohmann::json(nullptr));
-    }
-    // Several sinks (GraphConfig::Sinks): each detection names its own in "chain".
-    if (r.sinks.size() > 1) j["sinks"] = r.sinks;
-    j["detections"] = nlohmann::json::array();
-    for (const auto& d : r.detections) j["detections"].push_back(DetectionToJson(d, frame_scan));
-    j["timings_ms"] = nlohmann::json::object();
-    for (const auto& [tag, ms] : r.timings_ms) j["timings_ms"][tag] = ms;
-    j["timings_ms"]["total"] = total.Ms();
     // The output files are independent: written side by side on the host's threads (the plots
     // and fitted.ply were ~0.09 s of one core on a 50k-point room, most of a process's tail).
     tbb::task_group outputs;
@@ -383,7 +388,9 @@ int RunDetect(const std::vector<std::string>& args) {
       });
 #endif
     if (r.fitted && frame_scan)
-      outputs.run([&] { WriteFitted((fs::path(dir) / "fitted.ply").string(), r.detections, catalog, *frame_scan); });
+      outputs.run([&] {
+        WriteFitted((fs::path(dir) / "fitted.ply").string(), r.detections, detector.GetCatalog(), *frame_scan);
+      });
     outputs.wait();  // rethrows the first error, as the files were written one after another
 
     std::cout << stem << ": " << j["points"] << " points, " << j["parts"] << " parts";

@@ -6,34 +6,26 @@
 // seed0 = --seed or the graph's seed): the spread shows the randomised detection stages
 // (e.g. RANSAC fitting), not the variation of training.
 //
-// Parallelism: Pipeline::Detect is not thread-safe, so each worker thread owns a Pipeline
-// (stages created once per worker). The first scene of a run is processed alone to measure
-// its memory; --jobs 0 then runs as many workers as cores allow and half the available
-// memory holds. Stage timings of parallel scenes include contention: compare timings of runs
-// with the same --jobs (use --jobs 1 for clean per-stage times).
-#include <sys/resource.h>
+// Each config runs through a Detector (detector.hpp), the engine the Python module shares:
+// Detector::Evaluate runs a graph over the dataset once per seed. Under mpirun the ranks share
+// the training (mpi_train.hpp) and the (seed, scene) jobs (RunShared); rank 0 writes.
 #include <sys/utsname.h>
 
-#include <atomic>
-#include <cctype>
 #include <cstdio>
 #include <ctime>
-#include <exception>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
-#include <mutex>
 #include <thread>
 
 #include "cli_common.hpp"
-#include "git_info.hpp"
 #include "commands.hpp"
-#include "furnihost/host/catalog.hpp"
-#include "furnihost/host/evaluation.hpp"
 #include "furnihost/hash.hpp"
+#include "furnihost/host/detector.hpp"
+#include "furnihost/host/evaluation.hpp"
 #include "furnihost/host/io.hpp"
 #include "furnihost/log.hpp"
-#include "furnihost/host/pipeline.hpp"
+#include "git_info.hpp"
 #include "mpi_jobs.hpp"
 #include "mpi_train.hpp"
 #include "plots.hpp"
@@ -46,44 +38,6 @@ using nlohmann::json;
 namespace furnihost::app {
 
 namespace {
-
-// ---- process facts -------------------------------------------------------------------------
-
-// A "Vm..." line of /proc/self/status in MB, NaN when unavailable.
-double ProcStatusMb(const std::string& key) {
-  std::ifstream in("/proc/self/status");
-  std::string line;
-  while (std::getline(in, line))
-    if (line.rfind(key + ":", 0) == 0) return std::strtod(line.c_str() + key.size() + 1, nullptr) / 1024.0;
-  return NAN;
-}
-
-double MemAvailableMb() {
-  std::ifstream in("/proc/meminfo");
-  std::string line;
-  while (std::getline(in, line))
-    if (line.rfind("MemAvailable:", 0) == 0) return std::strtod(line.c_str() + 13, nullptr) / 1024.0;
-  return NAN;
-}
-
-// Resets the kernel's peak-RSS mark (VmHWM) to the current RSS so each run gets its own peak.
-// Returns false where /proc/self/clear_refs is not writable; then only the process-wide
-// ru_maxrss is available.
-bool ResetPeakRss() {
-  std::ofstream out("/proc/self/clear_refs");
-  if (!out) return false;
-  out << "5";
-  out.flush();
-  return static_cast<bool>(out);
-}
-
-double PeakRssMb(bool reset_ok) {
-  const double hwm = ProcStatusMb("VmHWM");
-  if (reset_ok && std::isfinite(hwm)) return hwm;
-  rusage u{};
-  getrusage(RUSAGE_SELF, &u);
-  return static_cast<double>(u.ru_maxrss) / 1024.0;  // Linux: kilobytes
-}
 
 // Git revision of the source checkout: $FURNIHOST_SOURCE_DIR, else the folder of the first
 // graph (configs/ lives in the checkout). Read from its files, never by running git.
@@ -125,105 +79,11 @@ std::string UtcNow() {
   return buf;
 }
 
-// ---- one config ----------------------------------------------------------------------------
-
-struct Loaded {
-  std::string name;  // the label (--name, or the graph's stem)
-  std::string file;  // the name of its files: run_<file>.json, detections/<file>/ (UniqueSafeNames)
-  GraphConfig graph;
-  std::optional<Catalog> catalog;
-  std::optional<TrainedModel> model;
-};
-
 // A length in metres as millimetres, "0.50 mm".
 std::string Mm(double m) {
   char b[32];
   std::snprintf(b, sizeof b, "%.2f mm", m * 1000);
   return b;
-}
-
-struct RunInput {
-  const Dataset* dataset;
-  const std::vector<std::vector<GroundTruthObject>>* truth;
-  WidthConvention width;
-  int jobs;  // 0 = auto
-  std::string detections_dir;  // when set: each scene's detections as <dir>/<config>/<seed>/<scene>.json
-  std::vector<std::string> scene_files;  // <scene>: each scan's stem, made safe and distinct
-  double jitter_m = 0;  // --jitter: noise added to each scene's points, drawn from the seed and the scan's path
-  const World* world = nullptr;  // several ranks: the scenes are shared among them (mpi_jobs.hpp)
-};
-
-// Ground-truth boxes (file frame) in a scan's z-up frame: centres mapped, sizes the extents
-// of the mapped box (exact for axis turns such as an optical frame's), yaw about the new up.
-std::vector<GroundTruthObject> ToUpright(std::vector<GroundTruthObject> truth, const ScanFrame& f) {
-  const Eigen::Matrix3f r = f.to_upright.linear().cast<float>();
-  for (auto& g : truth) {
-    g.center = (f.to_upright * (g.center.cast<double>() - f.shift)).cast<float>();
-    g.size = (r.cwiseAbs() * g.size).eval();
-    if (g.yaw) {
-      const Eigen::Vector3f d = r * Eigen::Vector3f(std::cos(*g.yaw), std::sin(*g.yaw), 0.f);
-      g.yaw = std::atan2(d.y(), d.x());
-    }
-  }
-  return truth;
-}
-
-// What the evaluation keeps of one scene's detection: the detections (in the scan's z-up
-// frame), whether a fitter ran and a voter voted, its record, the voter's centres before a
-// fitter moved them, the ground truth in the z-up frame when the file's frame differs, and with
-// --save-detections its frame, pose and ground (no points), so that its detections are written
-// in the file's frame like detect's detections.json.
-struct SceneOutcome {
-  Pipeline::Result result;
-  SceneRecord record;
-  std::vector<Eigen::Vector3f> voter_centres;
-  std::optional<std::vector<GroundTruthObject>> truth_working;
-  std::optional<Scan> frame;
-};
-
-SceneOutcome RunScene(Pipeline& p, const Loaded& cfg, const RunContext& ctx, const RunInput& in, size_t i) {
-  const auto& scene = in.dataset->scenes[i];
-  Pipeline::SceneInput si;
-  si.path = scene.scan;
-  si.origin = scene.origin;
-  si.origin_name = in.dataset->path + ":/scenes/" + std::to_string(i) + "/origin";
-  si.frame = scene.frame;
-  si.jitter_m = float(in.jitter_m);
-  si.jitter_seed = SplitMix64(ctx.seed) ^ Fnv1a(scene.scan);
-  Stopwatch sw;
-  Pipeline::Result r;
-  // Name the scene: the stage's message alone does not say which of many scans failed.
-  try {
-    r = p.Detect({si}, cfg.model ? &*cfg.model : nullptr, cfg.catalog ? &*cfg.catalog : nullptr, ctx);
-  } catch (const InputError& e) {
-    throw InputError(scene.scan + ": " + e.what());
-  } catch (const StageError& e) {
-    throw StageError(scene.scan + ": " + e.what(), e.IsInputError());
-  }
-  SceneOutcome o;
-  o.record.scan = scene.scan;
-  o.record.total_ms = sw.Ms();
-  o.record.detections = static_cast<int>(r.detections.size());
-  o.record.timings_ms = r.timings_ms;
-  // Keep only what the evaluation needs: scans and features of every scene would add up.
-  // Compared in the scan's z-up frame: the detections from the working frame, the ground
-  // truth from the file's.
-  for (const auto& h : r.votes.hypotheses) o.voter_centres.push_back(r.world_to_user * h.center);
-  for (auto& d : r.detections) d = TransformDetection(d, r.world_to_user);
-  if (!r.scans.empty()) {
-    const ScanFrame& fr = r.scans.front().frame;
-    if (!fr.shift.isZero() || !fr.to_upright.matrix().isIdentity()) o.truth_working = ToUpright((*in.truth)[i], fr);
-  }
-  if (!in.detections_dir.empty() && !r.scans.empty()) {
-    Scan& f = o.frame.emplace();
-    f.frame = r.scans.front().frame;
-    f.pose = r.world_to_user * r.scans.front().pose;  // the detections are in the z-up frame now
-    f.ground = r.scans.front().ground;
-  }
-  o.result.detections = std::move(r.detections);
-  o.result.fitted = r.fitted;
-  o.result.voted = r.voted;
-  return o;
 }
 
 // A scene's outcome as bytes (a rank's job in a shared eval), and back.
@@ -275,132 +135,34 @@ SceneOutcome DecodeScene(const std::string& bytes, const std::string& scan) {
   return o;
 }
 
-// The figures of one run from its scenes' outcomes (run by this process or gathered from the
-// ranks): the evaluation, the records, and with --save-detections each scene's detections.
-RunFigures Figures(const Loaded& cfg, const RunContext& ctx, const RunInput& in, double wall_ms, int jobs, bool reset_ok,
-                   std::vector<SceneOutcome>& outcomes) {
+// Detector::Evaluate of every seed over the ranks of an MPI launch: the (seed, scene) jobs shared
+// among them (ShareJobs, one at a time on each rank), rank 0 gathering each outcome, bit for bit
+// what it would have computed itself. On rank 0 the figures of each seed, on the other ranks none.
+std::vector<RunFigures> RunShared(Detector& detector, const World& world, const std::vector<uint64_t>& seeds,
+                                  const EvalRunInput& in) {
   const auto& scenes = in.dataset->scenes;
   const size_t n = scenes.size();
-  RunFigures f;
-  f.seed = ctx.seed;
-  f.wall_ms = wall_ms;
-  f.jobs = jobs;
-  std::vector<SceneEval> evals(n);
-  for (size_t i = 0; i < n; ++i) {
-    SceneOutcome& o = outcomes[i];
-    evals[i].detections = std::move(o.result.detections);
-    evals[i].truth = o.truth_working ? *o.truth_working : (*in.truth)[i];
-    evals[i].fitted = o.result.fitted;
-    evals[i].name = fs::path(scenes[i].scan).stem().string();
-    evals[i].voter_centres = std::move(o.voter_centres);
-    for (const auto& [tag, ms] : o.record.timings_ms) {
-      auto it = std::find_if(f.stage_ms.begin(), f.stage_ms.end(), [&](const auto& t) { return t.first == tag; });
-      if (it == f.stage_ms.end()) f.stage_ms.emplace_back(tag, ms);
-      else it->second += ms;
-    }
-    f.scenes.push_back(std::move(o.record));
-  }
-  if (!in.detections_dir.empty())
-    for (size_t i = 0; i < n; ++i) {
-      json j = {{"scan", scenes[i].scan}, {"seed", ctx.seed}, {"detections", json::array()}};
-      const Scan* frame = outcomes[i].frame ? &*outcomes[i].frame : nullptr;
-      for (const auto& d : evals[i].detections) j["detections"].push_back(DetectionToJson(d, frame));
-      WriteJson((fs::path(in.detections_dir) / cfg.file / std::to_string(ctx.seed) / (in.scene_files[i] + ".json")).string(), j);
-    }
-  f.metrics = Evaluate(evals, in.dataset->classes, in.width);
-  f.peak_rss_mb = PeakRssMb(reset_ok);
-  return f;
-}
-
-RunFigures RunOne(Loaded& cfg, const Registry& reg, const RunContext& ctx, const RunInput& in) {
-  const auto& scenes = in.dataset->scenes;
-  const size_t n = scenes.size();
-  const bool reset_ok = ResetPeakRss();
-  std::vector<SceneOutcome> outcomes(n);
-  std::vector<std::unique_ptr<Pipeline>> pipelines;
-  pipelines.push_back(std::make_unique<Pipeline>(cfg.graph, reg));
-  Progress progress("eval " + cfg.name + " seed " + std::to_string(ctx.seed), n);
-  auto run_scene = [&](Pipeline& p, size_t i) {
-    outcomes[i] = RunScene(p, cfg, ctx, in, i);
-    progress.Tick();
-  };
-
-  Stopwatch wall;
-  const double rss0 = ProcStatusMb("VmRSS");
-  run_scene(*pipelines[0], 0);
-  int jobs = in.jobs;
-  if (jobs <= 0) {
-    const int cores = ctx.threads > 0 ? ctx.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-    // Memory one more worker costs: the growth of the peak while the first scene ran
-    // (includes this worker's pipeline and model load, so it over- rather than underestimates).
-    const double per_scene = std::max(1.0, ProcStatusMb("VmHWM") - rss0);
-    const double avail = MemAvailableMb();
-    const int by_memory = std::isfinite(avail) && reset_ok ? static_cast<int>(0.5 * avail / per_scene) : cores;
-    jobs = std::max(1, std::min(cores, by_memory));
-    spdlog::debug("eval: {} workers ({} cores, ~{:.0f} MB per scene, {:.0f} MB available)", jobs, cores, per_scene, avail);
-  }
-  jobs = static_cast<int>(std::min<size_t>(static_cast<size_t>(jobs), std::max<size_t>(n - 1, 1)));
-  if (n > 1) {
-    for (int w = 1; w < jobs; ++w) pipelines.push_back(std::make_unique<Pipeline>(cfg.graph, reg));
-    std::atomic<size_t> next{1};
-    std::atomic<bool> stop{false};
-    std::exception_ptr error;
-    std::mutex error_mu;
-    auto worker = [&](Pipeline* p) {
-      while (!stop) {
-        const size_t i = next++;
-        if (i >= n) break;
-        try {
-          run_scene(*p, i);
-        } catch (...) {
-          std::lock_guard<std::mutex> lock(error_mu);
-          if (!error) error = std::current_exception();
-          stop = true;
-        }
-      }
-    };
-    std::vector<std::thread> threads;
-    for (int w = 1; w < jobs; ++w) threads.emplace_back(worker, pipelines[w].get());
-    worker(pipelines[0].get());
-    for (auto& t : threads) t.join();
-    if (error) std::rethrow_exception(error);
-  }
-  progress.Done();
-
-  return Figures(cfg, ctx, in, wall.Ms(), jobs, reset_ok, outcomes);
-}
-
-
-// RunOne of every seed over the ranks of an MPI launch: the (seed, scene) jobs shared among them
-// (ShareJobs, one at a time on each rank), rank 0 gathering each outcome, bit for bit what it
-// would have computed itself. On rank 0 the figures of each seed, on the other ranks none.
-std::vector<RunFigures> RunShared(Loaded& cfg, const Registry& reg, const std::vector<RunContext>& seeds,
-                                  const RunInput& in) {
-  const auto& scenes = in.dataset->scenes;
-  const size_t n = scenes.size();
-  const bool reset_ok = ResetPeakRss();
-  Pipeline p(cfg.graph, reg);
-  Progress progress("eval " + cfg.name + " (rank " + std::to_string(in.world->Rank()) + ")", seeds.size() * n);
+  Progress progress("eval " + in.name + " (rank " + std::to_string(world.Rank()) + ")", seeds.size() * n);
   Stopwatch wall;
   const std::vector<std::string> got = ShareJobs(
-      *in.world, seeds.size() * n,
+      world, seeds.size() * n,
       [&](size_t job) {
-        const std::string bytes = EncodeScene(RunScene(p, cfg, seeds[job / n], in, job % n));
+        const std::string bytes = EncodeScene(detector.EvaluateScene(in, seeds[job / n], job % n));
         progress.Tick();
         return bytes;
       },
       [&](size_t job) {
-        return "scene " + scenes[job % n].scan + ", seed " + std::to_string(seeds[job / n].seed) + ", config " + cfg.name;
+        return "scene " + scenes[job % n].scan + ", seed " + std::to_string(seeds[job / n]) + ", config " + in.name;
       });
   progress.Done();
   std::vector<RunFigures> figures;
-  if (!in.world->Root()) return figures;  // rank 0 evaluates and writes
+  if (!world.Root()) return figures;  // rank 0 evaluates and writes
   const double wall_ms = wall.Ms();
   for (size_t k = 0; k < seeds.size(); ++k) {
     std::vector<SceneOutcome> outcomes;
     for (size_t i = 0; i < n; ++i) outcomes.push_back(DecodeScene(got[k * n + i], scenes[i].scan));
     // The wall clock of all seeds together: the ranks ran them interleaved.
-    figures.push_back(Figures(cfg, seeds[k], in, wall_ms, in.world->Size(), reset_ok, outcomes));
+    figures.push_back(detector.Figures(in, seeds[k], outcomes, wall_ms, world.Size()));
   }
   return figures;
 }
@@ -537,7 +299,7 @@ int RunEval(const std::vector<std::string>& args) {
   if (auto rc = Parse(app, args)) return *rc;
   common.Apply();
   const WidthConvention width = *ParseWidthConvention(width_text);
-  auto reg = common.MakeRegistry();
+  std::shared_ptr<const Registry> reg = common.MakeRegistry();
 
   // Everything that can be wrong with the inputs fails here, before any detection runs.
   const Dataset dataset = LoadDataset(dataset_path);
@@ -545,93 +307,80 @@ int RunEval(const std::vector<std::string>& args) {
   for (const auto& s : dataset.scenes) truth.push_back(ReadGroundTruth(s.gt));
   const std::string hash = HashDataset(dataset);
   const std::vector<std::string> config_names = Names(graphs, names);
+  // The names of each config's files: run_<file>.json, detections/<file>/, inside --out
+  // whatever --name says.
   const std::vector<std::string> config_files = UniqueSafeNames(config_names);
-  std::vector<Loaded> configs;
+  std::vector<GraphConfig> configs;
   for (size_t i = 0; i < graphs.size(); ++i) {
-    configs.push_back({config_names[i], config_files[i], common.LoadGraph(graphs[i], *reg), {}, {}});
-    ground_cli.ApplyGround(configs.back().graph);
+    configs.push_back(common.LoadGraph(graphs[i], *reg));
+    ground_cli.ApplyGround(configs.back());
   }
   spdlog::info("eval: {} configs x {} seeds on {} ({} scenes, {})", configs.size(), seeds, dataset_path,
                dataset.scenes.size(), hash);
 
   const json git = GitInfo(graphs.front());
   const json machine = MachineInfo();
+  const json dataset_json = DatasetJson(dataset, hash);
   // Under mpirun the ranks share the scenes and the training.
   const World& world = World::Get();
-  const json dataset_json = {{"path", dataset_path},
-                             {"hash", hash},
-                             {"scenes", dataset.scenes.size()},
-                             {"classes", dataset.classes.classes},
-                             {"class_map", [&] {
-                                json m = json::object();
-                                for (const auto& [k, v] : dataset.classes.map) m[k] = v ? json(*v) : json(nullptr);
-                                return m;
-                              }()}};
-  std::vector<std::string> scene_stems;
-  for (const auto& s : dataset.scenes) scene_stems.push_back(fs::path(s.scan).stem().string());
-  const RunInput run_in{&dataset, &truth, width, jobs, save_detections ? (fs::path(out) / "detections").string() : "",
-                        UniqueSafeNames(scene_stems), jitter, &world};
+  EvalRunInput run_in;
+  run_in.dataset = &dataset;
+  run_in.truth = &truth;
+  run_in.width = width;
+  run_in.jobs = jobs;
+  run_in.detections_dir = save_detections ? (fs::path(out) / "detections").string() : "";
+  run_in.jitter_m = jitter;
   std::vector<ConfigSummary> summaries;
-  for (auto& cfg : configs) {
+  for (size_t c = 0; c < configs.size(); ++c) {
+    const GraphConfig& graph = configs[c];
     ConfigSummary summary;
-    summary.name = cfg.name;
-    summary.graph = cfg.graph.path;
-    const RunContext train_ctx = common.Context(cfg.graph.seed);
+    summary.name = config_names[c];
+    summary.graph = graph.path;
+    run_in.name = summary.name;
+    run_in.file = config_files[c];
+    if (const auto sinks = graph.Sinks(); sinks.size() > 1) {
+      std::string tags;
+      for (const auto* s : sinks) tags += (tags.empty() ? "" : ", ") + s->tag;
+      spdlog::warn("{}: {} sinks ({}): their detections are evaluated together; to compare them, evaluate one "
+                   "graph per alternative",
+                   graph.path, sinks.size(), tags);
+    }
+    DetectorOptions options;
+    options.strict_catalog = strict;
+    options.retrain = retrain;
+    if (world.Shared())
+      options.ensure_model = [&world](Pipeline& p, const Catalog& catalog, const RunContext& ctx, bool force) {
+        return EnsureModelShared(world, p, catalog, ctx, force);
+      };
+    // Destroyed at the end of the config: its model is freed before the next config loads.
+    Detector detector(graph, reg, common.Context(graph.seed), options);
     Stopwatch model_clock;
-    std::string model_source = "none";
-    {
-      Pipeline p(cfg.graph, *reg);
-      if (const auto sinks = cfg.graph.Sinks(); sinks.size() > 1) {
-        std::string tags;
-        for (const auto* s : sinks) tags += (tags.empty() ? "" : ", ") + s->tag;
-        spdlog::warn("{}: {} sinks ({}): their detections are evaluated together; to compare them, evaluate one "
-                     "graph per alternative",
-                     cfg.graph.path, sinks.size(), tags);
-      }
-      if (p.HasDetectionChain()) {
-        cfg.catalog = LoadCatalog(cfg.graph.catalog, strict);
-        const std::string cache = cfg.graph.model_cache;
-        std::optional<fs::file_time_type> before;
-        if (!cache.empty() && fs::exists(cache)) before = fs::last_write_time(cache);
-        RunContext c = train_ctx;
-        c.seed = cfg.graph.seed;  // the model is the graph's, whatever --seed says
-        cfg.model = EnsureModelShared(world, p, *cfg.catalog, c, retrain);
-        if (world.Root())
-          model_source = before && fs::exists(cache) && fs::last_write_time(cache) == *before ? "cache" : "trained";
-      } else {
-        std::string m;
-        for (const auto& s : p.MissingStages()) m += (m.empty() ? "" : ", ") + s;
-        spdlog::warn("{}: the graph has no {} stage: it makes no detections (recall 0)", cfg.graph.path, m);
-      }
+    if (detector.HasDetectionChain()) {
+      detector.WaitLoaded();
+    } else {
+      std::string m;
+      for (const auto& s : detector.MissingStages()) m += (m.empty() ? "" : ", ") + s;
+      spdlog::warn("{}: the graph has no {} stage: it makes no detections (recall 0)", graph.path, m);
     }
     const double model_ms = model_clock.Ms();
-    const uint64_t seed0 = train_ctx.seed;
-    std::vector<RunContext> contexts;
-    for (int k = 0; k < seeds; ++k) {
-      RunContext ctx = train_ctx;
-      ctx.seed = seed0 + static_cast<uint64_t>(k);
-      contexts.push_back(ctx);
-    }
+    const uint64_t seed0 = detector.Context().seed;
+    std::vector<uint64_t> run_seeds;
+    for (int k = 0; k < seeds; ++k) run_seeds.push_back(seed0 + static_cast<uint64_t>(k));
     std::vector<RunFigures> runs;
     if (world.Shared())
-      runs = RunShared(cfg, *reg, contexts, run_in);  // rank 0 gets the figures
+      runs = RunShared(detector, world, run_seeds, run_in);  // rank 0 gets the figures
     else
-      for (const RunContext& ctx : contexts) runs.push_back(RunOne(cfg, *reg, ctx, run_in));
+      for (const uint64_t seed : run_seeds) runs.push_back(detector.Evaluate(run_in, seed));
     for (RunFigures& f : runs) {
       f.model_ms = model_ms;  // paid once per config; the same in every seed's figures
-      f.model_source = model_source;
-      spdlog::info("eval {} seed {}: mAP {:.3f}, {} detections, {:.1f} s, peak {:.0f} MB", cfg.name, f.seed,
+      spdlog::info("eval {} seed {}: mAP {:.3f}, {} detections, {:.1f} s, peak {:.0f} MB", summary.name, f.seed,
                    f.metrics.map, f.metrics.hypotheses.tp + f.metrics.hypotheses.fp, f.wall_ms / 1000, f.peak_rss_mb);
       summary.runs.push_back(std::move(f));
     }
-    if (!world.Root()) {
-      cfg.model.reset();
-      cfg.catalog.reset();
-      continue;
-    }
+    if (!world.Root()) continue;
     // The run record: enough to reproduce this config's figures and compare with a later run.
     json plugins = json::array();
-    for (const auto& s : cfg.graph.stages) {
+    for (const auto& s : graph.stages) {
       const PluginEntry* e = reg->Find(s.type);
       plugins.push_back({{"tag", s.tag}, {"type", s.type}, {"version", e ? e->version : "unknown"}});
     }
@@ -641,24 +390,22 @@ int RunEval(const std::vector<std::string>& args) {
                    {"format_version", 1},
                    {"furnihost_version", FURNIHOST_APP_VERSION},
                    {"created_utc", UtcNow()},
-                   {"name", cfg.name},
-                   {"graph", cfg.graph.path},
-                   {"config", cfg.graph.resolved},
+                   {"name", summary.name},
+                   {"graph", graph.path},
+                   {"config", graph.resolved},
                    {"plugins", plugins},
                    {"git", git},
                    {"seed", summary.runs.front().seed},
                    {"seeds", seeds_json},
-                   {"model_seed", cfg.graph.seed},
+                   {"model_seed", graph.seed},
                    {"jitter_m", jitter},
                    {"width_convention", ToString(width)},
                    {"dataset", dataset_json},
                    {"machine", machine},
                    {"figures", ToJson(summary)}};
     if (reproducible) Unmeasured(record);
-    WriteJson((fs::path(out) / ("run_" + cfg.file + ".json")).string(), record);
+    WriteJson((fs::path(out) / ("run_" + config_files[c] + ".json")).string(), record);
     summaries.push_back(std::move(summary));
-    cfg.model.reset();  // free the model before the next config
-    cfg.catalog.reset();
   }
 
   if (!world.Root()) return 0;
@@ -679,21 +426,11 @@ int RunEval(const std::vector<std::string>& args) {
                                            std::to_string(machine["nproc"].get<unsigned>()) + " threads"));
   info.measurements = !reproducible;
   const std::string report = RenderReport(summaries, info);
-  json configs_json = json::array();
-  for (size_t i = 0; i < summaries.size(); ++i) {
-    json c = ToJson(summaries[i]);
-    c["run_record"] = "run_" + configs[i].file + ".json";
-    configs_json.push_back(c);
-  }
-  json summary_json = {{"dataset", dataset_json},
-                       {"width_convention", ToString(width)},
-                       {"matching", "TP: mapped classes equal and floor-plane (x, y) centre distance < " +
-                                        std::string(ToString(width)) +
-                                        "(gt size x, y) / 2; greedy by descending score, each gt object matched at most once"},
-                       {"average_precision", "all-point interpolated (VOC 2010+)"},
-                       {"git", git},
-                       {"machine", machine},
-                       {"configs", configs_json}};
+  json summary_json = EvalSummaryJson(dataset, hash, width, summaries);
+  for (size_t c = 0; c < summaries.size(); ++c)
+    summary_json["configs"][c]["run_record"] = "run_" + config_files[c] + ".json";
+  summary_json["git"] = git;
+  summary_json["machine"] = machine;
   if (reproducible) Unmeasured(summary_json);
   WriteJson((fs::path(out) / "summary.json").string(), summary_json);
   AtomicWriteText((fs::path(out) / "report.md").string(), report);

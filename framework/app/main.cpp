@@ -10,6 +10,7 @@
 #include "commands.hpp"
 #include "mpi_world.hpp"
 #include "furnihost/error.hpp"
+#include "furnihost/host/detector.hpp"
 #include "furnihost/log.hpp"
 
 namespace {
@@ -17,7 +18,10 @@ namespace {
 const char* kUsage = R"(furnihost — locate and categorise furniture in 3D scans with models learned from CAD catalogs
 
 usage:
-  furnihost --graph G.json SCAN [SCAN ...] [--out DIR]   detect (trains and caches the model if needed)
+  furnihost SCAN [SCAN ...] [--graph G.json] [--out DIR]
+                                                         detect (trains and caches the model if needed);
+                                                         no --graph: laser_room.json for a scan with a sensor
+                                                         origin, room.json for one without
   furnihost train    --graph G.json                      build the model from the graph's catalog
   furnihost simulate --catalog C.json --scene S.json --out room.pcd
                                                          synthetic room scan with ground truth
@@ -32,29 +36,6 @@ usage:
 Run `furnihost <command> --help` (or `furnihost detect --help`) for the options of each.
 Exit codes: 0 success, 2 usage/config/input error, 1 internal error.
 )";
-
-// The error is one line whatever it quotes (file names, parser excerpts of binary files):
-// control characters become spaces and bytes that are not UTF-8 become '?'.
-std::string OneLine(const std::string& s) {
-  std::string out;
-  for (size_t i = 0; i < s.size();) {
-    const auto c = static_cast<unsigned char>(s[i]);
-    const int len = c < 0x80 ? 1 : (c >> 5) == 0x6 ? 2 : (c >> 4) == 0xE ? 3 : (c >> 3) == 0x1E ? 4 : 0;
-    bool ok = len > 0 && i + len <= s.size();
-    for (int k = 1; ok && k < len; ++k) ok = (static_cast<unsigned char>(s[i + k]) & 0xC0) == 0x80;
-    if (!ok) {
-      out += '?';
-      ++i;
-    } else if (len == 1) {
-      out += (c < 0x20 || c == 0x7F) ? ' ' : static_cast<char>(c);
-      ++i;
-    } else {
-      out.append(s, i, len);
-      i += len;
-    }
-  }
-  return out;
-}
 
 }  // namespace
 

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <functional>
 #include <fstream>
+#include <sstream>
 
 #include "furnihost/host/io.hpp"
 #include "furnihost/scan_reader.hpp"
@@ -318,6 +319,48 @@ TEST(Cli, CatalogErrorsWhileTheScanLoadsExitTwoWithOneLine) {
     ASSERT_EQ(r.code, 2) << "run " << i << "\n" << r.err;
     ASSERT_EQ(ErrorLines(r.err).size(), 1u) << r.err;
   }
+}
+
+// `furnihost SCAN` without --graph picks the graph by what the scan says, in one log line: with
+// a sensor origin (a PCD's VIEWPOINT, or --origin) the one-spot laser route, laser_room.json;
+// without, the room-reconstruction route, room.json. Scans that disagree are refused. (A file
+// given as --out stops each run right after the choice; the installed binary's whole run is
+// tests/sdk/install_test.sh's.)
+TEST(Cli, WithoutAGraphTheScanPicksOne) {
+  const std::string dir = furnihost::testing::TempDir("cli_default_graph");
+  const std::string src = furnihost::testing::SourceDir();
+  furnihost::AtomicWriteText(dir + "/not_a_folder", "");
+  furnihost::AtomicWriteText(dir + "/room.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n"
+                                                "property float y\nproperty float z\nend_header\n0 0 0\n1 0 0\n0 1 0\n");
+  const std::string stop = " --out " + dir + "/not_a_folder";
+  struct Case {
+    std::string args, graph, why;
+  } cases[] = {
+      {src + "/data/demo/room.pcd", "/configs/laser_room.json", "room.pcd has a sensor origin (VIEWPOINT 3 2.5 1.5)"},
+      {dir + "/room.ply", "/configs/room.json", "room.ply has no sensor origin"},
+      {dir + "/room.ply --origin 0,0,1", "/configs/laser_room.json", "--origin gives a sensor origin"},
+  };
+  for (const auto& c : cases) {
+    const auto r = Furnihost(c.args + stop);
+    EXPECT_EQ(r.code, 2) << c.args << "\n" << r.err;
+    int said = 0;
+    std::istringstream err(r.err);
+    for (std::string line; std::getline(err, line);)
+      if (line.find("no --graph") != std::string::npos) {
+        ++said;
+        EXPECT_NE(line.find("--graph " + src + c.graph), std::string::npos) << line;
+        EXPECT_NE(line.find(c.why), std::string::npos) << line;
+      }
+    EXPECT_EQ(said, 1) << r.err;
+    const auto lines = ErrorLines(r.err);
+    ASSERT_EQ(lines.size(), 1u) << r.err;
+    EXPECT_NE(lines[0].find("exists and is not a folder"), std::string::npos) << lines[0];
+  }
+  const auto mixed = Furnihost(src + "/data/demo/room.pcd " + dir + "/room.ply" + stop);
+  EXPECT_EQ(mixed.code, 2);
+  const auto lines = ErrorLines(mixed.err);
+  ASSERT_EQ(lines.size(), 1u) << mixed.err;
+  EXPECT_NE(lines[0].find("1 of the 2 scans have a sensor origin"), std::string::npos) << lines[0];
 }
 
 // `furnihost gap`: the part features of the training views against those of the objects in a

@@ -2,6 +2,7 @@
 // (sensors.scan_file) reads scans. The writers, JSON and ground-truth files are host IO
 // (io.hpp, which includes this header).
 #pragma once
+#include <optional>
 #include <string>
 
 #include "furnihost/types.hpp"
@@ -43,6 +44,20 @@ struct ReadStats {
 // point is a stray return is read again with the shift the rest calls for.
 FURNIHOST_API Scan ReadScan(const std::string& path, ReadStats* stats = nullptr,
                             size_t max_points = 0, const ShiftOption& shift = {});
+
+// The sensor origin a scan file declares, from its header alone: a PCD's VIEWPOINT (unless it
+// is PCL's default, as ReadScan); nullopt for a PCD without one and for the other formats.
+// InputError as ReadScan on a missing file or a bad PCD header.
+FURNIHOST_API std::optional<Eigen::Vector3d> ScanFileOrigin(const std::string& path);
+
+// A scan from points in memory, named `name` in messages: `n` rows of x, y, z (in the caller's
+// frame; `xyz` holds 3 n values, row after row) and, when `rgb` is not null, 3 n colour bytes.
+// The rules of ReadScan: the global shift (the automatic one following the bulk of the points)
+// subtracted in double before rounding to float, non-finite rows, rows farther than
+// kMaxScanCoordinate and stray returns dropped and counted; InputError "<name>: ..." when none
+// is left.
+FURNIHOST_API Scan ScanFromPoints(const std::string& name, const double* xyz, size_t n, const uint8_t* rgb = nullptr,
+                                  ReadStats* stats = nullptr, const ShiftOption& shift = {});
 
 // Checks that `path` names a readable regular file (not a directory, FIFO, ...).
 FURNIHOST_API void RequireRegularFile(const std::string& path, const std::string& what);

@@ -57,6 +57,9 @@ struct SensorRequest {
                                          // sensor's default pattern (e.g. 16 training views)
   std::optional<Eigen::Vector3f> origin;  // for file sensors: origin given on the CLI (file frame)
   ShiftOption shift;                      // for file sensors: global shift (ReadScan)
+  // For file sensors: a scan already in memory (points a program holds, made by ScanFromPoints
+  // with `shift`), taken as if read from a file instead of reading `path`. Not owned.
+  const Scan* scan = nullptr;
 };
 
 class FURNIHOST_API Sensor : public Stage {

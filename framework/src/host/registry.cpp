@@ -6,7 +6,6 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
-#include <boost/dll/runtime_symbol_info.hpp>
 #include <boost/dll/shared_library.hpp>
 #include <cstdlib>
 #include <dlfcn.h>
@@ -46,21 +45,38 @@ bool NamedFor(const std::string& path, const std::string& type) {
   return us != std::string::npos && stem.substr(us + 1) == type.substr(dot + 1);
 }
 
-// The folders the project's own plugins are built and installed to.
-std::vector<std::string> ShippedDirs() {
-  std::vector<std::string> dirs{FURNIHOST_PLUGIN_BUILD_DIR};
-  boost::system::error_code ec;
-  auto exe = boost::dll::program_location(ec);
-  if (!ec) dirs.push_back((fs::path(exe.string()).parent_path() / ".." / "lib" / "furnihost" / "plugins").string());
-  dirs.push_back(FURNIHOST_PLUGIN_INSTALL_DIR);
-  return dirs;
-}
-
 std::string Canonical(const std::string& path) {
   std::error_code ec;
   return fs::weakly_canonical(path, ec).string();
 }
+
+// The folders the project's own plugins are built and installed to, found from where this host
+// library lies, so the binary, a program linking the host (the Python module) and a prefix moved
+// after installing all find them: <lib>/furnihost/plugins beside an installed host library; the
+// build tree's plugin folder only when this host is the build tree's (an installed host never
+// loads plugins of a newer build); then the configured install prefix's.
+std::vector<std::string> ShippedDirs() {
+  std::vector<std::string> dirs;
+  auto add = [&](const std::string& d) {
+    for (const auto& have : dirs)
+      if (Canonical(have) == Canonical(d)) return;
+    dirs.push_back(d);
+  };
+  const std::string lib = HostLibraryDir();
+  if (lib.empty() || Canonical(lib) == Canonical(FURNIHOST_LIBRARY_BUILD_DIR)) add(FURNIHOST_PLUGIN_BUILD_DIR);
+  if (!lib.empty()) add((fs::path(lib) / "furnihost" / "plugins").string());
+  add(FURNIHOST_PLUGIN_INSTALL_DIR);
+  return dirs;
+}
 }  // namespace
+
+std::string HostLibraryDir() {
+  Dl_info self{};
+  if (!dladdr(reinterpret_cast<void*>(&HostLibraryDir), &self) || !self.dli_fname) return "";
+  std::error_code ec;
+  const fs::path lib = fs::weakly_canonical(self.dli_fname, ec);
+  return ec ? std::string() : lib.parent_path().string();
+}
 
 std::vector<std::string> Registry::DefaultSearchPath(const std::vector<std::string>& extra_dirs) {
   std::vector<std::string> dirs = extra_dirs;

@@ -49,6 +49,7 @@ SceneScans ReadScenes(const std::vector<SceneInput>& scenes, const GraphConfig& 
   for (const auto& sc : scenes) {
     SensorRequest req;
     req.path = sc.path;
+    req.scan = sc.scan.get();
     req.origin = sc.origin;
     req.shift = sc.frame.shift;
     Stopwatch sw;

@@ -910,10 +910,6 @@ Scan ReadXyz(const std::string& path, Tally& tally, size_t max_points) {
   return scan;
 }
 
-}  // namespace
-
-namespace {
-
 // The file read once with `tally`'s shift rules.
 Scan ReadFormat(const std::string& path, const std::string& ext, Tally& tally, size_t max_points) {
   if (ext == ".pcd") return ReadPcd(path, tally, max_points);
@@ -990,25 +986,9 @@ size_t DropStrayReturns(Scan& scan) {
   return n - kept.size();
 }
 
-}  // namespace
-
-Scan ReadScan(const std::string& path, ReadStats* stats_out, size_t max_points, const ShiftOption& shift) {
-  RequireRegularFile(path, "scan file");
-  const std::string ext = Lower(fs::path(path).extension().string());
-  if (ext != ".pcd" && ext != ".ply" && ext != ".xyz" && ext != ".txt" && ext != ".pts" && ext != ".asc")
-    throw InputError(path + ": unknown scan format '" + ext + "' (expected .pcd, .ply, .xyz or .txt)");
-  Tally tally;
-  tally.shift = shift.shift;
-  tally.auto_shift = shift.automatic && !shift.shift;
-  Scan scan = ReadFormat(path, ext, tally, max_points);
-  if (tally.auto_shift)
-    if (const auto better = BetterShift(tally)) {
-      Tally again;
-      again.shift = *better;
-      again.auto_shift = false;
-      scan = ReadFormat(path, ext, again, max_points);
-      tally = std::move(again);
-    }
+// What every reader does once the points are in: refuses a scan left with no point, records the
+// shift, logs what was dropped.
+void FinishScan(const std::string& path, const Tally& tally, const ShiftOption& shift, Scan& scan, ReadStats* stats_out) {
   const ReadStats& stats = tally.stats;
   if (scan.points.empty() && tally.far)
     throw InputError(path + ": holds no points within " + std::to_string(static_cast<int>(kMaxCoordinate)) +
@@ -1028,7 +1008,65 @@ Scan ReadScan(const std::string& path, ReadStats* stats_out, size_t max_points, 
     spdlog::warn("{}: dropped {} stray returns of {} points, separated from the rest of the scan by more than {} m",
                  path, strays, stats.read, static_cast<int>(kStrayGap));
   if (stats_out) *stats_out = stats;
+}
+
+// The points taken by `take` (a file read, or points in memory) with the shift rules: the given
+// shift, else the automatic one, taken again with the shift the bulk calls for when the first
+// point was a stray return (BetterShift); then FinishScan.
+template <class Take>
+Scan TakeShifted(const std::string& name, const ShiftOption& shift, ReadStats* stats_out, Take take) {
+  Tally tally;
+  tally.shift = shift.shift;
+  tally.auto_shift = shift.automatic && !shift.shift;
+  Scan scan = take(tally);
+  if (tally.auto_shift)
+    if (const auto better = BetterShift(tally)) {
+      Tally again;
+      again.shift = *better;
+      again.auto_shift = false;
+      scan = take(again);
+      tally = std::move(again);
+    }
+  FinishScan(name, tally, shift, scan, stats_out);
   return scan;
+}
+}  // namespace
+
+Scan ReadScan(const std::string& path, ReadStats* stats_out, size_t max_points, const ShiftOption& shift) {
+  RequireRegularFile(path, "scan file");
+  const std::string ext = Lower(fs::path(path).extension().string());
+  if (ext != ".pcd" && ext != ".ply" && ext != ".xyz" && ext != ".txt" && ext != ".pts" && ext != ".asc")
+    throw InputError(path + ": unknown scan format '" + ext + "' (expected .pcd, .ply, .xyz or .txt)");
+  return TakeShifted(path, shift, stats_out, [&](Tally& tally) { return ReadFormat(path, ext, tally, max_points); });
+}
+
+std::optional<Eigen::Vector3d> ScanFileOrigin(const std::string& path) {
+  RequireRegularFile(path, "scan file");
+  if (Lower(fs::path(path).extension().string()) != ".pcd") return std::nullopt;
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path + ": cannot be opened");
+  std::error_code ec;
+  const uint64_t file_size = fs::file_size(path, ec);
+  if (ec) throw InputError(path + ": cannot be read (" + ec.message() + ")");
+  return ReadPcdHeader(path, in, file_size, 0).viewpoint;
+}
+
+Scan ScanFromPoints(const std::string& name, const double* xyz, size_t n, const uint8_t* rgb, ReadStats* stats_out,
+                    const ShiftOption& shift) {
+  return TakeShifted(name, shift, stats_out, [&](Tally& tally) {
+    Scan scan;
+    scan.source = name;
+    scan.points.reserve(n);
+    if (rgb) scan.colors.reserve(n);
+    Eigen::Vector3f v;
+    for (size_t i = 0; i < n; ++i) {
+      ++tally.stats.read;
+      if (!tally.Keep(Eigen::Vector3d(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]), v)) continue;
+      scan.points.push_back(v);
+      if (rgb) scan.colors.push_back({rgb[3 * i], rgb[3 * i + 1], rgb[3 * i + 2]});
+    }
+    return scan;
+  });
 }
 
 }  // namespace furnihost

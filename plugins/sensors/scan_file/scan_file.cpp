@@ -1,8 +1,9 @@
-// sensors.scan_file — reads a scan from a file (PCD, PLY, XYZ) for detection, with optional
-// voxel downsampling so real scans can be matched to the training views' density. With a
-// sensor origin, returns at the origin itself are dropped: a depth camera's driver writes its
-// invalid pixels as (0, 0, 0), the camera's own position, where no surface can be (left in,
-// they move the scan's bounding box, its canonical frame and every score).
+// sensors.scan_file — reads a scan from a file (PCD, PLY, XYZ), or takes one a program holds in
+// memory (SensorRequest::scan), for detection, with optional voxel downsampling so real scans
+// can be matched to the training views' density. With a sensor origin, returns at the origin
+// itself are dropped: a depth camera's driver writes its invalid pixels as (0, 0, 0), the
+// camera's own position, where no surface can be (left in, they move the scan's bounding box,
+// its canonical frame and every score).
 #include <spdlog/spdlog.h>
 
 #include "furnihost/geometry.hpp"
@@ -49,8 +50,12 @@ class ScanFile : public Sensor {
   }
 
   std::vector<Scan> Acquire(const SensorRequest& req, const RunContext&) override {
-    if (req.path.empty()) throw InputError("sensors.scan_file reads files: no path given");
-    Scan scan = ReadScan(req.path, nullptr, max_points_, req.shift);
+    if (req.path.empty() && !req.scan) throw InputError("sensors.scan_file reads files: no path given");
+    // A scan in memory (a program's points) is taken as if read from its file.
+    if (req.scan && req.scan->points.size() > max_points_)
+      throw InputError(req.scan->source + ": " + std::to_string(req.scan->points.size()) +
+                       " points exceed the limit of " + std::to_string(max_points_) + " (the sensor's max_points)");
+    Scan scan = req.scan ? *req.scan : ReadScan(req.path, nullptr, max_points_, req.shift);
     // Origins are given in the file's coordinates: shifted like its points. The command line
     // wins over the file.
     auto shifted = [&](const Eigen::Vector3f& o) { return Eigen::Vector3f((o.cast<double>() - scan.frame.shift).cast<float>()); };
@@ -62,7 +67,7 @@ class ScanFile : public Sensor {
       for (size_t i = 0; i < scan.points.size(); ++i)
         if (!((scan.points[i] - *scan.origin).squaredNorm() < kAtOrigin * kAtOrigin)) kept.push_back(int(i));
       if (kept.size() < scan.points.size()) {
-        spdlog::info("{}: {} returns at the sensor origin dropped (a depth camera's invalid pixels)", req.path,
+        spdlog::info("{}: {} returns at the sensor origin dropped (a depth camera's invalid pixels)", scan.source,
                      scan.points.size() - kept.size());
         Points p(kept.size());
         for (size_t i = 0; i < kept.size(); ++i) p[i] = scan.points[size_t(kept[i])];
@@ -75,7 +80,7 @@ class ScanFile : public Sensor {
       const size_t before = scan.points.size();
       scan.points = VoxelDownsample(scan.points, voxel_, &kept);
       KeepAttributes(scan, kept);  // per-point attributes follow the first point of each voxel
-      spdlog::info("{}: voxel {} m: {} -> {} points", req.path, voxel_, before, scan.points.size());
+      spdlog::info("{}: voxel {} m: {} -> {} points", scan.source, voxel_, before, scan.points.size());
     }
     return {std::move(scan)};
   }

@@ -22,10 +22,15 @@ struct PluginRefusal {
   std::string path, reason;
 };
 
+// The folder of the host library (libfurnihost_host.so) this process loaded: <prefix>/lib when
+// installed, the build tree's lib/ in a build; "" when it cannot be found.
+FURNIHOST_API std::string HostLibraryDir();
+
 class FURNIHOST_API Registry {
  public:
   // Search order: `extra_dirs` (--plugin-path), $FURNIHOST_PLUGIN_PATH (':'-separated),
-  // the build tree's plugin folder, the install prefix's. A type found twice keeps the first
+  // <HostLibraryDir()>/furnihost/plugins of an installed host or the build tree's plugin folder
+  // of a built one, the configured install prefix's. A type found twice keeps the first
   // and refuses the later one. The user's folders load at construction; the project's own
   // folders at the end of the path load when first needed (each costs ~0.15 s per process,
   // more than a detection on a 50k-point scan): Find/Create try the files named

@@ -5,6 +5,7 @@
 #pragma once
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 #include <utility>
@@ -23,6 +24,9 @@ FURNIHOST_API void AddTime(StageTimes& times, const std::string& tag, double ms)
 // One scan file to detect in.
 struct SceneInput {
   std::string path;
+  // A scan already in memory (ScanFromPoints with frame.shift): the input sensor takes it
+  // instead of reading `path`, which then only names it.
+  std::shared_ptr<const Scan> scan;
   std::optional<Eigen::Vector3f> origin;  // in the file's frame
   std::string origin_name = "--origin";   // where `origin` came from, for messages
   Eigen::Isometry3f pose = Eigen::Isometry3f::Identity();
