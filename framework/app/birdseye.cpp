@@ -288,6 +288,24 @@ void Draw(cairo_t* cr, const std::vector<Shown>& scans, cairo_surface_t* points,
       cairo_set_line_width(cr, 2.0);
       cairo_stroke(cr);
     }
+    // The way it faces (its placed model's front, Detection::yaw): an arrow from the box centre
+    // across the box and beyond.
+    if (d.box && !rejected && !d.model.empty()) {
+      const double len = 0.5 * std::max<double>(d.box->size.x(), d.box->size.y()) + 0.25;
+      const double cx = v.X(d.box->center.x()), cy = v.Y(d.box->center.y());
+      const double ex = v.X(d.box->center.x() + len * std::cos(d.yaw)), ey = v.Y(d.box->center.y() + len * std::sin(d.yaw));
+      cairo_set_source_rgb(cr, c.r * 0.45, c.g * 0.45, c.b * 0.45);
+      cairo_set_line_width(cr, 2.0);
+      cairo_move_to(cr, cx, cy);
+      cairo_line_to(cr, ex, ey);
+      cairo_stroke(cr);
+      const double a = std::atan2(ey - cy, ex - cx), head = 8.0;
+      cairo_move_to(cr, ex, ey);
+      cairo_line_to(cr, ex - head * std::cos(a - 0.45), ey - head * std::sin(a - 0.45));
+      cairo_line_to(cr, ex - head * std::cos(a + 0.45), ey - head * std::sin(a + 0.45));
+      cairo_close_path(cr);
+      cairo_fill(cr);
+    }
     char score[32];
     std::snprintf(score, sizeof score, " %.2f", d.score);
     const std::string label = rejected ? std::string(score + 1) : d.cls + (d.model.empty() ? "" : " " + d.model) + score;
@@ -318,7 +336,9 @@ void Draw(cairo_t* cr, const std::vector<Shown>& scans, cairo_surface_t* points,
   double lx = v.margin + v.PlotWidth() + 20, ly = v.margin;
   cairo_set_source_rgb(cr, 0, 0, 0);
   Text(cr, lx, ly, "top view (x right, y up)", 11);
-  ly += 22;
+  ly += 16;
+  Text(cr, lx, ly, "arrow: the way it faces", 10);
+  ly += 20;
   for (const auto& cls : classes) {
     const Rgb c = colours.Of(cls);
     cairo_rectangle(cr, lx, ly - 10, 14, 12);

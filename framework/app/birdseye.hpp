@@ -1,8 +1,8 @@
 // Bird's-eye view of a detection run (as the paper's Fig. 4 f/h): the scans from above (grey
 // by height above the ground), the vote density of each class as translucent coloured cells
 // within the scan's outline, hypotheses as
-// circle outlines and detections as filled circles, both sized by score, a legend and a 1 m
-// scale bar. The user's frame (Scan::pose, then `display`), x to the right, y up.
+// circle outlines and detections as filled circles, both sized by score, each accepted one with
+// its box and an arrow the way it faces, a legend and a 1 m scale bar. The user's frame (Scan::pose, then `display`), x to the right, y up.
 #pragma once
 #include <string>
 #include <vector>

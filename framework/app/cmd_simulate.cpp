@@ -511,8 +511,12 @@ int RunSimulate(const std::vector<std::string>& args) {
   };
   auto gt_json = [&](const Scan& s) {
     std::vector<GroundTruthObject> truth = s.truth;
-    for (auto& t : truth)
+    for (auto& t : truth) {
       if (symmetry.count(t.model)) t.yaw_symmetry = symmetry.at(t.model);
+      // The way the object faces: its model's front turned by the model's yaw.
+      if (const ModelFront* f = catalog.FrontOf(t.model); f && t.yaw)
+        t.yaw = std::remainder(*t.yaw + std::atan2(f->front.y(), f->front.x()), 2.f * float(kPi));
+    }
     json g = GroundTruthToJson(truth);
     if (g.is_array()) g = json{{"units", "m"}, {"up", "z"}, {"objects", g}};
     // The simulated sensor lists every placed object, in order.
@@ -531,7 +535,8 @@ int RunSimulate(const std::vector<std::string>& args) {
     g["size_convention"] =
         std::string("[dx, dy, dz] = axis-aligned extents of the placed model in the ") +
         (sensor_frame ? "sensor's" : "world") + " frame; center = "
-        "their centre; yaw = model rotation about +z [rad]; yaw_symmetry = turns about +z that map the "
+        "their centre; yaw = the way the object faces [rad, counter-clockwise about +z from +x]: its catalog "
+        "model's front turned by the model's rotation; yaw_symmetry = turns about +z that map the "
         "model onto itself (0 = any, n = n-fold, 1 = none; 95 % of its surface within 2 cm); n_points = the scan's "
         "returns on it";
     g["generator"] = {{"command", description},

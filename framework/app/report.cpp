@@ -57,20 +57,26 @@ std::vector<Row> VerificationRows(const std::string& prefix) {
           {"share of false hypotheses removed", v + "fp_removal_rate", 3, true}};
 }
 
+// The Scan2CAD alignment of the accepted detections.
+std::vector<Row> AlignmentRows(const std::string& prefix) {
+  return {{"alignment accuracy (Scan2CAD rule)", prefix + "/alignment/accuracy", 3, true},
+          {"ground-truth objects with a yaw", prefix + "/alignment/objects", -1, true}};
+}
+
 std::string Cell(double v, int decimals) { return std::isfinite(v) ? Fixed(v, decimals) : "–"; }
 
 // Markdown table of the per-object records of one run.
 void ObjectTable(std::ostringstream& o, const std::vector<ObjectRecord>& objects) {
   o << "| scene | # | class | gt model | status | fitted model | centre err [m] | yaw err [deg] | gt symmetry | "
-       "yaw err, symmetric [deg] | coverage | rejection |\n"
-       "|---|---:|---|---|---|---|---:|---:|---:|---:|---:|---|\n";
+       "yaw err, symmetric [deg] | coverage | rejection | alignment (Scan2CAD rule) |\n"
+       "|---|---:|---|---|---|---|---:|---:|---:|---:|---:|---|---|\n";
   for (const auto& r : objects) {
     const std::string sym = r.yaw_symmetry < 0 ? "?" : r.yaw_symmetry == 0 ? "any" : std::to_string(r.yaw_symmetry);
     o << "| " << r.scene << " | " << r.index << " | " << r.cls << " | " << (r.gt_model.empty() ? "?" : r.gt_model)
       << " | " << r.status << " | " << (r.model.empty() ? "–" : r.model) << " | " << Cell(r.centre_error_m, 3) << " | "
       << Cell(r.yaw_error_deg, 1) << " | " << sym << " | " << Cell(r.yaw_error_folded_deg, 1) << " | "
       << Cell(r.coverage, 2) << " | "
-      << (r.rejection.empty() ? "" : r.rejection) << " |\n";
+      << (r.rejection.empty() ? "" : r.rejection) << " | " << r.alignment << " |\n";
   }
   o << "\n";
 }
@@ -90,6 +96,9 @@ std::string RenderReport(const std::vector<ConfigSummary>& configs, const Report
        "detection is a true positive "
        "when the 3D IoU of its axis-aligned box with the ground-truth box of its class that it overlaps most is >= 0.25 "
        "/ >= 0.5 and that object is not taken by a higher-scored detection\n";
+  o << "- alignment accuracy (Scan2CAD rule): the share of ground-truth objects with a known yaw that an accepted "
+       "detection of their class aligns: box centre within 0.2 m, facing within 20 deg (folded by the object's "
+       "turn symmetry), mean extent ratio within 20 % of 1\n";
   o << "- AP: all-point interpolated (VOC 2010+) area under the precision envelope of the score-threshold sweep; "
        "\"hypotheses\" = every detection the pipeline output (the voter's own threshold), \"verified\" = "
        "detections with verified != false (only when a fitter ran); \"true / false hypotheses\" = the voter's "
@@ -185,6 +194,8 @@ std::string RenderReport(const std::vector<ConfigSummary>& configs, const Report
     }
     const auto vr = VerificationRows(cls);
     rows.insert(rows.end(), vr.begin(), vr.end());
+    const auto ar = AlignmentRows(cls);
+    rows.insert(rows.end(), ar.begin(), ar.end());
     table(cls + " (" + std::to_string(std::max(gt, 0)) + (gt == 1 ? " ground-truth object)" : " ground-truth objects)"), rows);
   }
   std::vector<Row> all = {{"mAP25", "all/map25", 3, true},
@@ -196,6 +207,8 @@ std::string RenderReport(const std::vector<ConfigSummary>& configs, const Report
   }
   const auto vr = VerificationRows("all");
   all.insert(all.end(), vr.begin(), vr.end());
+  const auto ar = AlignmentRows("all");
+  all.insert(all.end(), ar.begin(), ar.end());
   table("all classes (micro totals)", all);
 
   // Per ground-truth object, first seed of each config: what the pipeline made of it.

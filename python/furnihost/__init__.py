@@ -94,7 +94,9 @@ class Detection:
     accepted    False when a check rejected it, True otherwise
     center      numpy (3,): the detection's centre [m]
     size        numpy (3,): its box's width, depth, height [m] (None without a box)
-    yaw         numpy float64: its turn about up [rad], as detections.json's "yaw"
+    yaw         numpy float64: the way it faces [rad, counter-clockwise about up from +x], its
+                fitted model's front turned by the model's pose, as detections.json's "yaw"
+                (docs/poses.md; "facing" in to_dict() gives it as a direction)
     model       the fitted CAD model's id, or None
     checks      list of Check: what was tested, in order
     """

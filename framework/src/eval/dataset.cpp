@@ -59,7 +59,7 @@ Dataset LoadDataset(const std::string& path) {
   RequireRegularFile(path, "dataset manifest");
   const json j = ReadJson(path);
   if (!j.is_object()) throw InputError(path + ": expected a JSON object with \"scenes\" and \"classes\"");
-  CheckKeys(j, {"description", "scenes", "class_map", "classes"}, path, "");
+  CheckKeys(j, {"description", "scenes", "class_map", "classes", "yaw_symmetry"}, path, "");
   Dataset d;
   d.path = path;
   const fs::path base = fs::absolute(fs::path(path)).parent_path();
@@ -97,6 +97,20 @@ Dataset LoadDataset(const std::string& path) {
         Bad(path, ptr, "\"" + to + "\" is not one of the evaluated classes (" + list + "); use null to ignore a class");
       }
       d.classes.map[item.key()] = to;
+    }
+  }
+
+  if (j.contains("yaw_symmetry")) {
+    const json& ys = j["yaw_symmetry"];
+    if (!ys.is_object()) Bad(path, "/yaw_symmetry", "expected an object {\"evaluated class\": n} (0 = any turn, n = n-fold)");
+    for (const auto& item : ys.items()) {
+      const std::string ptr = "/yaw_symmetry/" + item.key();
+      const auto& cl = d.classes.classes;
+      if (std::find(cl.begin(), cl.end(), item.key()) == cl.end()) Bad(path, ptr, "not one of the evaluated classes");
+      const json& v = item.value();
+      if (!v.is_number_integer() || v.get<long long>() < 0 || v.get<long long>() > 360)
+        Bad(path, ptr, "expected an integer 0..360 (0 = any turn, n = n-fold), got " + v.dump().substr(0, 40));
+      d.classes.yaw_symmetry[item.key()] = v.get<int>();
     }
   }
 

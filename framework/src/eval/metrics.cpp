@@ -64,6 +64,36 @@ void Accumulate(const std::vector<Detection>& dets, const std::vector<GroundTrut
   }
 }
 
+// Scan2CAD alignment of the accepted detections of one scene, per evaluated class: each gt
+// object with a yaw counts; detections in descending score take the nearest object of their
+// class they align (Aligned), each object once.
+void AccumulateAlignment(const std::vector<Detection>& dets, const std::vector<GroundTruthObject>& truth,
+                         const ClassMap& classes, std::map<std::string, AlignmentFigures>& out) {
+  std::vector<std::optional<std::string>> gt_class(truth.size());
+  for (size_t g = 0; g < truth.size(); ++g) {
+    gt_class[g] = classes.Map(truth[g].cls);
+    if (gt_class[g] && truth[g].yaw) ++out[*gt_class[g]].objects;
+  }
+  std::vector<size_t> order(dets.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return dets[a].score > dets[b].score; });
+  std::vector<char> taken(truth.size(), 0);
+  for (size_t i : order) {
+    const auto c = classes.Map(dets[i].cls);
+    if (!c) continue;
+    int best = -1;
+    float best_d = INFINITY;
+    for (size_t g = 0; g < truth.size(); ++g) {
+      if (taken[g] || gt_class[g] != c || !Aligned(dets[i], truth[g])) continue;
+      const float d = (dets[i].box->center - truth[g].center).norm();
+      if (d < best_d) best = int(g), best_d = d;
+    }
+    if (best < 0) continue;
+    taken[size_t(best)] = 1;
+    ++out[*c].aligned;
+  }
+}
+
 OperatingPoint MakePoint(int tp, int fp, int gt, const ErrorAccumulator& e) {
   OperatingPoint p;
   p.tp = tp;
@@ -74,6 +104,16 @@ OperatingPoint MakePoint(int tp, int fp, int gt, const ErrorAccumulator& e) {
   p.centre_error_m = Summarise(e.centre);
   p.yaw_error_deg = Summarise(e.yaw);
   return p;
+}
+
+// The scene's ground truth, each object without a yaw_symmetry of its own given its evaluated
+// class's (ClassMap::yaw_symmetry), when the dataset declares one.
+std::vector<GroundTruthObject> WithClassSymmetry(std::vector<GroundTruthObject> truth, const ClassMap& classes) {
+  for (auto& g : truth)
+    if (!g.yaw_symmetry)
+      if (const auto c = classes.Map(g.cls))
+        if (const auto it = classes.yaw_symmetry.find(*c); it != classes.yaw_symmetry.end()) g.yaw_symmetry = it->second;
+  return truth;
 }
 
 }  // namespace
@@ -115,12 +155,14 @@ EvalMetrics Evaluate(const std::vector<SceneEval>& scenes, const ClassMap& class
   std::map<std::string, std::pair<int, int>> hyp_counts, ver_counts;
   std::map<std::string, ErrorAccumulator> hyp_err, ver_err;
   std::map<std::string, VerificationFigures> ver_fig;
+  std::map<std::string, AlignmentFigures> alignment;
   for (size_t s = 0; s < scenes.size(); ++s) {
     const SceneEval& se = scenes[s];
+    const std::vector<GroundTruthObject> truth = WithClassSymmetry(se.truth, classes);
     out.fitted = out.fitted || se.fitted;
-    const SceneMatch m = MatchScene(se.detections, se.truth, classes, width);
-    for (size_t g = 0; g < se.truth.size(); ++g) {
-      if (m.gt_class[g].empty()) ++out.ignored_gt[se.truth[g].cls];
+    const SceneMatch m = MatchScene(se.detections, truth, classes, width);
+    for (size_t g = 0; g < truth.size(); ++g) {
+      if (m.gt_class[g].empty()) ++out.ignored_gt[truth[g].cls];
       else ++gt_count[m.gt_class[g]];
     }
     for (size_t i = 0; i < se.detections.size(); ++i) {
@@ -131,26 +173,27 @@ EvalMetrics Evaluate(const std::vector<SceneEval>& scenes, const ClassMap& class
       scored[m.det_class[i]].push_back({se.detections[i].score, s, i, m.det_to_gt[i] >= 0});
     }
     for (auto [threshold, target] : {std::pair{0.25f, &scored25}, std::pair{0.5f, &scored50}}) {
-      const SceneMatch mi = MatchSceneIou(se.detections, se.truth, classes, threshold);
+      const SceneMatch mi = MatchSceneIou(se.detections, truth, classes, threshold);
       for (size_t i = 0; i < se.detections.size(); ++i)
         if (mi.det_to_gt[i] != SceneMatch::kIgnored)
           (*target)[mi.det_class[i]].push_back({se.detections[i].score, s, i, mi.det_to_gt[i] >= 0});
     }
-    Accumulate(se.detections, se.truth, m, se.fitted, hyp_counts, hyp_err);
+    Accumulate(se.detections, truth, m, se.fitted, hyp_counts, hyp_err);
     // Rejected detections leave the set, so the remaining ones are matched on their own: a
     // verified detection may take the gt object a rejected one had taken.
     std::vector<Detection> kept;
     for (const auto& d : se.detections)
       if (d.verified.value_or(true)) kept.push_back(d);
-    const SceneMatch mv = MatchScene(kept, se.truth, classes, width);
-    Accumulate(kept, se.truth, mv, se.fitted, ver_counts, ver_err);
+    const SceneMatch mv = MatchScene(kept, truth, classes, width);
+    Accumulate(kept, truth, mv, se.fitted, ver_counts, ver_err);
+    AccumulateAlignment(kept, truth, classes, alignment);
 
     // The voter's hypotheses where the voter put them: which were true, and what did the
     // verification do with each.
     std::vector<Detection> placed = se.detections;
     if (se.voter_centres.size() == placed.size())
       for (size_t i = 0; i < placed.size(); ++i) placed[i].center = se.voter_centres[i];
-    const SceneMatch mh = MatchScene(placed, se.truth, classes, width);
+    const SceneMatch mh = MatchScene(placed, truth, classes, width);
     if (se.fitted)
       for (size_t i = 0; i < placed.size(); ++i) {
         if (mh.det_to_gt[i] == SceneMatch::kIgnored) continue;
@@ -169,14 +212,14 @@ EvalMetrics Evaluate(const std::vector<SceneEval>& scenes, const ClassMap& class
     std::vector<int> kept_index;
     for (size_t i = 0; i < se.detections.size(); ++i)
       if (se.detections[i].verified.value_or(true)) kept_index.push_back(static_cast<int>(i));
-    for (size_t g = 0; g < se.truth.size(); ++g) {
+    for (size_t g = 0; g < truth.size(); ++g) {
       if (m.gt_class[g].empty()) continue;
       ObjectRecord r;
       r.scene = se.name;
       r.index = static_cast<int>(g);
       r.cls = m.gt_class[g];
-      r.gt_model = se.truth[g].model;
-      r.yaw_symmetry = se.truth[g].yaw_symmetry.value_or(-1);
+      r.gt_model = truth[g].model;
+      r.yaw_symmetry = truth[g].yaw_symmetry.value_or(-1);
       int shown = -1;
       if (mv.gt_to_det[g] >= 0) {
         shown = kept_index[mv.gt_to_det[g]];
@@ -190,13 +233,17 @@ EvalMetrics Evaluate(const std::vector<SceneEval>& scenes, const ClassMap& class
       if (shown >= 0) {
         const Detection& d = se.detections[shown];
         r.model = d.model;
-        r.centre_error_m = PlaneDistance(d.center, se.truth[g].center);
-        if (se.fitted && !d.model.empty() && se.truth[g].yaw) {
-          r.yaw_error_deg = YawErrorDeg(d.yaw, *se.truth[g].yaw);
-          r.yaw_error_folded_deg = FoldYawErrorDeg(r.yaw_error_deg, se.truth[g].yaw_symmetry);
+        r.centre_error_m = PlaneDistance(d.center, truth[g].center);
+        if (se.fitted && !d.model.empty() && truth[g].yaw) {
+          r.yaw_error_deg = YawErrorDeg(d.yaw, *truth[g].yaw);
+          r.yaw_error_folded_deg = FoldYawErrorDeg(r.yaw_error_deg, truth[g].yaw_symmetry);
         }
         if (d.coverage) r.coverage = *d.coverage;
         r.rejection = d.Rejection();
+        if (truth[g].yaw) {
+          const std::string miss = AlignmentMiss(d, truth[g]);
+          r.alignment = miss.empty() ? "aligned" : miss;
+        }
       }
       out.objects.push_back(std::move(r));
     }
@@ -250,6 +297,10 @@ EvalMetrics Evaluate(const std::vector<SceneEval>& scenes, const ClassMap& class
     gt_all += cm.gt;
     all_h.centre.insert(all_h.centre.end(), hyp_err[c].centre.begin(), hyp_err[c].centre.end());
     all_h.yaw.insert(all_h.yaw.end(), hyp_err[c].yaw.begin(), hyp_err[c].yaw.end());
+    cm.alignment = alignment[c];
+    cm.alignment.accuracy = SafeDiv(cm.alignment.aligned, cm.alignment.objects);
+    out.alignment.objects += cm.alignment.objects;
+    out.alignment.aligned += cm.alignment.aligned;
     if (out.fitted) {
       const auto v = ver_counts[c];
       cm.verified = MakePoint(v.first, v.second, cm.gt, ver_err[c]);
@@ -273,6 +324,7 @@ EvalMetrics Evaluate(const std::vector<SceneEval>& scenes, const ClassMap& class
   out.hypotheses = MakePoint(tp_h, fp_h, gt_all, all_h);
   if (out.fitted) out.verified = MakePoint(tp_v, fp_v, gt_all, all_v);
   FinishRates(&out.verification);
+  out.alignment.accuracy = SafeDiv(out.alignment.aligned, out.alignment.objects);
   return out;
 }
 

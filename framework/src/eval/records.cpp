@@ -86,7 +86,8 @@ json ToJson(const ObjectRecord& r) {
           {"yaw_symmetry", r.yaw_symmetry},
           {"yaw_error_folded_deg", Num(r.yaw_error_folded_deg)},
           {"coverage", Num(r.coverage)},
-          {"rejection", r.rejection}};
+          {"rejection", r.rejection},
+          {"alignment", r.alignment}};
 }
 ObjectRecord ObjectRecordFromJson(const json& j, const std::string& where) {
   if (!j.is_object()) throw InputError(where + ": expected an object");
@@ -109,6 +110,7 @@ ObjectRecord ObjectRecordFromJson(const json& j, const std::string& where) {
   r.yaw_error_folded_deg = j.contains("yaw_error_folded_deg") ? GetNum(j, "yaw_error_folded_deg", where) : r.yaw_error_deg;
   r.coverage = GetNum(j, "coverage", where);
   r.rejection = j.value("rejection", "");
+  r.alignment = j.value("alignment", "");
   return r;
 }
 
@@ -127,6 +129,24 @@ std::vector<std::pair<std::string, double>> TimingsFromJson(const json& j, const
     t.emplace_back(j[i]["stage"].get<std::string>(), GetNum(j[i], "ms", w));
   }
   return t;
+}
+
+json ToJson(const AlignmentFigures& a) {
+  return {{"objects", a.objects}, {"aligned", a.aligned}, {"accuracy", Num(a.accuracy)}};
+}
+AlignmentFigures AlignmentFromJson(const json& j, const std::string& where) {
+  AlignmentFigures a;
+  if (j.is_null()) return a;
+  a.objects = static_cast<int>(GetNum(j, "objects", where));
+  a.aligned = static_cast<int>(GetNum(j, "aligned", where));
+  a.accuracy = GetNum(j, "accuracy", where);
+  return a;
+}
+
+void AddAlignmentFigures(std::map<std::string, double>& f, const std::string& prefix, const AlignmentFigures& a) {
+  f[prefix + "/alignment/objects"] = a.objects;
+  f[prefix + "/alignment/aligned"] = a.aligned;
+  f[prefix + "/alignment/accuracy"] = a.accuracy;
 }
 
 void AddVerificationFigures(std::map<std::string, double>& f, const std::string& prefix, const VerificationFigures& v) {
@@ -187,6 +207,7 @@ json ToJson(const EvalMetrics& m) {
                        {"hypotheses", ToJson(c.hypotheses)},
                        {"verified", c.verified ? ToJson(*c.verified) : json(nullptr)},
                        {"verification", c.verification ? ToJson(*c.verification) : json(nullptr)},
+                       {"alignment", ToJson(c.alignment)},
                        {"pr_curve_columns", {"score", "tp", "fp", "precision", "recall"}},
                        {"pr_curve", curve},
                        {"pr_curve_iou25", CurveJson(c.curve25)},
@@ -202,7 +223,8 @@ json ToJson(const EvalMetrics& m) {
           {"all",
            {{"hypotheses", ToJson(m.hypotheses)},
             {"verified", m.fitted ? ToJson(m.verified) : json(nullptr)},
-            {"verification", m.fitted ? ToJson(m.verification) : json(nullptr)}}},
+            {"verification", m.fitted ? ToJson(m.verification) : json(nullptr)},
+            {"alignment", ToJson(m.alignment)}}},
           {"ignored_gt", m.ignored_gt},
           {"ignored_detections", m.ignored_detections},
           {"objects", objects}};
@@ -233,6 +255,8 @@ EvalMetrics EvalMetricsFromJson(const json& j, const std::string& where) {
       cm.verified = OperatingPointFromJson(c["verified"], w + "/verified");
     if (c.contains("verification") && !c["verification"].is_null())
       cm.verification = VerificationFromJson(c["verification"], w + "/verification");
+    // Records written before poses were evaluated have no alignment.
+    if (c.contains("alignment")) cm.alignment = AlignmentFromJson(c["alignment"], w + "/alignment");
     if (c.contains("pr_curve")) {
       if (!c["pr_curve"].is_array()) throw InputError(w + "/pr_curve: expected a list");
       for (size_t k = 0; k < c["pr_curve"].size(); ++k) {
@@ -255,6 +279,7 @@ EvalMetrics EvalMetricsFromJson(const json& j, const std::string& where) {
       m.verified = OperatingPointFromJson(j["all"]["verified"], where + "/all/verified");
     if (j["all"].contains("verification") && !j["all"]["verification"].is_null())
       m.verification = VerificationFromJson(j["all"]["verification"], where + "/all/verification");
+    if (j["all"].contains("alignment")) m.alignment = AlignmentFromJson(j["all"]["alignment"], where + "/all/alignment");
   }
   if (j.contains("objects") && j["objects"].is_array())
     for (size_t i = 0; i < j["objects"].size(); ++i)
@@ -338,6 +363,7 @@ std::map<std::string, double> FlatFigures(const RunFigures& r) {
     AddPointFigures(f, c.cls + "/hypotheses", c.hypotheses);
     if (c.verified) AddPointFigures(f, c.cls + "/verified", *c.verified);
     if (c.verification) AddVerificationFigures(f, c.cls, *c.verification);
+    if (c.alignment.objects > 0) AddAlignmentFigures(f, c.cls, c.alignment);
   }
   f["all/map"] = r.metrics.map;
   f["all/map25"] = r.metrics.map25;
@@ -347,6 +373,7 @@ std::map<std::string, double> FlatFigures(const RunFigures& r) {
     AddPointFigures(f, "all/verified", r.metrics.verified);
     AddVerificationFigures(f, "all", r.metrics.verification);
   }
+  if (r.metrics.alignment.objects > 0) AddAlignmentFigures(f, "all", r.metrics.alignment);
   const double n = static_cast<double>(r.scenes.size());
   std::vector<double> scene_ms;
   for (const auto& s : r.scenes) scene_ms.push_back(s.total_ms);

@@ -92,7 +92,7 @@ std::optional<Eigen::Matrix3f> UpRotation(const std::string& up) {
 
 const std::set<std::string>& KnownKeys() {
   static const std::set<std::string> keys = {
-      "id", "class", "subclass", "mesh", "up", "scale", "height_m", "size_m",
+      "id", "class", "subclass", "mesh", "up", "scale", "height_m", "size_m", "front",
       // descriptive metadata carried by catalogs from the web; not interpreted
       "license", "source", "creator", "notes", "description", "url"};
   return keys;
@@ -103,6 +103,7 @@ struct EntryResult {
   std::string id;
   std::string reason;
   CatalogModel model;
+  ModelFront front;
 };
 
 // Positive and small enough to stay finite as a float (1e300 would become inf).
@@ -228,6 +229,30 @@ EntryResult LoadEntry(const nlohmann::json& e, size_t index, const fs::path& dir
   const auto rot = UpRotation(up);
   if (!rot) return fail("bad \"up\" \"" + up + "\" (expected one of +x, -x, +y, -y, +z, -z)");
 
+  // "front": a mesh axis (as "up") or a vector in the mesh's axes, turned z up with the mesh; its
+  // horizontal part is the front (scaled with the mesh below).
+  std::optional<Eigen::Vector3f> front_file;
+  if (e.contains("front")) {
+    const auto& f = e["front"];
+    const char* expected = " (expected one of +x, -x, +y, -y, +z, -z, or [x, y, z])";
+    if (f.is_string()) {
+      const std::string name = f.get<std::string>();
+      if (!UpRotation(name)) return fail("bad \"front\" \"" + name + "\"" + expected);
+      front_file = Eigen::Vector3f::Zero();
+      (*front_file)[name[1] - 'x'] = name[0] == '+' ? 1.f : -1.f;
+    } else if (f.is_array() && f.size() == 3 && std::all_of(f.begin(), f.end(), [](const auto& v) {
+                 return v.is_number() && std::isfinite(v.template get<double>()) && std::abs(v.template get<double>()) < 1e6;
+               })) {
+      front_file = Eigen::Vector3f(f[0].get<float>(), f[1].get<float>(), f[2].get<float>());
+    } else {
+      return fail("bad \"front\" " + f.dump().substr(0, 40) + expected);
+    }
+    const Eigen::Vector3f turned = (*rot) * (*front_file);
+    if (!(turned.head<2>().norm() > 0.5f * turned.norm()))
+      return fail("\"front\" " + f.dump().substr(0, 40) + " points (nearly) along \"up\" " + up +
+                  "; it names the horizontal way the model faces");
+  }
+
   std::vector<std::string> scale_keys;
   for (const char* k : {"scale", "height_m", "size_m"})
     if (e.contains(k)) scale_keys.push_back(k);
@@ -316,6 +341,15 @@ EntryResult LoadEntry(const nlohmann::json& e, size_t index, const fs::path& dir
   r.model.cls = e["class"].get<std::string>();
   r.model.subclass = e.value("subclass", std::string());
   r.model.mesh_path = fs::absolute(mesh).string();
+  if (front_file) {
+    const Eigen::Vector3f f = ((*rot) * (*front_file)).cwiseProduct(scale);
+    r.front.front = Eigen::Vector3f(f.x(), f.y(), 0.f).normalized();
+    r.front.source = "catalog";
+  } else {
+    FrontEstimate fe = EstimateFront(m);
+    r.front.front = fe.front;
+    r.front.source = std::move(fe.how);
+  }
   r.model.mesh = std::move(m);
   r.model.size = size;
   return r;
@@ -327,6 +361,11 @@ FURNIHOST_API const CatalogModel* Catalog::Find(const std::string& id) const {
   for (const auto& m : models)
     if (m.id == id) return &m;
   return nullptr;
+}
+
+FURNIHOST_API const ModelFront* Catalog::FrontOf(const std::string& id) const {
+  const auto it = fronts.find(id);
+  return it == fronts.end() ? nullptr : &it->second;
 }
 
 FURNIHOST_API std::vector<std::string> Catalog::Classes() const {
@@ -604,9 +643,23 @@ Catalog LoadCatalog(const std::string& path, bool strict) {
     }
     for (const auto& [k, v] : entries[i].items())
       if (!KnownKeys().count(k)) spdlog::warn("{}: model {}: unknown key \"{}\" ignored", path, r.id, k);
+    cat.fronts[r.id] = std::move(r.front);
     cat.models.push_back(std::move(r.model));
   }
   cat.hash = Hex64(h);
+  // Which models face the way their mesh suggests: one line naming each with its estimate, and
+  // (at debug level) the depths each was chosen on.
+  std::string estimated;
+  size_t n_estimated = 0;
+  for (const auto& m : cat.models)
+    if (const ModelFront& f = cat.fronts.at(m.id); f.source != "catalog") {
+      const std::string way = f.source.substr(0, f.source.find(" ("));
+      estimated += (n_estimated++ ? ", " : "") + m.id + " " + way;
+      spdlog::debug("{}: model {}: no \"front\", {}", path, m.id, f.source);
+    }
+  if (n_estimated)
+    spdlog::info("{}: {} of {} model(s) have no \"front\", the way each faces is estimated from its mesh: {}", path,
+                 n_estimated, cat.models.size(), estimated);
   if (!cat.skipped.empty())
     spdlog::warn("{}: {} model(s) loaded, {} skipped", path, cat.models.size(), cat.skipped.size());
   else

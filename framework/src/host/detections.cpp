@@ -27,10 +27,17 @@ nlohmann::json DetectionToJson(const Detection& d, const Scan* scan) {
   const Eigen::Isometry3f to_scan = scan ? scan->pose.inverse() : Eigen::Isometry3f::Identity();
   auto P = [&](const Eigen::Vector3f& w) { return Vec(frame.ToFile(to_scan * w)); };
   auto D = [&](const Eigen::Vector3f& w) { return Vec(frame.DirectionToFile(to_scan.linear() * w)); };
+  // The way it faces (its model's front, Detection::yaw): yaw counter-clockwise from +x of the
+  // scan's z-up frame (before the canonical turn), and "facing" as a direction of the file's own
+  // axes (null without a model).
+  const Eigen::Vector3f facing_w(std::cos(d.yaw), std::sin(d.yaw), 0.f);
+  const Eigen::Vector3d facing_up = frame.canonical.linear().transpose() * (to_scan.linear() * facing_w).cast<double>();
+  const double yaw = std::atan2(facing_up.y(), facing_up.x());
   nlohmann::json j = {{"class", d.cls},
                       {"center", P(d.center)},
-                      {"yaw", d.yaw},
-                      {"yaw_deg", d.yaw * 180.0 / M_PI},
+                      {"yaw", yaw},
+                      {"yaw_deg", yaw * 180.0 / M_PI},
+                      {"facing", d.model.empty() ? nlohmann::json(nullptr) : D(facing_w)},
                       {"score", d.score},
                       {"model", d.model.empty() ? nlohmann::json(nullptr) : nlohmann::json(d.model)},
                       {"verified", d.verified ? nlohmann::json(*d.verified) : nlohmann::json(nullptr)}};

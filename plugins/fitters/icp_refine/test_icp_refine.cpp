@@ -6,6 +6,7 @@
 
 #include "furnihost/geometry.hpp"
 #include "furnihost/stage.hpp"
+#include "test_meshes.hpp"
 #include "test_support.hpp"
 
 namespace furnihost::testing {
@@ -17,17 +18,6 @@ std::shared_ptr<Fitter> Make(const Registry& reg, nlohmann::json params = nlohma
   const PluginEntry* e = reg.Find(kType);
   if (!e) throw std::runtime_error(std::string(kType) + " not found in " + PluginDir());
   return reg.CreateAs<Fitter>(kType, e->params.Resolve(params, "test"));
-}
-
-void AddBox(Mesh& m, const Eigen::Vector3f& lo, const Eigen::Vector3f& hi) {
-  const int b = int(m.vertices.size());
-  for (int i = 0; i < 8; ++i)
-    m.vertices.emplace_back(i & 1 ? hi.x() : lo.x(), i & 2 ? hi.y() : lo.y(), i & 4 ? hi.z() : lo.z());
-  const int q[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
-  for (const auto& f : q) {
-    m.triangles.emplace_back(b + f[0], b + f[1], b + f[2]);
-    m.triangles.emplace_back(b + f[0], b + f[2], b + f[3]);
-  }
 }
 
 // Model frame: z up, metres, bounding-box bottom centre at the origin (as the catalog does).

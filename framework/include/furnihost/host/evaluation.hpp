@@ -13,7 +13,9 @@
 //    "scenes": [{"scan": "a.ply", "gt": "a.gt.json", "origin"?: [x, y, z],
 //                "up"?: "-y", "transform"?: "16 or 6 numbers", "shift"?: [x, y, z]}, ...],
 //    "class_map"?: {"desk": "table", "sofa": null},   // null = not evaluated
-//    "classes": ["chair", "table", "cabinet"]}
+//    "classes": ["chair", "table", "cabinet"],
+//    "yaw_symmetry"?: {"table": 2}}   // turns mapping an object of the class onto itself, for
+//                                     // ground truth that names none (0 = any, n = n-fold)
 // The class map is applied to ground truth AND detections; a class that is neither in
 // `classes` nor mapped into it is not evaluated (its ground truth is ignored and its
 // detections are counted as ignored, not as false positives).
@@ -44,6 +46,9 @@ struct DatasetScene {
 struct ClassMap {
   std::map<std::string, std::optional<std::string>> map;  // name -> evaluated class, nullopt = drop
   std::vector<std::string> classes;                        // evaluated classes, in report order
+  // Evaluated class -> the turns about up that map its objects onto itself (the manifest's
+  // "yaw_symmetry": 0 = any, n = n-fold), for ground-truth objects that declare none.
+  std::map<std::string, int> yaw_symmetry;
   // The evaluated class of a ground-truth or detected class name, nullopt when not evaluated.
   FURNIHOST_API std::optional<std::string> Map(const std::string& cls) const;
 };
@@ -128,6 +133,29 @@ FURNIHOST_API ErrorStats Summarise(std::vector<double> values);
 // the nearest multiple of 360/n), none or 1 = raw.
 FURNIHOST_API double FoldYawErrorDeg(double raw_deg, std::optional<int> yaw_symmetry);
 
+// The Scan2CAD alignment rule (skanti/Scan2CAD EvaluateBenchmark.py): a detection aligns a
+// ground-truth object of its class when its box centre lies within `centre_m` of the object's
+// (3D), the way it faces (Detection::yaw) within `yaw_deg` of the object's, folded by the
+// object's yaw_symmetry, and its size within `scale` of the object's: |mean over the three axes
+// of (detection / object) - 1| <= scale, on the extents of the axis-aligned boxes in the scan's
+// frame (GroundTruthObject::size against the detection's box's), so a box turned with the object
+// and one along the scan's axes are measured alike.
+struct AlignmentRule {
+  double centre_m = 0.2, yaw_deg = 20.0, scale = 0.2;
+};
+// Why `d` does not align `g`: the first criterion it misses ("centre 0.31 m off", "facing 23 deg
+// off", "size 27 % off", "no model placed"), "" when it aligns.
+FURNIHOST_API std::string AlignmentMiss(const Detection& d, const GroundTruthObject& g, const AlignmentRule& rule = {});
+FURNIHOST_API bool Aligned(const Detection& d, const GroundTruthObject& g, const AlignmentRule& rule = {});
+// Alignment accuracy: the share of the ground-truth objects with a known yaw that an accepted
+// detection (verified != false) with a placed model aligns; each detection aligns at most one
+// object (detections by descending score, each the nearest object it aligns).
+struct AlignmentFigures {
+  int objects = 0;  // evaluated gt objects with a yaw
+  int aligned = 0;
+  double accuracy = NAN;  // aligned / objects, NaN when objects = 0
+};
+
 // Counts at one operating point plus the errors of its true positives.
 struct OperatingPoint {
   int tp = 0, fp = 0, fn = 0;
@@ -163,6 +191,9 @@ struct ObjectRecord {
   double yaw_error_folded_deg = NAN;                 // yaw error folded by yaw_symmetry (= raw without)
   double coverage = NAN;
   std::string rejection;
+  // Of an object with a known yaw: "aligned" when the shown detection aligns it by the Scan2CAD
+  // rule (Aligned), else what it misses (AlignmentMiss); "" without a yaw or a detection.
+  std::string alignment;
 };
 
 struct ClassMetrics {
@@ -180,6 +211,7 @@ struct ClassMetrics {
   // when a fitter ran.
   std::optional<OperatingPoint> verified;
   std::optional<VerificationFigures> verification;  // present when a fitter ran
+  AlignmentFigures alignment;  // the Scan2CAD rule on the accepted detections
 };
 
 struct EvalMetrics {
@@ -190,6 +222,7 @@ struct EvalMetrics {
   bool fitted = false;
   std::map<std::string, int> ignored_gt, ignored_detections;  // original class -> count
   VerificationFigures verification;  // micro totals (fitted only)
+  AlignmentFigures alignment;         // micro totals
   std::vector<ObjectRecord> objects;  // every evaluated gt object, scene by scene
 };
 

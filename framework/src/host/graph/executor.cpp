@@ -56,6 +56,8 @@ void CollectResult(Run& run, Pipeline::Result& r) {
       r.detections.push_back(std::move(d));
     }
   }
+  // Each placed model's front gives the way its object faces, whichever model it is.
+  if (run.catalog) SetFacing(r.detections, *run.catalog);
   // The single-chain fields: the outputs of the stages the first sink takes, directly or not
   // (every stage's, without a sink), the first of each in execution order; the features are
   // those its voter voted with (normalised), else the raw ones.
