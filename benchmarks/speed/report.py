@@ -1,19 +1,24 @@
 #!/usr/bin/env python3
 """Tables and plot of a benchmarks/speed/run.sh run.
 
-    python3 benchmarks/speed/report.py runs/speed
+    python3 benchmarks/speed/report.py runs/speed [--doc docs/performance.md]
 
 Reads DIR/detect/<scan>/run*/detections.json (timings_ms per stage; the run with the smallest
 total is kept), DIR/scannet_route.json (configs/scannet.json timed as whole processes) and
 DIR/segmentation.json (bench_region_growing --summary_json). Prints two
 markdown tables, writes them to DIR/speed.md and a plot of time against point count to
-DIR/speed.svg (written by hand: no plotting library needed).
+DIR/speed.svg (written by hand: no plotting library needed). --doc PATH also writes the tables
+as the project's performance page (PATH, with the date, commit, machine and load of the run) and
+the plot beside it (img/performance.svg under PATH's folder).
 """
 import glob
 import json
 import math
 import os
+import shutil
+import subprocess
 import sys
+import time
 
 
 def load_detect(out):
@@ -179,8 +184,60 @@ def svg_plot(series, path, title):
         fh.write("\n".join(o) + "\n")
 
 
+def run_facts(out):
+    """Date, commit, CPU, cores and load: what the figures of a run depend on."""
+    try:
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                                check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], capture_output=True,
+                               text=True, check=True).stdout.strip()
+        commit += " + uncommitted changes" if dirty else ""
+    except (OSError, subprocess.CalledProcessError):
+        commit = "unknown"
+    cpu = "unknown"
+    try:
+        with open("/proc/cpuinfo") as fh:
+            for line in fh:
+                if line.startswith("model name"):
+                    cpu = line.split(":", 1)[1].strip()
+                    break
+    except OSError:
+        pass
+    when = time.strftime("%Y-%m-%d", time.gmtime(os.path.getmtime(out)))
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    return when, commit, cpu, os.cpu_count(), load
+
+
+def write_doc(path, out, tables):
+    when, commit, cpu, cores, load = run_facts(out)
+    folder = os.path.dirname(os.path.abspath(path))
+    os.makedirs(os.path.join(folder, "img"), exist_ok=True)
+    shutil.copyfile(os.path.join(out, "speed.svg"), os.path.join(folder, "img", "performance.svg"))
+    head = ["# Performance", "",
+            "<!-- Written by benchmarks/speed/run.sh --doc (benchmarks/speed/report.py): do not edit. -->", "",
+            f"Measured on {when} at commit {commit}, on {cpu} ({cores} cores; load average {load:.1f} when the "
+            "tables were written). Times are of this machine; the ratios against PCL are of runs in one process, "
+            "on the same clouds, and move less with the load. How to run it: "
+            "[benchmarks/README.md](../benchmarks/README.md#speed).", "",
+            "![time against point count](img/performance.svg)", ""]
+    tmp = path + ".tmp"
+    with open(tmp, "w") as fh:
+        fh.write("\n".join(head) + tables)
+    os.replace(tmp, path)
+    print(f"wrote {path} and {os.path.join(folder, 'img', 'performance.svg')}")
+
+
 def main():
-    out = sys.argv[1] if len(sys.argv) > 1 else "runs/speed"
+    args = sys.argv[1:]
+    doc = None
+    if "--doc" in args:
+        i = args.index("--doc")
+        if i + 1 >= len(args):
+            print("report.py: --doc needs a path", file=sys.stderr)
+            sys.exit(2)
+        doc = args[i + 1]
+        del args[i:i + 2]
+    out = args[0] if args else "runs/speed"
     det = load_detect(out)
     seg_path = os.path.join(out, "segmentation.json")
     seg = json.load(open(seg_path)) if os.path.exists(seg_path) else {"rows": []}
@@ -218,6 +275,8 @@ def main():
     ]
     svg_plot(series, os.path.join(out, "speed.svg"), "furnihost speed on simulated laser rooms (configs/paper.json)")
     print(f"wrote {out}/speed.md and {out}/speed.svg")
+    if doc:
+        write_doc(doc, out, text)
 
 
 if __name__ == "__main__":

@@ -6,7 +6,10 @@
 # segmentation + features against PCL's MLS + RegionGrowing and NormalEstimationOMP +
 # RegionGrowing on the same clouds in one process, then prints markdown tables and writes a plot.
 #
-#   benchmarks/speed/run.sh [--quick] [--build DIR] [--out DIR] [--no-build]
+#   benchmarks/speed/run.sh [--quick] [--build DIR] [--out DIR] [--no-build] [--doc docs/performance.md]
+#
+# --doc PATH: also writes the tables as the project's performance page (docs/performance.md,
+# with the date, commit, machine and load of the run, and docs/img/performance.svg).
 #
 # --quick: the 0.1M and 0.5M rooms and ScanNet only (~1 min once built). Full run: ~5 min on
 # 2 cores once built. Each measurement is one run (the 1.5M room costs about a minute per
@@ -30,12 +33,14 @@ BUILD=build
 OUT=runs/speed
 QUICK=0
 DO_BUILD=1
+DOC_ARGS=()
 while [[ $# -gt 0 ]]; do
   case "$1" in
     --quick) QUICK=1 ;;
     --build) BUILD="$2"; shift ;;
     --out) OUT="$2"; shift ;;
     --no-build) DO_BUILD=0 ;;
+    --doc) DOC_ARGS=(--doc "$2"); shift ;;
     -h|--help) sed -n '2,/^set /{/^#/p}' "$0"; exit 0 ;;
     *) echo "run.sh: unknown argument $1 (see --help)" >&2; exit 2 ;;
   esac
@@ -152,4 +157,4 @@ BENCH_ARGS+=(--ours_iterations="${REPEATS}" --pcl_iterations="${REPEATS}")
 [[ -n ${MAX_NORMAL_POINTS:-} ]] && BENCH_ARGS+=(--max_normal_points="$MAX_NORMAL_POINTS")
 "$BUILD/bin/bench_region_growing" "${BENCH_ARGS[@]}" --summary_json="$OUT/segmentation.json"
 
-python3 benchmarks/speed/report.py "$OUT"
+python3 benchmarks/speed/report.py "$OUT" "${DOC_ARGS[@]}"
