@@ -427,7 +427,7 @@ void WriteBirdsEye(const std::string& stem, const std::vector<const Scan*>& scan
   std::vector<Eigen::Vector2d> outline;
   SurfacePtr points = PointsRaster(scans, v, &outline);
   // Opaque (Draw paints it white first): RGB, not RGBA, so the PNG carries no alpha channel (the
-  // same pixels, ~13 % smaller and quicker to encode).
+  // same pixels, smaller and quicker to encode).
   SurfacePtr png(cairo_image_surface_create(CAIRO_FORMAT_RGB24, v.Width(), v.Height()), cairo_surface_destroy);
   Check(cairo_surface_status(png.get()), stem + ".png");
   // Every cairo call stays on this thread, in this order, so the SVG's element ids (cairo numbers

@@ -94,8 +94,8 @@ Points VoxelDownsample(const Points& points, float voxel, std::vector<int>* kept
     }
     return points;
   }
-  // Voxel key -> slot in first-met order, the sums in plain arrays: ~1.5x faster than a map
-  // holding the accumulators (400k points).
+  // Voxel key -> slot in first-met order, the sums in plain arrays: the map holds small
+  // integers only, and the accumulators stay contiguous.
   std::unordered_map<uint64_t, int> slot;
   slot.reserve(points.size() / 2 + 16);
   std::vector<Eigen::Vector3d> sum;

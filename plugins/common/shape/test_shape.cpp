@@ -153,7 +153,7 @@ TEST(LocalShape, TheFramesNeighboursGiveTheTreesShape) {
     EXPECT_NEAR(shared.nn[i], tree.nn[i], 1e-6f) << i;
     EXPECT_NEAR(shared.nn4[i], tree.nn4[i], 1e-6f) << i;
   }
-  EXPECT_GT(double(exact), 0.98 * double(work.size()));  // measured 98.8 %: the grid's ties
+  EXPECT_GT(double(exact), 0.98 * double(work.size()));  // the grid's ties
   // The frame keeps them with the scan only when asked (a stage of the graph needs them), as
   // many as asked, and never fewer than the 12 of its own plane fits.
   for (const int asked : {0, 5, kAsked, 30}) {

@@ -88,16 +88,14 @@ TEST(RansacUpright, AHypothesisFitsTheSameWhateverElseIsInTheList) {
 // 90th percentile of the centre and yaw errors, for RANSAC alone (the paper) and with the
 // optional upright ICP steps. Both: p90 within the tolerance, no placement off by more than
 // twice the centre tolerance; the refinement lowers the median centre error by 30 % and halves
-// the median yaw error at least (seeds 500/700/900/1100: by 49-78 % and 65-78 %). (About one
-// placement in 20 of chair_b ends 3.5-4 cm off with or without the refinement, whichever the
-// seed: the ICP steps do not leave that local minimum.)
+// the median yaw error at least. (Some placements of chair_b end a few cm off with or without
+// the refinement, whichever the seed: the ICP steps do not leave that local minimum.)
 // 20 random placements of the two chairs, fitted without refinement, with 5 point-to-point
 // ICP steps and with 5 point-to-plane steps. Every fit must pick the right model and land
 // within tolerance at p90 (one placement in ~20 lands 3.5-4 cm off whatever the seed: a
 // RANSAC pose in a neighbouring basin that neither refinement leaves, hence the looser max).
 // Each refinement must sharpen the median: point-to-point by 30 % (centre) and 50 % (yaw),
-// point-to-plane at least twice as much again (measured: 10.2 -> 5.2 -> 0.3 mm, 1.05 -> 0.24
-// -> 0.03 deg).
+// point-to-plane at least twice as much again.
 TEST(RansacUpright, AccuracyOverRandomPlacements) {
   const Catalog cat = FurnitureCatalog();
   struct Variant {

@@ -22,9 +22,8 @@ struct RegionGrowingOptions {
   // 3x3x3 cells hold more than 4 K points (a planar ball holds about a third of them).
   // 0: always exact. The default keeps every cloud up to the density of configs/paper.json's
   // training views (0.25 deg at 2 m: up to 1413 points in 3x3x3 cells of 8 cm) exact, so its
-  // model and detections do not change. Normals of the 1.5M-point room of benchmarks/speed:
-  // 400 ~2.3x, 48 ~5x faster than exact (0), but 48 switches on in those training views and
-  // changes the model and the synthetic detections.
+  // model and detections do not change; a lower limit is faster on dense rooms but switches on
+  // in those views (benchmarks/speed measures it).
   int max_normal_points = 400;
   // false: a normal and its opposite count as parallel (|cos|), robust when no sensor origin
   // gives the normals a consistent sign (e.g. ScanNet meshes). true: signed angle.

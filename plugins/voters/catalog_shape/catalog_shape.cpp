@@ -3,10 +3,10 @@
 // height and whose top-view height profile the proposal matches best gives the class score;
 // one detection per proposal and plausible class, the proposal's box, non-maximum suppressed.
 //
-// Why size and top view (measured on the ScanNet dev rooms, docs/experiments/): the metric size
-// of an object survives the gap between simulated CAD views and real reconstructions, which
-// part features and global descriptors do not (ESF on real segments: 45 % correct, size and
-// height alone: 66-71 %); the top-view height profile (the distribution of each floor column's
+// Why size and top view (docs/experiments/ has the comparisons): the metric size of an object
+// survives the gap between simulated CAD views and real reconstructions, which part features
+// and global descriptors do not (on real segments the size and height alone name the class
+// more often than ESF); the top-view height profile (the distribution of each floor column's
 // highest point as a share of the object's height) tells a chair's seat-and-back from a
 // table's one level and a sofa's two, and needs no points the scan lacks (undersides, legs).
 //

@@ -26,11 +26,10 @@
 //
 // Why the size term: ESF normalises by the cloud's extent, so a doll's chair and a sofa of the
 // same outline look alike; the metric size survives the gap between simulated and real views
-// (issue 20: on the dev scans' ground-truth segments ESF 1-NN 45 % correct, size alone 66-71 %).
-//
-// Measured (ScanNet dev, docs/experiments/2026-12-02-esf-baseline.md, `furnihost eval --graph
-// configs/scannet.json --graph configs/scannet_esf.json --dataset benchmarks/scannet_dev.json`):
-// this baseline ranks far below voters.catalog_shape.
+// (on real segments the size alone names the class more often than ESF's nearest neighbour).
+// It is a baseline beside voters.catalog_shape: docs/experiments/2026-12-02-esf-baseline.md
+// compares them (`furnihost eval --graph configs/scannet.json --graph configs/scannet_esf.json
+// --dataset benchmarks/scannet_dev.json`).
 #include <algorithm>
 #include <cmath>
 #include <cstdint>

@@ -25,8 +25,8 @@
 //    649 votes on a ScanNet room, all classes together. min_vote_weight makes the cut relative
 //    to each class's largest statistical weight (a per-class scale, which moves no peak).
 //  * findStrongestPeaks runs 100 mean shifts over every vote within 3 sigma: 50k votes on one
-//    table took 12 s. Votes are merged per cube of sigma / 4 first (same peaks on the test
-//    room, 10-100x faster), and the scene floor is cut (ISM learns isolated objects; a floor
+//    table is quadratic work. Votes are merged per cube of sigma / 4 first (a cube far below the
+//    kernel's width moves no peak), and the scene floor is cut (ISM learns isolated objects; a floor
 //    matches seat and table-top words and floods the density).
 //  * alignYCoordWithNormal divides by |(n_y, n_z)| and |(n_x, n_y)|: a normal exactly along x
 //    or z gives NaN directions, which saveModelToFile writes as "nan" and loadModelFromfile

@@ -234,8 +234,8 @@ TEST(PclIsm, RelativeVoteCutOnlyAddsVotes) {
   for (const auto& v : rb.votes) wb += v.w();
   EXPECT_GT(wb, wa * (1 - 1e-4));
   EXPECT_GT(wb, 0.);
-  // The added votes are each below FLT_EPSILON (measured: 2.6x the cells, +2.4 % weight); a
-  // scale left in the reported weights would multiply the total by ~10 here.
+  // The added votes are each below FLT_EPSILON, a few per cent of the weight; a scale left in
+  // the reported weights would multiply the total by ~10 here.
   EXPECT_LT(wb, 1.5 * wa);
   if (std::getenv("ISM_VERBOSE")) std::printf("votes %zu -> %zu, weight %g -> %g\n", ra.votes.size(), rb.votes.size(), wa, wb);
 }
