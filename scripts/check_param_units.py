@@ -11,11 +11,11 @@ parameter without a unit ("<plugin type>: <parameter> (<type>)") and exits 1 whe
 folder holds no plugin.
 """
 import argparse
-import json
-import os
 import pathlib
-import subprocess
 import sys
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+from plugin_docs import read_plugins  # noqa: E402  (the same listing the plugin pages are made from)
 
 # The types of `furnihost plugins --json` (ParamType Number, Int, NumberList, NumberMap).
 NUMERIC = {"number", "int", "number[]", "{name: number}"}
@@ -31,25 +31,9 @@ def main():
     ap.add_argument("--furnihost", required=True, help="the furnihost binary")
     ap.add_argument("--plugin-dir", required=True, help="the folder of the plugins to check")
     args = ap.parse_args()
-    env = dict(os.environ)
-    env.pop("FURNIHOST_PLUGIN_PATH", None)  # the given folder alone
-    cmd = [args.furnihost, "plugins", "--json", "--plugin-path", args.plugin_dir]
-    try:
-        run = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300)
-    except (OSError, subprocess.TimeoutExpired) as e:
-        fail(f"{' '.join(cmd)}: {e}")
-    if run.returncode != 0:
-        fail(f"{' '.join(cmd)} exited {run.returncode}: {run.stderr.strip()[:500]}")
-    try:
-        listing = json.loads(run.stdout)
-    except json.JSONDecodeError as e:
-        fail(f"{' '.join(cmd)}: output is not JSON ({e})")
-    root = pathlib.Path(args.plugin_dir).resolve()
+    plugins = read_plugins(args.furnihost, args.plugin_dir)  # exits 2 on failure, as plugin_docs does
     checked, missing = 0, []
-    for p in sorted(listing.get("plugins", []), key=lambda p: p.get("type", "")):
-        path = pathlib.Path(p.get("path", "")).resolve()
-        if root != path and root not in path.parents:
-            continue
+    for p in sorted(plugins, key=lambda p: p.get("type", "")):
         for s in p.get("params", []):
             if s.get("type") not in NUMERIC:
                 continue

@@ -14,6 +14,9 @@
 #include <string>
 #include <type_traits>
 
+#include <nlohmann/json.hpp>
+
+#include "furnihost/error.hpp"
 #include "furnihost/params.hpp"
 
 namespace furnihost {
@@ -43,6 +46,20 @@ struct DecisionHelp {
   std::string prefix;  // put before every help text (e.g. "synthesis: ")
   bool detection_only = true;  // the parameters do not change the trained model
 };
+
+// The parser of a voter's class_map Object parameter (catalog class -> detected class, the
+// classes its thresholds name): fills the std::map<std::string, std::string> member `m`; a
+// value that is not a non-empty string is an InputError naming class_map/<key>.
+template <class O, class M>
+typename ParamBinding<O>::ObjectFn ClassMapParser(M m) {
+  return [m](O& o, const nlohmann::json& j) {
+    for (auto it = j.begin(); it != j.end(); ++it) {
+      if (!it->is_string() || it->get<std::string>().empty())
+        throw InputError("class_map/" + it.key() + ": expected a class name");
+      param_detail::Field(o, m)[it.key()] = it->get<std::string>();
+    }
+  };
+}
 
 // Declares thresholds, default_threshold and, where the plugin has them, min_score, nms_iou and
 // nms_whole_ratio, in that order. Ranges: scores and thresholds >= 0 (each plugin's score has

@@ -78,5 +78,23 @@ TEST(Decision, PluginsWithoutSuppressionDeclareOnlyTheThresholds) {
   EXPECT_EQ(b.Parse(nlohmann::json::object()).default_threshold, 1.f);
 }
 
+struct Named {
+  std::map<std::string, std::string> class_map;
+};
+
+TEST(Decision, ClassMapParserFillsTheMapAndNamesABadEntry) {
+  ParamBinding<Named> b;
+  b.Object("class_map", nlohmann::json::object(), "map", ClassMapParser<Named>(&Named::class_map));
+  EXPECT_EQ(b.Parse({{"class_map", {{"desk", "table"}}}}).class_map.at("desk"), "table");
+  for (const nlohmann::json& bad : {nlohmann::json(""), nlohmann::json(3)}) {
+    try {
+      b.Parse({{"class_map", {{"desk", bad}}}});
+      ADD_FAILURE() << bad.dump() << " accepted";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("class_map/desk: expected a class name"), std::string::npos) << e.what();
+    }
+  }
+}
+
 }  // namespace
 }  // namespace furnihost

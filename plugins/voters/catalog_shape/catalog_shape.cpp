@@ -156,13 +156,7 @@ const ParamBinding<Options>& Binding() {
           .Object("class_map", nlohmann::json::object(),
                   "catalog class -> detected class, e.g. {\"armchair\": \"chair\", \"desk\": \"table\"}: the models "
                   "of merged classes compete as one class (one detection per object)",
-                  [](O& o, const nlohmann::json& j) {
-                    for (auto it = j.begin(); it != j.end(); ++it) {
-                      if (!it->is_string() || it->get<std::string>().empty())
-                        throw InputError("class_map/" + it.key() + ": expected a class name");
-                      o.class_map[it.key()] = it->get<std::string>();
-                    }
-                  })
+                  ClassMapParser<O>(&O::class_map))
           .DetectionOnly()
           .Object("class_params", nlohmann::json::object(),
                   "per detected class, spreads overriding the shared ones below ({\"table\": {\"sig_long_big\": 0.5}}); "

@@ -152,13 +152,7 @@ const ParamBinding<Options>& Binding() {
           .Object("class_map", nlohmann::json::object(),
                   "catalog class -> detected class, e.g. {\"armchair\": \"chair\", \"desk\": \"table\"}: the views "
                   "of merged classes vote as one class",
-                  [](O& o, const nlohmann::json& j) {
-                    for (auto it = j.begin(); it != j.end(); ++it) {
-                      if (!it->is_string() || it->get<std::string>().empty())
-                        throw InputError("class_map/" + it.key() + ": expected a class name");
-                      o.class_map[it.key()] = it->get<std::string>();
-                    }
-                  })
+                  ClassMapParser<O>(&O::class_map))
           .DetectionOnly()
           .Number("voxel_m", &O::voxel_m, 0, 1, "m",
                   "voxel edge the training views and the proposals are downsampled to before ESF (the scans' "
