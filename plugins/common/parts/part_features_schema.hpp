@@ -16,7 +16,7 @@ inline const ParamBinding<PartFeatureOptions>& PartFeatureBinding() {
                   "neighbourhood of the boundary-point test (feature 1); about 2-3 point spacings")
           .Number("boundary_angle_deg", &O::boundary_angle_deg, 1, 179, "deg",
                   "a point is a boundary point if its neighbours leave an angular gap above this (PCL: 90)")
-          .Int("boundary_tests_per_cell", &O::boundary_tests_per_cell, 0, 1e6, "",
+          .Int("boundary_tests_per_cell", &O::boundary_tests_per_cell, 0, 1e6, "count",
                "feature 1 tests at most this many distinct points per cell of boundary_radius_m (an even sample "
                "standing for the rest), so dense scans cost no more per point; 0 = every point");
   return b;

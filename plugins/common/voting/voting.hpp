@@ -44,6 +44,7 @@
 #include <string>
 #include <vector>
 
+#include "decision/decision_params.hpp"
 #include "furnihost/geometry.hpp"
 #include "furnihost/params.hpp"
 #include "furnihost/stage.hpp"
@@ -165,11 +166,11 @@ ParamBinding<O>& BindSelection(ParamBinding<O>& b, SelectionOptions O::*sel) {
   using S = SelectionOptions;
   // The SelectionOptions field `f` of an O.
   auto in = [sel](auto S::*f) { return [sel, f](O& o) -> auto& { return (o.*sel).*f; }; };
-  return b
-      .Number("max_distance", in(&S::max_distance), 0, 100, "",
+  return BindDecision(b
+      .Number("max_distance", in(&S::max_distance), 0, 100, "1",
               "feature-space distance beyond which a word/part is not activated (0 = off, paper)")
       .DetectionOnly()
-      .Number("max_out_of_range", in(&S::max_out_of_range), 0, 1e6, "",
+      .Number("max_out_of_range", in(&S::max_out_of_range), 0, 1e6, "1",
               "a part whose raw features lie more than this many training ranges outside the range of "
               "the training parts (any column) does not vote: walls and floors clamp to the largest "
               "training part otherwise (0 = off, paper)")
@@ -183,7 +184,7 @@ ParamBinding<O>& BindSelection(ParamBinding<O>& b, SelectionOptions O::*sel) {
       .Number("smoothing", in(&S::smoothing), 0, 1, "m",
               "Gaussian sigma smoothing the vote density before the maxima search (0 = none)")
       .DetectionOnly()
-      .Number("window_scale", in(&S::window_scale), 0.1, 4, "",
+      .Number("window_scale", in(&S::window_scale), 0.1, 4, "1",
               "search/score window = window_scale x class width (paper: the class width)")
       .DetectionOnly()
       .Number("refine_radius", in(&S::refine_radius), 0, 2, "m",
@@ -192,17 +193,14 @@ ParamBinding<O>& BindSelection(ParamBinding<O>& b, SelectionOptions O::*sel) {
       .Enum("footprint", in(&S::footprint), {"circle", "square"},
             "2-D hull of a hypothesis for the consistency check (Sect. VI-B)")
       .DetectionOnly()
-      .Number("footprint_scale", in(&S::footprint_scale), 0, 4, "",
+      .Number("footprint_scale", in(&S::footprint_scale), 0, 4, "1",
               "footprint diameter / side = footprint_scale x class width")
       .DetectionOnly()
-      .NumberMap("thresholds", in(&S::thresholds), 0, std::nullopt, "",
-                 "minimum score per class (paper: chair 0.6, table 1.0, sideboard 1.4)")
-      .DetectionOnly()
-      .Number("default_threshold", in(&S::default_threshold), 0, 1e9, "", "minimum score of classes not in thresholds")
-      .DetectionOnly()
+      , DecisionFields{in(&S::thresholds), in(&S::default_threshold)},
+      {"= the summed vote weight near the centre; paper: chair 0.6, table 1.0, sideboard 1.4", "", true})
       .StringList("classes", in(&S::classes), "comma-separated classes to detect (empty = every trained class)")
       .DetectionOnly()
-      .Int("max_grid_cells", in(&S::max_grid_cells), 1000, 1e9, "",
+      .Int("max_grid_cells", in(&S::max_grid_cells), 1000, 1e9, "count",
            "cap on grid cells per class; the cell grows beyond it (far outliers)")
       .DetectionOnly()
       .Number("column_radius_m", in(&S::column_radius), 0, 10, "m",
@@ -213,11 +211,11 @@ ParamBinding<O>& BindSelection(ParamBinding<O>& b, SelectionOptions O::*sel) {
               "column check: points up to the class height (tallest training model) + this count as the "
               "object, higher ones as 'above'")
       .DetectionOnly()
-      .Int("column_min_points", in(&S::column_min_points), 0, 1000000, "",
+      .Int("column_min_points", in(&S::column_min_points), 0, 1000000, "count",
            "column check: a hypothesis needs at least this many column points between 5 cm above the "
            "floor and the class height + margin")
       .DetectionOnly()
-      .Number("column_max_above", in(&S::column_max_above), 0, 1, "",
+      .Number("column_max_above", in(&S::column_max_above), 0, 1, "1",
               "column check: largest share of the column's points above the class height + margin (for "
               "column_clear_classes; 1 = no limit)")
       .DetectionOnly()

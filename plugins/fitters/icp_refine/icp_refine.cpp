@@ -63,14 +63,14 @@ const furnihost::ParamBinding<IcpRefineOptions>& Binding() {
           .Enum("method", &O::method, {"icp", "gicp"},
                 "PCL point-to-point ICP with an (x, y, yaw) estimator, or Generalized-ICP projected upright each step")
           .Number("max_correspondence_m", &O::max_correspondence_m, 1e-4, 10.0, "m", "point pairs farther apart are ignored")
-          .Int("max_iterations", &O::max_iterations, 1, 10000, "", "ICP iterations at most")
-          .Number("sample_density_per_m2", &O::sample_density_per_m2, 1.0, 1e7, "", "model surface samples per square metre")
-          .Int("seed", &O::seed, 0, 9.2e18, "", "model sampling seed; 0 = the run's seed")
-          .Number("nearby_radius_m", &O::nearby_radius_m, 0.0, 1.0, "",
+          .Int("max_iterations", &O::max_iterations, 1, 10000, "count", "ICP iterations at most")
+          .Number("sample_density_per_m2", &O::sample_density_per_m2, 1.0, 1e7, "1/m2", "model surface samples per square metre")
+          .Int("seed", &O::seed, 0, 9.2e18, "1", "model sampling seed; 0 = the run's seed")
+          .Number("nearby_radius_m", &O::nearby_radius_m, 0.0, 1.0, "m",
                   "also align scan points within this distance of the placed model, not only the supporting parts; 0 = off")
-          .Number("floor_margin_m", &O::floor_margin_m, 0.0, 1.0, "",
+          .Number("floor_margin_m", &O::floor_margin_m, 0.0, 1.0, "m",
                   "nearby points less than this above the model's bottom are ignored (keeps the floor out)")
-          .Int("min_points", &O::min_points, 3, 1e9, "", "detections with fewer scene points are left unchanged")
+          .Int("min_points", &O::min_points, 3, 1e9, "count", "detections with fewer scene points are left unchanged")
           .Number("max_move_m", &O::max_move_m, 0.0, 10.0, "m", "a correction moving the model farther is refused")
           .Number("max_turn_deg", &O::max_turn_deg, 0.0, 180.0, "deg", "a correction turning the model more is refused");
   return b;

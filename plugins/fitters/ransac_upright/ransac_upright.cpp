@@ -56,6 +56,7 @@
 #include "furnihost/hash.hpp"
 #include "furnihost/log.hpp"
 #include "furnihost/plugin.hpp"
+#include "decision/decision_params.hpp"
 #include "model_cloud.hpp"
 #include "occupancy.hpp"
 #include "shape/shape.hpp"
@@ -75,49 +76,49 @@ std::string CloudCacheDir(const std::string& v) {
 // structs' defaults: model_cloud.hpp, upright_ransac.hpp, occupancy.hpp).
 const ParamBinding<RansacUprightOptions>& Binding() {
   using O = RansacUprightOptions;
-  static const auto b =
+  static const auto b = BindDecision(
       ParamBinding<O>()
-          .Number("model_density_per_m2", [](O& o) -> double& { return o.sampling.density_per_m2; }, 100, 1e6, "",
+          .Number("model_density_per_m2", [](O& o) -> double& { return o.sampling.density_per_m2; }, 100, 1e6, "1/m2",
                   "model cloud density [points/m² of outer face area] (1 cm spacing; paper's models: 5k-15k points)")
-          .Int("min_model_points", [](O& o) -> int& { return o.sampling.min_points; }, 100, 1e6, "",
+          .Int("min_model_points", [](O& o) -> int& { return o.sampling.min_points; }, 100, 1e6, "count",
                "small models are sampled denser up to this count")
-          .Int("max_model_points", [](O& o) -> int& { return o.sampling.max_points; }, 100, 1e6, "",
+          .Int("max_model_points", [](O& o) -> int& { return o.sampling.max_points; }, 100, 1e6, "count",
                "large models are sampled sparser down to this count (40k keeps big cabinets near 2 cm spacing)")
-          .Number("height_tolerance_m", [](O& o) -> float& { return o.ransac.height_tolerance; }, 0.001, 0.2, "",
+          .Number("height_tolerance_m", [](O& o) -> float& { return o.ransac.height_tolerance; }, 0.001, 0.2, "m",
                   "candidate correspondences: model points within this height [m] of the sampled scan point")
           .Number("correspondence_fraction", [](O& o) -> float& { return o.ransac.correspondence_fraction; }, 0.01, 1,
-                  "", "share of the candidate correspondences tried per sample (paper: ~50 %)")
-          .Int("max_correspondences", [](O& o) -> int& { return o.ransac.max_correspondences; }, 0, 1e6, "",
+                  "1", "share of the candidate correspondences tried per sample (paper: ~50 %)")
+          .Int("max_correspondences", [](O& o) -> int& { return o.ransac.max_correspondences; }, 0, 1e6, "count",
                "cap on the candidates tried per sample; 0 = no cap")
           // Also RansacOptions::min_horizontal_normal: copied in ParseOptions.
-          .Number("min_horizontal_normal", [](O& o) -> float& { return o.sampling.min_horizontal_normal; }, 0, 1, "",
+          .Number("min_horizontal_normal", [](O& o) -> float& { return o.sampling.min_horizontal_normal; }, 0, 1, "1",
                   "|n_xy| above this: the yaw comes from the normals, else a random yaw (paper: tables)")
-          .Number("normal_z_tolerance", [](O& o) -> float& { return o.ransac.normal_z_tolerance; }, 0, 1, "",
+          .Number("normal_z_tolerance", [](O& o) -> float& { return o.ransac.normal_z_tolerance; }, 0, 1, "1",
                   "candidates need a normal tilt |n_z| within this of the scan point's")
           .Bool("normal_sign_ambiguous", [](O& o) -> bool& { return o.ransac.normal_sign_ambiguous; },
                 "normals' signs are arbitrary: try yaw and yaw + 180°")
           .Number("inlier_distance_m", [](O& o) -> float& { return o.sampling.inlier_distance; }, 0.001, 0.5, "m",
                   "a scan point is covered when a model point is this close")
-          .Number("score_fraction", [](O& o) -> float& { return o.ransac.score_fraction; }, 0.01, 1, "",
+          .Number("score_fraction", [](O& o) -> float& { return o.ransac.score_fraction; }, 0.01, 1, "1",
                   "share of the part points each candidate is scored on (paper: ~50 %)")
-          .Int("max_score_points", [](O& o) -> int& { return o.ransac.max_score_points; }, 0, 10000000, "",
+          .Int("max_score_points", [](O& o) -> int& { return o.ransac.max_score_points; }, 0, 10000000, "count",
                "at most this many part points per candidate (dense scans: the share is estimated as well from "
                "a few thousand); ICP and the final coverage use at most 4x as many; 0 = all (paper)")
-          .Number("p_success", [](O& o) -> double& { return o.ransac.p_success; }, 0.5, 0.999999, "",
+          .Number("p_success", [](O& o) -> double& { return o.ransac.p_success; }, 0.5, 0.999999, "1",
                   "RANSAC success probability of eq. 7")
-          .Int("max_iterations", [](O& o) -> int& { return o.ransac.max_iterations; }, 1, 100000, "",
+          .Int("max_iterations", [](O& o) -> int& { return o.ransac.max_iterations; }, 1, 100000, "count",
                "cap on the samples per model (eq. 7 starts at infinity)")
-          .Int("min_iterations", [](O& o) -> int& { return o.ransac.min_iterations; }, 0, 100000, "",
+          .Int("min_iterations", [](O& o) -> int& { return o.ransac.min_iterations; }, 0, 100000, "count",
                "samples per model at least: eq. 7 assumes every covered scan point yields the pose, which noisy "
                "normals do not")
-          .Number("model_tie_tolerance", [](O& o) -> float& { return o.ransac.model_tie_tolerance; }, 0, 1, "",
+          .Number("model_tie_tolerance", [](O& o) -> float& { return o.ransac.model_tie_tolerance; }, 0, 1, "1",
                   "models covering within this share of the best are ranked by explained model surface")
-          .Int("refine_iterations", [](O& o) -> int& { return o.ransac.refine_iterations; }, 0, 100, "",
+          .Int("refine_iterations", [](O& o) -> int& { return o.ransac.refine_iterations; }, 0, 100, "count",
                "upright ICP steps after RANSAC (not in the paper; 0 = off)")
           // refine_plane = index of the choice: point 0 (false), plane 1 (true).
           .Enum("refine_metric", [](O& o) -> bool& { return o.ransac.refine_plane; }, {"point", "plane"},
                 "ICP distance: 'point' to the nearest model sample, 'plane' along the model's horizontal normal there")
-          .Number("max_shift_m", [](O& o) -> float& { return o.ransac.max_shift; }, 0, 10, "",
+          .Number("max_shift_m", [](O& o) -> float& { return o.ransac.max_shift; }, 0, 10, "m",
                   "poses that move the centre farther than this [m] from the voter's centre are not tried (the "
                   "voter's centre error; keeps a fit from sliding onto a neighbouring object); 0 = no limit (paper)")
           .String("cloud_cache", &O::cloud_cache_setting,
@@ -130,15 +131,15 @@ const ParamBinding<RansacUprightOptions>& Binding() {
           .Number("reach_margin_m", &O::reach_margin, 0, 10, "m",
                   "reach of a hypothesis: its class's largest footprint half-diagonal plus this (the voter's centre "
                   "error)")
-          .Number("part_inside_fraction", &O::part_inside_fraction, 0, 1, "",
+          .Number("part_inside_fraction", &O::part_inside_fraction, 0, 1, "1",
                   "a supporting part is fitted only if this share of its points is within reach (drops floor, wall "
                   "and neighbours' parts); 0 = every part")
           .Bool("crop_parts", &O::crop_parts,
                 "a part mostly out of reach contributes its points within reach (true) or nothing (false)")
           // Also RansacOptions::min_coverage: copied in ParseOptions.
-          .Number("min_coverage", &O::min_coverage, 0, 1, "",
+          .Number("min_coverage", &O::min_coverage, 0, 1, "1",
                   "reject when the model covers less than this share of the part points (paper: 0.5)")
-          .Number("max_free_space_ratio", &O::max_free_space_ratio, 0, 1, "",
+          .Number("max_free_space_ratio", &O::max_free_space_ratio, 0, 1, "1",
                   "reject when more than this share of the visible model surface is in free space")
           .Bool("free_space_alternatives", &O::free_space_alternatives,
                 "when free space refuses the best pose, try the model's near-tied poses (within "
@@ -149,26 +150,26 @@ const ParamBinding<RansacUprightOptions>& Binding() {
                 "voters.catalog_shape) stays accepted, with the recogniser's box, when no model fits it (objects "
                 "unlike every catalog model of their class are not lost); every other candidate, those below the "
                 "recogniser's threshold too, is the fit's to accept; false = the fit decides alone (paper)")
-          .Number("keep_min_coverage", &O::keep_min_coverage, 0, 1, "",
+          .Number("keep_min_coverage", &O::keep_min_coverage, 0, 1, "1",
                   "with keep_accepted: ... unless the class's best model covers less than this share of its points "
                   "(the fit contradicts the recogniser: a dresser taken for a table by its size)")
           .Bool("one_class_per_object", &O::one_class_per_object,
                 "one object, one class: of accepted detections made from proposals (voters.catalog_shape) whose "
                 "proposal boxes overlap by more than object_iou, those of another class than the highest-scored one "
                 "are refused (a chest also fitted as a table, an armchair also as a sofa)")
-          .Number("object_iou", &O::object_iou, 0.01, 1, "",
+          .Number("object_iou", &O::object_iou, 0.01, 1, "1",
                   "with one_class_per_object: the 3D IoU of two proposals' boxes above which they are one object")
-          .Number("grid_resolution_m", [](O& o) -> double& { return o.grid.resolution; }, 0.005, 1, "",
+          .Number("grid_resolution_m", [](O& o) -> double& { return o.grid.resolution; }, 0.005, 1, "m",
                   "OctoMap voxel edge [m] of the per-scan occupancy grids")
-          .Number("grid_max_range_m", [](O& o) -> double& { return o.grid.max_range; }, 0, 1000, "",
+          .Number("grid_max_range_m", [](O& o) -> double& { return o.grid.max_range; }, 0, 1000, "m",
                   "rays longer than this only clear space [m]; 0 = unlimited")
-          .Int("grid_cache_size", &O::grid_cache_size, 1, 1000, "",
+          .Int("grid_cache_size", &O::grid_cache_size, 1, 1000, "count",
                "occupancy grids kept between calls (least recently used dropped)")
           .Number("free_space_margin_m", [](O& o) -> float& { return o.free_space.free_margin; }, 0, 1, "m",
                   "model points are pushed this far from the sensor before the free-space look-up")
           .Number("visibility_margin_m", [](O& o) -> float& { return o.free_space.visibility_margin; }, 0, 1, "m",
                   "model points this far behind the model's own front surface count as self-occluded")
-          .Int("free_space_erosion", [](O& o) -> int& { return o.free_space.erosion; }, 0, 1, "",
+          .Int("free_space_erosion", [](O& o) -> int& { return o.free_space.erosion; }, 0, 1, "1",
                "1: a model point is in free space only if its voxel and the 6 neighbours are free; 0: its voxel")
           .Bool("synthesis", &O::synthesis,
                 "recognition by analysis by synthesis on scans with a sensor origin: the class's catalog models are "
@@ -186,60 +187,57 @@ const ParamBinding<RansacUprightOptions>& Binding() {
                       o.class_map[it.key()] = it->get<std::string>();
                     }
                   })
-          .Int("models_per_detection", &O::models_per_detection, 1, 100, "",
+          .Int("models_per_detection", &O::models_per_detection, 1, 100, "count",
                "synthesis: catalog models posed per detection (the recogniser's, then the class's closest in size)")
-          .Int("render_samples", &O::render_samples, 100, 100000, "",
+          .Int("render_samples", &O::render_samples, 100, 100000, "count",
                "synthesis: surface samples a model is rendered with (about; 1.5-6 cm apart)")
-          .Number("stretch_margin", &O::stretch_margin, 0, 1, "",
+          .Number("stretch_margin", &O::stretch_margin, 0, 1, "1",
                   "synthesis: a model may be stretched to the class's catalog sizes widened by this share")
-          .Number("view_pixel_scale", [](O& o) -> float& { return o.view.pixel_scale; }, 0.1, 10, "",
+          .Number("view_pixel_scale", [](O& o) -> float& { return o.view.pixel_scale; }, 0.1, 10, "1",
                   "synthesis: range image pixel edge as a multiple of the scan's mean angular point spacing")
           .Number("seen_tolerance_m", [](O& o) -> float& { return o.compare.seen_tolerance; }, 0.001, 1, "m",
                   "synthesis: a model surface whose measured depth is within this (plus seen_per_m2 x depth^2) is seen")
-          .Number("seen_per_m2", [](O& o) -> float& { return o.compare.seen_per_m2; }, 0, 1, "",
+          .Number("seen_per_m2", [](O& o) -> float& { return o.compare.seen_per_m2; }, 0, 1, "1/m",
                   "synthesis: the range-dependent part of the depth tolerances [1/m]")
           .Number("free_margin_m", [](O& o) -> float& { return o.compare.free_margin; }, 0.001, 2, "m",
                   "synthesis: a model surface with a measurement this far behind it is in free space")
-          .Number("free_weight", [](O& o) -> float& { return o.search.free_weight; }, 0, 100, "",
+          .Number("free_weight", [](O& o) -> float& { return o.search.free_weight; }, 0, 100, "1",
                   "synthesis: pose objective = furniture surface explained - free_weight x surface in free space")
           .Number("search_shift_m", [](O& o) -> float& { return o.search.max_shift; }, 0, 10, "m",
                   "synthesis: farthest a pose search moves a model from its start")
-          .Int("search_starts", [](O& o) -> int& { return o.search.keep_starts; }, 1, 100, "",
+          .Int("search_starts", [](O& o) -> int& { return o.search.keep_starts; }, 1, 100, "count",
                "synthesis: best starting poses searched from (of 8 per model: 4 yaws x 2 positions)")
-          .Int("search_evaluations", [](O& o) -> int& { return o.search.max_evaluations; }, 1, 10000, "",
+          .Int("search_evaluations", [](O& o) -> int& { return o.search.max_evaluations; }, 1, 10000, "count",
                "synthesis: renderings per searched start")
           .Number("select_pixel_deg", &O::select_pixel_deg, 0.05, 10, "deg",
                   "synthesis: pixel size at which the objects' explained surfaces are compared for the joint choice")
-          .Number("min_new_share", &O::min_new_share, 0, 1, "",
+          .Number("min_new_share", &O::min_new_share, 0, 1, "1",
                   "synthesis: a detection whose explained surface is explained by better-scored kept ones but for "
                   "less than this share is explained away (a duplicate, or several objects read as one)")
-          .Number("max_box_iou", &O::max_box_iou, 0, 1, "",
+          .Number("max_box_iou", &O::max_box_iou, 0, 1, "1",
                   "synthesis: a detection whose box overlaps a better-scored kept one's by more 3D IoU is explained "
                   "away (two objects do not stand in one place; a chair pushed under a table overlaps it by about 0.2)")
-          .Int("max_candidates", &O::max_candidates, 1, 100000, "",
+          .Int("max_candidates", &O::max_candidates, 1, 100000, "count",
                "synthesis: detections searched per scene and class, those whose first poses explain the most first "
                "(the others are dropped)")
-          .Number("shape_exponent", &O::shape_exponent, 0, 10, "",
+          .Number("shape_exponent", &O::shape_exponent, 0, 10, "1",
                   "synthesis: score = max(recogniser score, prior_floor)^this x explained share^explained_exponent x "
                   "(seen / (seen + free))^agreement_exponent x completeness^completeness_exponent x (1 - "
                   "exp(-seen / evidence_m2)) x share left by the joint choice")
-          .Number("prior_floor", &O::prior_floor, 0, 1, "",
+          .Number("prior_floor", &O::prior_floor, 0, 1, "1",
                   "synthesis: the recogniser's score counts at least this much (a fragment of an object, a chair "
                   "seen under a table, has a shape unlike its class's)")
-          .Number("explained_exponent", &O::explained_exponent, 0, 10, "",
+          .Number("explained_exponent", &O::explained_exponent, 0, 10, "1",
                   "synthesis: exponent of the share of the detection's own points the model explains")
-          .Number("agreement_exponent", &O::agreement_exponent, 0, 10, "",
+          .Number("agreement_exponent", &O::agreement_exponent, 0, 10, "1",
                   "synthesis: exponent of the model's seen surface over its seen and free surface")
-          .Number("completeness_exponent", &O::completeness_exponent, 0, 10, "",
+          .Number("completeness_exponent", &O::completeness_exponent, 0, 10, "1",
                   "synthesis: exponent of the share of the model's surface facing the sensor (not hidden behind "
                   "anything measured) that it saw: the seen surface over the seen, free and unmeasured")
           .Number("evidence_m2", &O::evidence_m2, 0, 100, "m2",
                   "synthesis: the score is also multiplied by 1 - exp(-seen / evidence_m2): a few square centimetres "
                   "that a model explains fully are weak evidence of it (0 = off)")
-          .NumberMap("thresholds", &O::thresholds, 0, std::nullopt, "",
-                     "synthesis: operating score per detected class (accepted at or above)")
-          .Number("default_threshold", &O::default_threshold, 0, std::nullopt, "",
-                  "synthesis: operating score of classes not in thresholds");
+      , DecisionFields{&O::thresholds, &O::default_threshold}, {"", "synthesis: ", false});
   return b;
 }
 

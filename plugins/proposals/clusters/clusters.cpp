@@ -78,11 +78,11 @@ const ParamBinding<ClustersOptions>& Binding() {
   using O = ClustersOptions;
   static const auto b =
       ParamBinding<O>()
-          .NumberList("radii", &O::radii, 0.5, 20, "",
+          .NumberList("radii", &O::radii, 0.5, 20, "1",
                       "Euclidean clustering radii in units of the scan's median point spacing; every radius gives "
                       "its own proposals (a small radius separates touching objects, a large one joins sparse ones)")
-          .Int("min_points", &O::min_points, 3, 1e7, "", "clusters with fewer points are dropped")
-          .Int("max_points", &O::max_points, 0, 1e9, "",
+          .Int("min_points", &O::min_points, 3, 1e7, "count", "clusters with fewer points are dropped")
+          .Int("max_points", &O::max_points, 0, 1e9, "count",
                "a scan with more points is proposed on a random subset of this many (seeded; the proposals hold "
                "only those points): the radii scale with the point spacing, so a scan denser than the ones the "
                "settings were chosen on (ScanNet's 50k-point rooms), or one holding each surface twice (two "
@@ -95,7 +95,7 @@ const ParamBinding<ClustersOptions>& Binding() {
           .Number("floor_cut_m", &O::floor_cut, 0, 1, "m", "points less than this above the ground are floor")
           .Number("floor_flat_cut_m", &O::floor_flat_cut, 0, 1, "m",
                   "horizontal points (|n_z| > 0.9) less than this above the ground are floor")
-          .Number("max_height_m", &O::max_height, 0.5, 20, "",
+          .Number("max_height_m", &O::max_height, 0.5, 20, "m",
                   "points higher above the ground are not furniture [m]; lowered to 8 cm under a ceiling when one is seen")
           .Number("split_length_m", &O::split_length, 0.2, 20, "m",
                   "clusters whose footprint is longer (longer than any catalog chair) are also cut in 2 (and 3 past 1.7x)")
@@ -110,15 +110,15 @@ const ParamBinding<ClustersOptions>& Binding() {
           .Enum("adaptive_radius", &O::adaptive, {"auto", "on", "off"},
                 "scale the radius by each point's local spacing (single views thin out with range): 'auto' = when the "
                 "scan has a sensor origin")
-          .Int("neighbours", &O::neighbours, 4, 64, "", "neighbours of the normal and local-spacing estimates")
+          .Int("neighbours", &O::neighbours, 4, 64, "count", "neighbours of the normal and local-spacing estimates")
           .Bool("work_top_variants", &O::top_variants,
                 "a cluster holding a large horizontal level at table height with more over it (a desk under monitors) "
                 "also gives the level and what is under it as a proposal")
           .Number("work_top_min_m", &O::top_min, 0, 5, "m", "lowest height of a work top (above chair seats)")
           .Number("work_top_max_m", &O::top_max, 0, 5, "m", "highest height of a work top")
-          .Number("work_top_cover", &O::top_cover, 0, 1, "",
+          .Number("work_top_cover", &O::top_cover, 0, 1, "1",
                   "top-view cells the work top's upward-facing points occupy, as a share of those the whole cluster occupies")
-          .Number("work_top_above", &O::top_above, 0, 1, "",
+          .Number("work_top_above", &O::top_above, 0, 1, "1",
                   "share of the cluster's points that must lie more than 8 cm over the work top")
           .Bool("support_splits", &O::support_splits,
                 "a cluster holding a large upward-facing level between support_min_m and support_max_m (a table or "

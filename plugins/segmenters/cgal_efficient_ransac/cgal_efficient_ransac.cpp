@@ -66,21 +66,21 @@ const furnihost::ParamBinding<CgalEfficientRansacOptions>& Binding() {
       furnihost::ParamBinding<O>()
           .Enum("normals", &O::normals, {"jet", "pca"},
                 "normal estimator: CGAL jet fitting (order 2, the paper's polynomial) or PCA")
-          .Number("normal_radius_m", &O::normal_radius_m, 0.001, 10.0, "",
+          .Number("normal_radius_m", &O::normal_radius_m, 0.001, 10.0, "m",
                   "radius of the normal and curvature neighbourhood [m] (paper: 0.03)")
           .Enum("shapes", &O::shapes, {"planes", "planes_cylinders"}, "shape types RANSAC looks for")
-          .Number("probability", &O::probability, 1e-6, 1.0, "",
+          .Number("probability", &O::probability, 1e-6, 1.0, "1",
                   "probability of missing the largest candidate (lower = more thorough)")
-          .Int("min_shape_points", &O::min_shape_points, 3, 1e9, "", "smallest shape RANSAC accepts")
+          .Int("min_shape_points", &O::min_shape_points, 3, 1e9, "count", "smallest shape RANSAC accepts")
           .Number("epsilon_m", &O::epsilon_m, 1e-5, 1.0, "m", "max distance of a point to its shape")
           .Number("cluster_epsilon_m", &O::cluster_epsilon_m, 1e-5, 1.0, "m",
                   "max gap between neighbouring points of one shape")
           .Number("angle_deg", &O::angle_deg, 0.0, 90.0, "deg", "max angle between a point's normal and its shape's normal")
           .Bool("attach_leftovers", &O::attach_leftovers,
                 "a leftover point within epsilon_m of a shape that has points within cluster_epsilon_m joins it")
-          .Number("distance_m", &O::distance_m, 1e-4, 10.0, "",
+          .Number("distance_m", &O::distance_m, 1e-4, 10.0, "m",
                   "points no shape explains are grouped at this distance [m] (paper: 0.05)")
-          .Int("min_points", &O::min_points, 1, 1e9, "", "leftover groups with fewer points are discarded (paper: 10)");
+          .Int("min_points", &O::min_points, 1, 1e9, "count", "leftover groups with fewer points are discarded (paper: 10)");
   return b;
 }
 

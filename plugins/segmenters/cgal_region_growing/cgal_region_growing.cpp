@@ -67,19 +67,19 @@ const furnihost::ParamBinding<CgalRegionGrowingOptions>& Binding() {
       furnihost::ParamBinding<O>()
           .Enum("normals", &O::normals, {"jet", "pca"},
                 "normal estimator: CGAL jet fitting (order 2, the paper's polynomial) or PCA")
-          .Number("normal_radius_m", &O::normal_radius_m, 0.001, 10.0, "",
+          .Number("normal_radius_m", &O::normal_radius_m, 0.001, 10.0, "m",
                   "radius of the normal and curvature neighbourhood [m] (paper: 0.03)")
-          .Int("normal_max_neighbours", &O::normal_max_neighbours, 0, 100000, "",
+          .Int("normal_max_neighbours", &O::normal_max_neighbours, 0, 100000, "count",
                "cap on the points of a normal neighbourhood (0 = no cap)")
           .Enum("neighbourhood", &O::neighbourhood, {"radius", "knn"},
                 "growing neighbourhood: all points within distance_m, or the `neighbours` nearest")
-          .Number("distance_m", &O::distance_m, 0.001, 10.0, "", "growing radius [m] (paper: 0.05)")
-          .Int("neighbours", &O::neighbours, 1, 10000, "", "k of the knn growing neighbourhood")
+          .Number("distance_m", &O::distance_m, 0.001, 10.0, "m", "growing radius [m] (paper: 0.05)")
+          .Int("neighbours", &O::neighbours, 1, 10000, "count", "k of the knn growing neighbourhood")
           .Number("max_plane_distance_m", &O::max_plane_distance_m, 0.0, 10.0, "m",
                   "max distance of a member to the region's fitted plane")
-          .Number("angle_deg", &O::angle_deg, 0.0, 90.0, "",
+          .Number("angle_deg", &O::angle_deg, 0.0, 90.0, "deg",
                   "max angle between a member's normal and the region's plane normal [deg] (paper: 40)")
-          .Int("min_points", &O::min_points, 1, 1e9, "", "regions with fewer points are dropped (paper: 10)")
+          .Int("min_points", &O::min_points, 1, 1e9, "count", "regions with fewer points are dropped (paper: 10)")
           .Enum("seed_order", &O::seed_order, {"curvature", "plane_fit"},
                 "seeds by lowest curvature (paper) or by CGAL's local plane-fit quality");
   return b;

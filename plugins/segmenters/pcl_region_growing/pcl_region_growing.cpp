@@ -50,17 +50,17 @@ const furnihost::ParamBinding<PclRegionGrowingOptions>& Binding() {
       furnihost::ParamBinding<O>()
           .Enum("normals", &O::normals, {"omp", "mls"},
                 "normal estimator: PCA in a radius (NormalEstimationOMP) or MovingLeastSquares order 2")
-          .Number("normal_radius_m", &O::normal_radius_m, 0.001, 10.0, "",
+          .Number("normal_radius_m", &O::normal_radius_m, 0.001, 10.0, "m",
                   "radius of the normal neighbourhood [m] (paper: 0.03)")
-          .Number("angle_deg", &O::angle_deg, 0.0, 180.0, "",
+          .Number("angle_deg", &O::angle_deg, 0.0, 180.0, "deg",
                   "smoothness: max angle between normals [deg] (paper: 40)")
           .Enum("compare_to", &O::compare_to, {"seed", "neighbour"},
                 "angle measured to the region's seed normal (paper) or to the growing point's (PCL default)")
-          .Number("curvature_threshold", &O::curvature_threshold, 0.0, 1.0, "",
+          .Number("curvature_threshold", &O::curvature_threshold, 0.0, 1.0, "1",
                   "a member keeps growing the region only if its curvature is below this (1 = no test)")
-          .Int("min_points", &O::min_points, 1, 1e9, "", "regions with fewer points are dropped (paper: 10)")
-          .Int("max_points", &O::max_points, 0, 2147483647.0, "", "regions with more points are dropped; 0 = no limit")
-          .Int("neighbours", &O::neighbours, 3, 10000, "",
+          .Int("min_points", &O::min_points, 1, 1e9, "count", "regions with fewer points are dropped (paper: 10)")
+          .Int("max_points", &O::max_points, 0, 2147483647.0, "count", "regions with more points are dropped; 0 = no limit")
+          .Int("neighbours", &O::neighbours, 3, 10000, "count",
                "k of the k-NN neighbourhood of the growing step (PCL uses k-NN)")
           .Rule([](const O& o) {
             return o.max_points == 0 || o.max_points >= o.min_points

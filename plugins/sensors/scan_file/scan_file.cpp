@@ -25,9 +25,9 @@ const ParamBinding<ScanFileOptions>& Binding() {
   using O = ScanFileOptions;
   static const auto b =
       ParamBinding<O>()
-          .Number("voxel_m", &O::voxel_m, 0.0, 1.0, "", "voxel-grid downsampling edge [m]; 0 keeps every point")
-          .Int("max_points", &O::max_points, 1, 2e9, "", "refuse scans with more points than this (memory guard)")
-          .NumberList("origin", &O::origin, -1e6, 1e6, "",
+          .Number("voxel_m", &O::voxel_m, 0.0, 1.0, "m", "voxel-grid downsampling edge [m]; 0 keeps every point")
+          .Int("max_points", &O::max_points, 1, 2e9, "count", "refuse scans with more points than this (memory guard)")
+          .NumberList("origin", &O::origin, -1e6, 1e6, "m",
                       "sensor origin [x, y, z] in the scan frame when the file has none (empty = unknown)")
           .Rule([](const O& o) {
             return o.origin.empty() || o.origin.size() == 3

@@ -111,51 +111,51 @@ const ParamBinding<SimulatedLaserOptions>& Binding() {
           .Enum("pattern", &O::pattern, {"pan_tilt", "depth_camera"},
                 "pan_tilt: Hokuyo line scanner on a pan-tilt unit (the paper's); depth_camera: "
                 "Kinect-style pinhole camera")
-          .Number("angular_resolution_deg", &O::angular_resolution_deg, 0.01, 10.0, "",
+          .Number("angular_resolution_deg", &O::angular_resolution_deg, 0.01, 10.0, "deg",
                   "pan_tilt: azimuth step between rays [deg] (Hokuyo UTM-30LX: 0.25)")
           .Number("tilt_resolution_deg", &O::tilt_resolution_deg, 0.01, 10.0, "deg",
                   "pan_tilt: elevation step between scan lines of the tilt sweep")
-          .Number("horizontal_fov_deg", &O::horizontal_fov_deg, 0.1, 360.0, "",
+          .Number("horizontal_fov_deg", &O::horizontal_fov_deg, 0.1, 360.0, "deg",
                   "pan_tilt: azimuth field of view centred on the sensor's +x [deg]; 360 = all around")
-          .Number("tilt_min_deg", &O::tilt_min_deg, -90.0, 90.0, "",
+          .Number("tilt_min_deg", &O::tilt_min_deg, -90.0, 90.0, "deg",
                   "pan_tilt: lowest elevation of the sweep [deg] (negative = below the horizon)")
           .Number("tilt_max_deg", &O::tilt_max_deg, -90.0, 90.0, "deg", "pan_tilt: highest elevation of the sweep")
           .Number("min_range_m", &O::min_range_m, 0.0, 100.0, "m", "pan_tilt: returns closer than this are lost")
-          .Number("max_range_m", &O::max_range_m, 0.1, 1000.0, "", "pan_tilt: maximum range [m] (UTM-30LX: 30)")
+          .Number("max_range_m", &O::max_range_m, 0.1, 1000.0, "m", "pan_tilt: maximum range [m] (UTM-30LX: 30)")
           .Int("width", &O::width, 1, 8192, "px", "depth_camera: image width")
           .Int("height", &O::height, 1, 8192, "px", "depth_camera: image height")
-          .Number("focal_px", &O::focal_px, 1.0, 1e5, "", "depth_camera: focal length [px] (Kinect v1: 525)")
+          .Number("focal_px", &O::focal_px, 1.0, 1e5, "px", "depth_camera: focal length [px] (Kinect v1: 525)")
           .Number("camera_min_range_m", &O::camera_min_range_m, 0.0, 100.0, "m", "depth_camera: minimum depth range")
           .Number("camera_max_range_m", &O::camera_max_range_m, 0.1, 1000.0, "m", "depth_camera: maximum range")
-          .Number("sensor_height_m", &O::sensor_height_m, 0.0, 10.0, "",
+          .Number("sensor_height_m", &O::sensor_height_m, 0.0, 10.0, "m",
                   "default training views: sensor height above the floor [m] (paper: ~1.5)")
           .Number("distance_m", &O::distance_m, 0.1, 100.0, "m",
                   "default training views: horizontal distance from the objects' bbox centre")
-          .Int("views", &O::views, 1, 720, "",
+          .Int("views", &O::views, 1, 720, "count",
                "default training views: number of views evenly around the up axis (paper: 16)")
-          .Int("fuse", &O::fuse, 1, 64, "",
+          .Int("fuse", &O::fuse, 1, 64, "count",
                "default training views: each view is the union of this many casts evenly around the up axis, "
                "starting at the view's own position (its origin and viewing frame), voxelised once: what a "
                "reconstruction from a walk around the object holds (not in the paper; 1 = single views, paper)")
-          .Number("noise_a", &O::noise_a, 0.0, 1.0, "",
+          .Number("noise_a", &O::noise_a, 0.0, 1.0, "m",
                   "range noise sigma = noise_a + noise_b * r^2: constant part [m] (Hokuyo ~1 cm at 2 m)")
           .Number("noise_b", &O::noise_b, 0.0, 1.0, "1/m",
                   "range noise sigma = noise_a + noise_b * r^2: quadratic part")
-          .Number("dropout", &O::dropout, 0.0, 0.999, "", "probability that a return is lost")
-          .Number("voxel_m", &O::voxel_m, 0.0, 1.0, "",
+          .Number("dropout", &O::dropout, 0.0, 0.999, "1", "probability that a return is lost")
+          .Number("voxel_m", &O::voxel_m, 0.0, 1.0, "m",
                   "voxel-grid downsampling edge [m], grid anchored at the world origin; 0 = off. "
                   "Use the same value for the scans you detect in (density matching)")
           .Number("disparity_quantum", &O::disparity_quantum, 0.0, 1.0, "1/m",
                   "depth_camera: 1/depth is quantised in steps of this, so the depth steps grow with its square "
                   "(Kinect v1: 0.00285, 1.1 cm at 2 m); 0 = off")
-          .Number("flying_pixels", &O::flying_pixels, 0.0, 1.0, "",
+          .Number("flying_pixels", &O::flying_pixels, 0.0, 1.0, "1",
                   "depth_camera: probability that a pixel at a depth edge (its right or lower neighbour's range "
                   "differs by more than edge_jump_m) returns a depth between the two (mixed pixels)")
           .Number("edge_jump_m", &O::edge_jump_m, 0.001, 100.0, "m", "depth_camera: the range step of a depth edge")
           .Number("floor_gap_m", &O::floor_gap_m, 0.0, 1.0, "m",
                   "returns of the objects less than this above the floor (z = 0) are lost: the floor contacts a "
                   "room reconstruction misses")
-          .Number("holes", &O::holes, 0.0, 0.999, "",
+          .Number("holes", &O::holes, 0.0, 0.999, "1",
                   "share of the surface lost in holes: world-anchored cells of hole_size_m are dropped at random "
                   "(a reconstruction's unscanned patches)")
           .Number("hole_size_m", &O::hole_size_m, 0.005, 10.0, "m", "holes: edge of the cells a hole takes out")

@@ -48,6 +48,7 @@
 #include "furnihost/geometry.hpp"
 #include "furnihost/hash.hpp"
 #include "furnihost/plugin.hpp"
+#include "decision/decision_params.hpp"
 #include "shape/shape.hpp"
 #include "catalog_shape.hpp"
 
@@ -117,17 +118,11 @@ const ParamBinding<Options>& Binding() {
   // The shared spread of ClassParams field `f`, bound through Options::base.
   auto base = [](float ClassParams::*f) { return [f](O& o) -> float& { return o.base.*f; }; };
   static const auto b =
-      ParamBinding<O>()
+      BindDecision(ParamBinding<O>()
           .Object("class_map", nlohmann::json::object(),
                   "catalog class -> detected class, e.g. {\"armchair\": \"chair\", \"desk\": \"table\"}: the models "
                   "of merged classes compete as one class (one detection per object)",
-                  [](O& o, const nlohmann::json& j) {
-                    for (auto it = j.begin(); it != j.end(); ++it) {
-                      if (!it->is_string() || it->get<std::string>().empty())
-                        throw InputError("class_map/" + it.key() + ": expected a class name");
-                      o.class_map[it.key()] = it->get<std::string>();
-                    }
-                  })
+                  ClassMapParser<O>(&O::class_map))
           .DetectionOnly()
           .Object("class_params", nlohmann::json::object(),
                   "per detected class, spreads overriding the shared ones below ({\"table\": {\"sig_long_big\": 0.5}}); "
@@ -139,27 +134,27 @@ const ParamBinding<Options>& Binding() {
                       o.per_class[it.key()] = ParseClassParams(*it, o.base, "class_params/" + it.key());
                   })
           .DetectionOnly()
-          .Number("sig_long_small", base(&ClassParams::long_small), 1e-3, 100, "",
+          .Number("sig_long_small", base(&ClassParams::long_small), 1e-3, 100, "1",
                   "spread of ln(length / model length) when shorter than the model")
           .DetectionOnly()
-          .Number("sig_long_big", base(&ClassParams::long_big), 1e-3, 100, "", "... when longer")
+          .Number("sig_long_big", base(&ClassParams::long_big), 1e-3, 100, "1", "... when longer")
           .DetectionOnly()
-          .Number("sig_short_small", base(&ClassParams::short_small), 1e-3, 100, "",
+          .Number("sig_short_small", base(&ClassParams::short_small), 1e-3, 100, "1",
                   "spread of ln(width / model width) when narrower")
           .DetectionOnly()
-          .Number("sig_short_big", base(&ClassParams::short_big), 1e-3, 100, "", "... when wider")
+          .Number("sig_short_big", base(&ClassParams::short_big), 1e-3, 100, "1", "... when wider")
           .DetectionOnly()
-          .Number("sig_top_small", base(&ClassParams::top_small), 1e-3, 100, "",
+          .Number("sig_top_small", base(&ClassParams::top_small), 1e-3, 100, "1",
                   "spread of ln(top height / model height) when lower")
           .DetectionOnly()
-          .Number("sig_top_big", base(&ClassParams::top_big), 1e-3, 100, "", "... when higher")
+          .Number("sig_top_big", base(&ClassParams::top_big), 1e-3, 100, "1", "... when higher")
           .DetectionOnly()
           .Number("sig_bottom", base(&ClassParams::bottom), 1e-3, 100, "m", "spread of the bottom's height above the ground")
           .DetectionOnly()
-          .Number("sig_profile", base(&ClassParams::profile), 1e-3, 100, "",
+          .Number("sig_profile", base(&ClassParams::profile), 1e-3, 100, "1",
                   "spread of the top-view height profile's distance to the model's")
           .DetectionOnly()
-          .Number("sig_surround", base(&ClassParams::surround), 1e-3, 100, "", "score factor exp(-surround / this)")
+          .Number("sig_surround", base(&ClassParams::surround), 1e-3, 100, "1", "score factor exp(-surround / this)")
           .DetectionOnly()
           .Bool("view_profiles", &O::view_profiles,
                 "on scans with a sensor origin (single views), also compare the proposal's top-view profile with "
@@ -171,13 +166,13 @@ const ParamBinding<Options>& Binding() {
                 "the floor shows, under a cabinet or a bed never): a share of floor cells seen above the model's is "
                 "strong evidence against it, below it weak (chairs and people hide it)")
           .DetectionOnly()
-          .Number("sig_floor_less", base(&ClassParams::floor_under), 1e-3, 100, "",
+          .Number("sig_floor_less", base(&ClassParams::floor_under), 1e-3, 100, "1",
                   "spread of (floor seen - model's open floor) when less is seen")
           .DetectionOnly()
-          .Number("sig_floor_more", base(&ClassParams::floor_over), 1e-3, 100, "", "... when more is seen")
+          .Number("sig_floor_more", base(&ClassParams::floor_over), 1e-3, 100, "1", "... when more is seen")
           .DetectionOnly()
-          .Number("compete", base(&ClassParams::compete), 0, 100, "", "class competition exponent (0 = off)")
-          .Number("wall_mount", base(&ClassParams::wall_mount), 0, 100, "",
+          .Number("compete", base(&ClassParams::compete), 0, 100, "1", "class competition exponent (0 = off)")
+          .Number("wall_mount", base(&ClassParams::wall_mount), 0, 100, "1",
                   "0: the models stand on the floor; > 0: they may also hang above it (kitchen wall cabinets): the "
                   "model then spans the proposal's own height extent, the bottom, top-view profile and floor terms are "
                   "dropped (a sensor below a wall cabinet rarely sees its top) and this cost is added to the energy")
@@ -187,7 +182,7 @@ const ParamBinding<Options>& Binding() {
                   "~1.35 m up, 18 in above a 36 in counter); a hanging proposal whose bottom is lower by d costs "
                   "(d / sig_bottom)^2 / 2 more (0 = any height)")
           .DetectionOnly()
-          .Number("view_edge", base(&ClassParams::view_edge), 0, 100, "",
+          .Number("view_edge", base(&ClassParams::view_edge), 0, 100, "1",
                   "on scans with a sensor origin (single views): a cost added to the energy of a proposal that the "
                   "left or right end of the view cuts (3 or more of its points within edge_band_deg of the end of "
                   "their row of the view): what the camera saw of it may be part of a larger object, e.g. a sofa's "
@@ -197,24 +192,10 @@ const ParamBinding<Options>& Binding() {
                   "angular band at the left and right ends of each 1 deg row of a single view whose points count as "
                   "at the view's edge (view_edge)")
           .DetectionOnly()
-          .NumberMap("thresholds", &O::thresholds, 0, std::nullopt, "",
-                     "operating score per detected class: detections at or above it are accepted (verified), the "
-                     "others kept as rejected candidates")
-          .DetectionOnly()
-          .Number("default_threshold", &O::default_threshold, 0, 1, "", "operating score of classes not in thresholds")
-          .DetectionOnly()
-          .Number("min_score", &O::min_score, 0, 1, "", "candidates scoring lower are not reported")
-          .DetectionOnly()
-          .Number("nms_iou", &O::nms_iou, 0, 1, "",
-                  "a candidate overlapping a better one of its class by more box IoU is dropped")
-          .DetectionOnly()
-          .Number("nms_whole_ratio", &O::nms_whole, 0, 1000, "",
-                  "a candidate whose box holds >= 90 % of a better one's and is at least this many times its volume "
-                  "is kept beside it (0 = plain IoU suppression): a fragment of an object (the lower half of a wall "
-                  "cabinet, which fits a smaller catalog model) may score better than the whole")
-          .DetectionOnly()
+          , DecisionFields{&O::thresholds, &O::default_threshold, &O::min_score, &O::nms_iou, &O::nms_whole},
+          {"in [0, 1]; below the threshold kept as rejected candidates", "", true})
           .Number("profile_cell_m", &O::cell, 0.005, 1, "m", "column size of the top-view height profile")
-          .Number("tall_class_m", &O::tall_class, 0, 10, "",
+          .Number("tall_class_m", &O::tall_class, 0, 10, "m",
                   "classes whose catalog models are mostly taller are made of large vertical faces: source 'catalog' "
                   "scores them on the proposals that keep such faces (rule 'segs')")
           .DetectionOnly();

@@ -43,6 +43,7 @@
 
 #include "furnihost/geometry.hpp"
 #include "furnihost/plugin.hpp"
+#include "decision/decision_params.hpp"
 #include "shape/shape.hpp"
 
 // PCL's ESFEstimation (1.13) seeds the C library's one shared generator with the wall clock at
@@ -128,90 +129,60 @@ struct Model {
   bool wide = true;  // the model's x extent (width) is its length
 };
 
-// The defaults here are the schema's (Schema() reads them): declared once. Real values are
-// doubles so that the schema, `furnihost plugins` and the run records show 0.02, not 0.0199999996.
+// Each parameter declared once (Binding()); its default is Options{}'s. Real values are doubles
+// so that the schema, `furnihost plugins` and the run records show 0.02, not 0.0199999996.
 struct Options {
   std::map<std::string, std::string> class_map;  // catalog class -> output class
-  double voxel = 0.02;        // [m] training views and proposals are downsampled to this
+  double voxel_m = 0.02;      // training views and proposals are downsampled to this
   int k = 5;                  // nearest training views that vote
   bool chi2 = false;          // descriptor distance: chi-squared instead of L1
   double kernel_scale = 1.;   // tau in units of the catalog's typical descriptor distance
   double size_weight = 1.;    // exponent of the size factor (0 = ESF votes only)
   double sig_size = 0.3;      // spread of the log size ratios
   int min_points = 50;        // proposals with fewer points (after downsampling) are skipped
-  std::map<std::string, float> thresholds;  // operating score per output class
-  double default_threshold = 0.;
-  double min_score = 1e-4;
-  double nms_iou = 0.25;
-  double nms_whole = 0.;      // a box this many times a better one's volume, holding it, is kept beside it (0 = off)
+  // thresholds, default_threshold, min_score, nms_iou, nms_whole_ratio
+  DecisionOptions decision{{}, 0., 1e-4, 0.25, 0.};
 };
+
+const ParamBinding<Options>& Binding() {
+  using O = Options;
+  static const auto b = BindDecision(
+      ParamBinding<O>()
+          .Object("class_map", nlohmann::json::object(),
+                  "catalog class -> detected class, e.g. {\"armchair\": \"chair\", \"desk\": \"table\"}: the views "
+                  "of merged classes vote as one class",
+                  ClassMapParser<O>(&O::class_map))
+          .DetectionOnly()
+          .Number("voxel_m", &O::voxel_m, 0, 1, "m",
+                  "voxel edge the training views and the proposals are downsampled to before ESF (the scans' "
+                  "density); 0 = as they are")
+          .Int("k", &O::k, 1, 1000, "count", "nearest training views that vote")
+          .DetectionOnly()
+          .Enum("distance", &O::chi2, {"l1", "chi2"},
+                "descriptor distance: l1 (bounded, every bin alike) or chi2 (weighs near-empty bins more)")
+          .DetectionOnly()
+          .Number("kernel_scale", &O::kernel_scale, 1e-3, 100, "1",
+                  "vote weight exp(-d / tau), tau = this x the catalog's median distance from a view to the nearest "
+                  "view of another model")
+          .DetectionOnly()
+          .Number("size_weight", &O::size_weight, 0, 100, "1",
+                  "exponent of the size factor exp(-E_size) in the score (0 = ESF votes only)")
+          .DetectionOnly()
+          .Number("sig_size", &O::sig_size, 1e-3, 100, "1",
+                  "spread of ln(proposal length, width, top height / the class's nearest catalog model's)")
+          .DetectionOnly()
+          .Int("min_points", &O::min_points, 3, 10000000, "count",
+               "proposals with fewer points after voxel_m downsampling are skipped")
+          .DetectionOnly(),
+      [](O& o) -> DecisionOptions& { return o.decision; }, {"in [0, 1]", "", true});
+  return b;
+}
 
 class EsfCatalogVoter : public Voter {
  public:
-  static ParamSchema Schema() {
-    ParamSchema s;
-    const Options d;
-    s.Object("class_map", nlohmann::json::object(),
-             "catalog class -> detected class, e.g. {\"armchair\": \"chair\", \"desk\": \"table\"}: the views of "
-             "merged classes vote as one class")
-        .DetectionOnly()
-        .Number("voxel_m", d.voxel, 0, 1,
-                "voxel edge [m] the training views and the proposals are downsampled to before ESF (the scans' "
-                "density); 0 = as they are")
-        .Int("k", d.k, 1, 1000, "nearest training views that vote").DetectionOnly()
-        .Enum("distance", d.chi2 ? "chi2" : "l1", {"l1", "chi2"},
-              "descriptor distance: l1 (bounded, every bin alike) or chi2 (weighs near-empty bins more)")
-        .DetectionOnly()
-        .Number("kernel_scale", d.kernel_scale, 1e-3, 100,
-                "vote weight exp(-d / tau), tau = this x the catalog's median distance from a view to the nearest "
-                "view of another model")
-        .DetectionOnly()
-        .Number("size_weight", d.size_weight, 0, 100,
-                "exponent of the size factor exp(-E_size) in the score (0 = ESF votes only)")
-        .DetectionOnly()
-        .Number("sig_size", d.sig_size, 1e-3, 100,
-                "spread of ln(proposal length, width, top height / the class's nearest catalog model's)")
-        .DetectionOnly()
-        .Int("min_points", d.min_points, 3, 10000000, "proposals with fewer points after voxel_m downsampling are skipped")
-        .DetectionOnly()
-        .Object("thresholds", nlohmann::json::object(),
-                "operating score per detected class: detections at or above it are accepted (verified), the others "
-                "kept as rejected candidates")
-        .DetectionOnly()
-        .Number("default_threshold", d.default_threshold, 0, 1, "operating score of classes not in thresholds").DetectionOnly()
-        .Number("min_score", d.min_score, 0, 1, "candidates scoring lower are not reported").DetectionOnly()
-        .Number("nms_iou", d.nms_iou, 0, 1, "a candidate overlapping a better one of its class by more box IoU is dropped")
-        .DetectionOnly()
-        .Number("nms_whole_ratio", d.nms_whole, 0, 1000,
-                "a candidate whose box holds >= 90 % of a better one's and is at least this many times its volume is "
-                "kept beside it (0 = plain IoU suppression; as voters.catalog_shape)")
-        .DetectionOnly();
-    return s;
-  }
+  static ParamSchema Schema() { return Binding().Schema(); }
 
-  explicit EsfCatalogVoter(const nlohmann::json& p) {
-    for (auto it = p.at("class_map").begin(); it != p.at("class_map").end(); ++it) {
-      if (!it->is_string() || it->get<std::string>().empty())
-        throw InputError("class_map/" + it.key() + ": expected a class name");
-      o_.class_map[it.key()] = it->get<std::string>();
-    }
-    for (auto it = p.at("thresholds").begin(); it != p.at("thresholds").end(); ++it) {
-      if (!it->is_number() || !(it->get<double>() >= 0.0))
-        throw InputError("thresholds/" + it.key() + ": expected a score >= 0");
-      o_.thresholds[it.key()] = it->get<float>();
-    }
-    o_.voxel = p.at("voxel_m").get<double>();
-    o_.k = p.at("k").get<int>();
-    o_.chi2 = p.at("distance").get<std::string>() == "chi2";
-    o_.kernel_scale = p.at("kernel_scale").get<double>();
-    o_.size_weight = p.at("size_weight").get<double>();
-    o_.sig_size = p.at("sig_size").get<double>();
-    o_.min_points = p.at("min_points").get<int>();
-    o_.default_threshold = p.at("default_threshold").get<double>();
-    o_.min_score = p.at("min_score").get<double>();
-    o_.nms_iou = p.at("nms_iou").get<double>();
-    o_.nms_whole = p.at("nms_whole_ratio").get<double>();
-  }
+  explicit EsfCatalogVoter(const nlohmann::json& p) : o_(Binding().Parse(p)) {}
 
   nlohmann::json Train(const std::vector<TrainingView>& views, const RunContext& ctx) override {
     // One entry per model: its catalog size and the descriptors of its views, in view order.
@@ -229,7 +200,7 @@ class EsfCatalogVoter : public Voter {
       }
       Points w(v.scan.points.size());
       for (size_t i = 0; i < w.size(); ++i) w[i] = v.scan.pose * v.scan.points[i];
-      const Points pts = VoxelDownsample(w, static_cast<float>(o_.voxel));
+      const Points pts = VoxelDownsample(w, static_cast<float>(o_.voxel_m));
       // Fewer than 10 points: a view that missed the model (nothing to describe).
       const std::vector<float> d =
           pts.size() < 10 ? std::vector<float>{}
@@ -248,7 +219,7 @@ class EsfCatalogVoter : public Voter {
     for (const auto& id : order)
       if (!by_model[id]["esf"].empty()) models.push_back(std::move(by_model[id]));
     spdlog::info("esf_catalog: {} ESF descriptors of {} models", described, models.size());
-    return {{"format", "esf_catalog/1"}, {"voxel_m", o_.voxel}, {"bins", kBins}, {"models", models}};
+    return {{"format", "esf_catalog/1"}, {"voxel_m", o_.voxel_m}, {"bins", kBins}, {"models", models}};
   }
 
   void Load(const nlohmann::json& m) override {
@@ -419,7 +390,7 @@ class EsfCatalogVoter : public Voter {
                             {"esf_tau", tau_},
                             {"e_size", e_size},
                             {"size_factor", size_factor}};
-          if (spdlog::should_log(spdlog::level::trace) && score[c][i] >= o_.min_score)
+          if (spdlog::should_log(spdlog::level::trace) && score[c][i] >= o_.decision.min_score)
             spdlog::trace("esf_catalog: {} {} L {:.3f} W {:.3f} T {:.3f} vote {:.4f} ({} of {}) nearest {:.4f} size {:.4f} -> {:.4f}",
                           p.how, classes_[c], L, W, T, vote[c], votes[c], k, nearest[c], size_factor, score[c][i]);
         }
@@ -428,11 +399,12 @@ class EsfCatalogVoter : public Voter {
       for (size_t c = 0; c < C; ++c) {
         std::vector<size_t> order;
         for (size_t i = 0; i < n; ++i)
-          if (score[c][i] >= o_.min_score && best_model[c][i] >= 0) order.push_back(i);
-        const auto thr = o_.thresholds.find(classes_[c]);
-        const float t = thr == o_.thresholds.end() ? static_cast<float>(o_.default_threshold) : thr->second;
-        for (size_t i : shape::SuppressOverlaps(std::move(order), score[c], items, static_cast<float>(o_.nms_iou),
-                                                  static_cast<float>(o_.nms_whole))) {
+          if (score[c][i] >= o_.decision.min_score && best_model[c][i] >= 0) order.push_back(i);
+        const auto thr = o_.decision.thresholds.find(classes_[c]);
+        const DecisionOptions& d = o_.decision;
+        const float t = thr == d.thresholds.end() ? static_cast<float>(d.default_threshold) : thr->second;
+        for (size_t i : shape::SuppressOverlaps(std::move(order), score[c], items, static_cast<float>(d.nms_iou),
+                                                  static_cast<float>(d.nms_whole_ratio))) {
           const Model& md = models_[size_t(best_model[c][i])];
           out.hypotheses.push_back(shape::ProposalHypothesis(classes_[c], score[c][i], t, items[i], int(i), int(s),
                                                              foot[i], md.id, md.wide, scan.pose));

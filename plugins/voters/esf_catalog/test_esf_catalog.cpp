@@ -353,7 +353,7 @@ TEST(EsfCatalog, BadParametersNameTheParameter) {
   refused({{"min_points", 2}}, "/min_points: ");
   refused({{"nms_iou", 1.5}}, "/nms_iou: ");
   refused({{"neighbours", 5}}, "neighbours");  // an unknown name
-  refused({{"thresholds", {{"chair", -0.1}}}}, "thresholds/chair: expected a score >= 0");
+  refused({{"thresholds", {{"chair", -0.1}}}}, "thresholds/chair: expected a number in [0, inf]");
   refused({{"thresholds", {{"table", "high"}}}}, "thresholds/table: ");
   refused({{"class_map", {{"desk", ""}}}}, "class_map/desk: expected a class name");
   refused({{"class_map", {{"desk", 3}}}}, "class_map/desk: ");

@@ -25,13 +25,13 @@ const ParamBinding<Options>& Binding() {
   using O = Options;
   static const auto b = [] {
     ParamBinding<O> b;
-    b.Int("k", [](O& o) -> int& { return o.km.k; }, 1, 100000, "",
+    b.Int("k", [](O& o) -> int& { return o.km.k; }, 1, 100000, "count",
           "vocabulary size: k-means clusters over training part features (paper: 40)")
-        .Int("max_iterations", [](O& o) -> int& { return o.km.max_iterations; }, 1, 100000, "",
+        .Int("max_iterations", [](O& o) -> int& { return o.km.max_iterations; }, 1, 100000, "count",
              "Lloyd iterations per k-means run")
-        .Int("restarts", [](O& o) -> int& { return o.km.restarts; }, 1, 1000, "",
+        .Int("restarts", [](O& o) -> int& { return o.km.restarts; }, 1, 1000, "count",
              "k-means runs from different k-means++ seeds; the lowest inertia wins")
-        .Int("activations", [](O& o) -> int& { return o.sel.activations; }, 1, 1000, "",
+        .Int("activations", [](O& o) -> int& { return o.sel.activations; }, 1, 1000, "count",
              "words activated per scene part (paper: 2)")
         .DetectionOnly();
     voting::BindSelection(b, &O::sel);
