@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Checks that every numeric parameter (Number, Int, NumberList, NumberMap) of every plugin in a
-folder declares a unit: a physical one as it is (m, m2, deg, px, s, 1/m ...), "count" for counts,
+folder, and of the host's sections of a graph config, declares a unit: a physical one as it is (m, m2, deg, px, s, 1/m ...), "count" for counts,
 "1" for dimensionless ratios, fractions, scores, probabilities and IoUs.
 
   scripts/check_param_units.py --furnihost build/bin/furnihost --plugin-dir build/plugins
@@ -31,9 +31,12 @@ def main():
     ap.add_argument("--furnihost", required=True, help="the furnihost binary")
     ap.add_argument("--plugin-dir", required=True, help="the folder of the plugins to check")
     args = ap.parse_args()
-    plugins = read_plugins(args.furnihost, args.plugin_dir)  # exits 2 on failure, as plugin_docs does
+    plugins, sections = read_plugins(args.furnihost, args.plugin_dir)  # exits 2 on failure, as plugin_docs does
+    # The host's own sections of a graph config (ground, frame, ensemble) are held to the same rule.
+    listed = sorted(plugins, key=lambda p: p.get("type", ""))
+    listed += [{"type": f"host section {name}", "params": params} for name, params in sorted(sections.items())]
     checked, missing = 0, []
-    for p in sorted(plugins, key=lambda p: p.get("type", "")):
+    for p in listed:
         for s in p.get("params", []):
             if s.get("type") not in NUMERIC:
                 continue

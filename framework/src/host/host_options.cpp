@@ -41,10 +41,10 @@ const ParamBinding<FrameSection>& FrameBinding() {
 const ParamBinding<EnsembleOptions>& EnsembleBinding() {
   static const auto b =
       ParamBinding<EnsembleOptions>()
-          .Int("runs", &EnsembleOptions::runs, 1, 64, "runs",
+          .Int("runs", &EnsembleOptions::runs, 1, 64, "count",
                "detection runs: the scan as read and runs - 1 jittered copies, their detections fused")
           .Number("jitter_m", &EnsembleOptions::jitter_m, 0, 0.1, "m", "standard deviation of the copies' jitter")
-          .Number("join_iou", &EnsembleOptions::join_iou, 0, 1, "", "box IoU (axis-aligned) at which runs' detections join")
+          .Number("join_iou", &EnsembleOptions::join_iou, 0, 1, "1", "box IoU (axis-aligned) at which runs' detections join")
           .Rule([](const EnsembleOptions& e) { return e.jitter_m > 0 ? "" : "jitter_m: must be above 0"; })
           .Rule([](const EnsembleOptions& e) { return e.join_iou > 0 ? "" : "join_iou: must be above 0"; });
   return b;
