@@ -219,7 +219,7 @@ def write_doc(path, out, tables):
             "tables were written). Times are of this machine; the ratios against PCL are of runs in one process, "
             "on the same clouds, and move less with the load. How to run it: "
             "[benchmarks/README.md](../benchmarks/README.md#speed).", "",
-            "![time against point count](img/performance.svg)", ""]
+            "![time against point count](img/performance.svg)", "", ""]
     tmp = path + ".tmp"
     with open(tmp, "w") as fh:
         fh.write("\n".join(head) + tables)
