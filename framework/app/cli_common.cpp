@@ -1,5 +1,6 @@
 #include "cli_common.hpp"
 
+#include <fmt/format.h>
 #include <tbb/global_control.h>
 
 #include <iostream>
@@ -24,6 +25,13 @@ void CommonOptions::Add(CLI::App& app, bool with_run_options) {
     app.add_option("--threads", threads, "worker threads (0 = all cores)")->check(CLI::Range(0, 1024));
     app.add_option("--seed", seed, "random seed (default: the graph's \"seed\")");
   }
+}
+
+void CommonOptions::AddMinConfidence(CLI::App& app) {
+  app.add_option("--min-confidence", min_confidence,
+                 "accept detections of calibrated classes at this confidence in [0, 1] (default: the graph's "
+                 "calibration.min_confidence, 0.5; docs/calibration.md)")
+      ->check(CLI::Range(0.0, 1.0));
 }
 
 void CommonOptions::Apply() const {
@@ -73,7 +81,9 @@ std::vector<double> ParseNumbers(const std::string& text, size_t count, const st
 }
 
 GraphConfig CommonOptions::LoadGraph(const std::string& path, const Registry& registry) const {
-  return furnihost::LoadGraph(path, registry, sets);
+  std::vector<std::string> all = sets;
+  if (min_confidence) all.push_back(fmt::format("calibration.min_confidence={}", *min_confidence));
+  return furnihost::LoadGraph(path, registry, all);
 }
 
 void FrameCli::Add(CLI::App& app) {

@@ -20,13 +20,16 @@ struct CommonOptions {
   int threads = 0;
   std::optional<uint64_t> seed;
   std::vector<std::string> sets;  // --set TAG.PARAM=VALUE
+  std::optional<double> min_confidence;  // --min-confidence: calibration.min_confidence
 
   void Add(CLI::App& app, bool with_run_options = true);
+  // --min-confidence (detect, eval).
+  void AddMinConfidence(CLI::App& app);
   // Applies logging and thread settings; call after parsing.
   void Apply() const;
   std::unique_ptr<Registry> MakeRegistry() const;
   RunContext Context(uint64_t graph_seed) const;
-  // The graph with the --set overrides applied.
+  // The graph with the --set overrides (and --min-confidence) applied.
   GraphConfig LoadGraph(const std::string& path, const Registry& registry) const;
 };
 

@@ -265,6 +265,7 @@ int RunDetect(const std::vector<std::string>& args) {
   bool fuse = false, save_parts = false, retrain = false, strict = false;
   FrameCli frame_cli;
   common.Add(app);
+  common.AddMinConfidence(app);
   app.add_option("--graph,-g", graph,
                  "graph config (JSON), e.g. configs/paper.json; default: configs/laser_room.json for scans with a "
                  "sensor origin (a PCD's VIEWPOINT, or --origin), configs/room.json for scans without (room "

@@ -255,6 +255,39 @@ std::vector<std::string> WritePlots(const std::string& dir, const std::vector<Co
   return files;
 }
 
+// One reliability diagram per class whose detections carry a confidence (a calibrated graph):
+// the share of true detections against their mean confidence per bin, a curve per config (its
+// first seed), and the diagonal a calibrated confidence lies on.
+std::vector<std::string> WriteReliabilityPlots(const std::string& dir, const std::vector<ConfigSummary>& configs,
+                                               const std::vector<std::string>& classes) {
+  std::vector<std::string> files;
+  const std::vector<std::string> class_files = UniqueSafeNames(classes);
+  for (size_t k = 0; k < classes.size(); ++k) {
+    std::vector<PlotSeries> series;
+    series.push_back({"calibrated", {{0.0, 0.0}, {1.0, 1.0}}, 7, 0.4});
+    for (size_t c = 0; c < configs.size(); ++c) {
+      if (configs[c].runs.empty()) continue;
+      for (const auto& cm : configs[c].runs.front().metrics.classes) {
+        if (cm.cls != classes[k] || !cm.reliability) continue;
+        PlotSeries s;
+        s.color = static_cast<int>(c);
+        char buf[96];
+        std::snprintf(buf, sizeof(buf), " (ECE %.3f, %d detections)", cm.reliability->ece, cm.reliability->detections);
+        s.label = std::string(1, static_cast<char>('A' + c % 26)) + ": " + configs[c].name + buf;
+        for (const auto& b : cm.reliability->bins)
+          if (b.n > 0) s.points.push_back({b.confidence, b.accuracy});
+        series.push_back(std::move(s));
+      }
+    }
+    if (series.size() == 1) continue;
+    const std::string stem = "reliability_" + class_files[k];
+    WriteLinePlot((fs::path(dir) / stem).string(), classes[k] + ": share true (IoU >= 0.25) vs confidence",
+                  {"confidence (bin mean)", "share of true detections", 0, 1, 0, 1, true}, series);
+    files.push_back(stem + ".png");
+  }
+  return files;
+}
+
 }  // namespace
 
 int RunEval(const std::vector<std::string>& args) {
@@ -269,6 +302,7 @@ int RunEval(const std::vector<std::string>& args) {
   double jitter = 0;
   bool retrain = false, strict = false, save_detections = false, reproducible = false;
   common.Add(app);
+  common.AddMinConfidence(app);
   app.add_option("--graph,-g", graphs, "graph config (repeat: the first is the baseline A)")->required();
   app.add_option("--name", names, "label per graph, in --graph order (default: the file stem)");
   app.add_option("--dataset,-d", dataset_path, "dataset manifest (JSON: scenes, class_map, classes)")->required();
@@ -409,7 +443,8 @@ int RunEval(const std::vector<std::string>& args) {
   }
 
   if (!world.Root()) return 0;
-  const std::vector<std::string> plots = WritePlots(out, summaries, dataset.classes.classes);
+  std::vector<std::string> plots = WritePlots(out, summaries, dataset.classes.classes);
+  for (auto& f : WriteReliabilityPlots(out, summaries, dataset.classes.classes)) plots.push_back(std::move(f));
   ReportInfo info;
   info.dataset = dataset_path;
   info.dataset_hash = hash;
@@ -435,7 +470,7 @@ int RunEval(const std::vector<std::string>& args) {
   WriteJson((fs::path(out) / "summary.json").string(), summary_json);
   AtomicWriteText((fs::path(out) / "report.md").string(), report);
   std::cout << report;
-  std::cout << "-> " << (fs::path(out) / "report.md").string() << ", summary.json, pr_<class>.svg/.png, run_<name>.json\n";
+  std::cout << "-> " << (fs::path(out) / "report.md").string() << ", summary.json, pr_<class>.svg/.png, reliability_<class>.svg/.png (calibrated graphs), run_<name>.json\n";
   return 0;
 }
 

@@ -63,6 +63,13 @@ std::vector<Row> AlignmentRows(const std::string& prefix) {
           {"ground-truth objects with a yaw", prefix + "/alignment/objects", -1, true}};
 }
 
+// The working point by the ScanNet rule, and how well confidences are calibrated.
+std::vector<Row> WorkingPointRows(const std::string& prefix) {
+  return {{"precision (accepted, IoU 0.25)", prefix + "/accepted_iou25/precision", 3, false},
+          {"recall (accepted, IoU 0.25)", prefix + "/accepted_iou25/recall", 3, false},
+          {"expected calibration error (confidence)", prefix + "/ece", 3, true}};
+}
+
 std::string Cell(double v, int decimals) { return std::isfinite(v) ? Fixed(v, decimals) : "–"; }
 
 // Markdown table of the per-object records of one run.
@@ -99,6 +106,10 @@ std::string RenderReport(const std::vector<ConfigSummary>& configs, const Report
   o << "- alignment accuracy (Scan2CAD rule): the share of ground-truth objects with a known yaw that an accepted "
        "detection of their class aligns: box centre within 0.2 m, facing within 20 deg (folded by the object's "
        "turn symmetry), mean extent ratio within 20 % of 1\n";
+  o << "- accepted, IoU 0.25: the detections the graph accepts (verified != false; a calibrated graph's at its "
+       "min_confidence) matched on their own by the ScanNet rule: the working point's precision and recall; "
+       "expected calibration error: the detection-weighted mean |share true - mean confidence| over 10 "
+       "confidence bins, true by AP25's matching (reliability_<class>.svg/.png)\n";
   o << "- AP: all-point interpolated (VOC 2010+) area under the precision envelope of the score-threshold sweep; "
        "\"hypotheses\" = every detection the pipeline output (the voter's own threshold), \"verified\" = "
        "detections with verified != false (only when a fitter ran); \"true / false hypotheses\" = the voter's "
@@ -188,6 +199,8 @@ std::string RenderReport(const std::vector<ConfigSummary>& configs, const Report
                              {"AP50", cls + "/ap50", 3, true},
                              {"AP", cls + "/ap", 3, false},
                              {"detections", cls + "/detections", -1, false}};
+    const auto wr = WorkingPointRows(cls);
+    rows.insert(rows.end(), wr.begin(), wr.end());
     for (const auto& which : {"hypotheses", "verified"}) {
       auto pr = PointRows(cls, which);
       rows.insert(rows.end(), pr.begin(), pr.end());
@@ -201,6 +214,8 @@ std::string RenderReport(const std::vector<ConfigSummary>& configs, const Report
   std::vector<Row> all = {{"mAP25", "all/map25", 3, true},
                           {"mAP50", "all/map50", 3, true},
                           {"mAP (mean AP over classes with ground truth)", "all/map", 3, false}};
+  const auto wr = WorkingPointRows("all");
+  all.insert(all.end(), wr.begin(), wr.end());
   for (const auto& which : {"hypotheses", "verified"}) {
     auto pr = PointRows("all", which);
     all.insert(all.end(), pr.begin(), pr.end());

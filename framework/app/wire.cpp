@@ -77,6 +77,7 @@ void Put(Writer& w, const Detection& d) {
   Fixed(w, d.center);
   w.Pod(d.yaw);
   w.Pod(d.score);
+  Opt(w, d.confidence);
   w.Str(d.model);
   Opt(w, d.verified);
   Opt(w, d.coverage);
@@ -110,6 +111,7 @@ Detection GetDetection(Reader& r) {
   d.center = GetFixed<Eigen::Vector3f>(r);
   d.yaw = r.Pod<float>();
   d.score = r.Pod<float>();
+  d.confidence = GetOpt<float>(r);
   d.model = r.Str();
   d.verified = GetOpt<bool>(r);
   d.coverage = GetOpt<float>(r);

@@ -177,7 +177,7 @@ TEST(Ground, HostSectionsDeclareEveryParameterOnce) {
       }
     }
   }
-  EXPECT_EQ(sections, (std::set<std::string>{"ground", "frame", "ensemble"}));
+  EXPECT_EQ(sections, (std::set<std::string>{"ground", "frame", "ensemble", "calibration"}));
 }
 
 // Up axes keep frames right-handed; the optical frame (-y up) becomes ROS's camera_link axes.

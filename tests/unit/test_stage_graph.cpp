@@ -12,6 +12,7 @@
 
 #include "furnihost/host/io.hpp"
 #include "furnihost/host/pipeline.hpp"
+#include "stub_chain.hpp"
 #include "test_support.hpp"
 
 namespace fs = std::filesystem;
@@ -19,58 +20,13 @@ using nlohmann::json;
 
 namespace {
 
-// `dir` (the test's folder) is kept for the call sites; stderr goes to this process's temp folder.
-furnihost::testing::CommandRun Furnihost(const std::string& args, const std::string& /*dir*/) {
-  return furnihost::testing::RunFurnihost(args);
-}
+using furnihost::testing::StubGraph;
 
-std::string TestPlugins(const std::string& name) {
-  return (fs::path(furnihost::testing::PluginDir()).parent_path() / "test_plugins" / name).string();
-}
-
-std::string Corpus() { return furnihost::testing::SourceDir() + "/tests/hostile/corpus"; }
-
-// A simulated room with the tiny catalog's cube, made once per test binary.
-const std::string& Room() {
-  static const std::string room = [] {
-    const std::string dir = furnihost::testing::TempDir("stage_graph_room");
-    fs::create_directories(dir);
-    const std::string out = dir + "/room.pcd";
-    const auto r = Furnihost("simulate -q --catalog " + Corpus() + "/catalogs/tiny/catalog.json --scene " + Corpus() +
-                                 "/catalogs/scene.json --out " + out,
-                             dir);
-    EXPECT_EQ(r.code, 0) << r.err;
-    return out;
-  }();
-  return room;
-}
-
-// The stub chain of tests/hostile/corpus/graphs/stub_chain.json: sensor, segmenter, features,
-// voter; `stages` is merged in (null removes a stage).
-json Graph(const std::string& dir, const json& stages) {
-  json g = {{"seed", 7},
-            {"catalog", Corpus() + "/catalogs/tiny/catalog.json"},
-            {"model_cache", dir + "/model.fhm"},
-            {"training", {{"sensor", "sim"}}},
-            {"stages",
-             {{"sim",
-               {{"type", "sensors.simulated_laser"},
-                {"params", {{"views", 2}, {"angular_resolution_deg", 2}, {"tilt_resolution_deg", 2}}}}},
-              {"input", {{"type", "sensors.scan_file"}}},
-              {"seg", {{"type", "segmenters.hostile_stub"}, {"inputs", {"input"}}}},
-              {"feat", {{"type", "features.centroid"}, {"inputs", {"seg"}}}},
-              {"vote", {{"type", "voters.hostile_stub"}, {"inputs", {"feat"}}}}}}};
-  g["stages"].merge_patch(stages);
-  return g;
-}
+json Graph(const std::string& dir, const json& stages) { return StubGraph(dir, stages); }
 
 // Writes `graph` to DIR/g.json, runs detection on the room and returns detections.json.
 json Detect(const std::string& dir, const json& graph, std::string* err = nullptr) {
-  fs::create_directories(dir);
-  furnihost::AtomicWriteText(dir + "/g.json", graph.dump(1));
-  const auto r = Furnihost("--graph " + dir + "/g.json " + Room() + " --plugin-path " + TestPlugins("hostile") +
-                               " --plugin-path " + TestPlugins("outside") + " --out " + dir + "/out",
-                           dir);
+  const auto r = furnihost::testing::DetectStubRoom(dir, graph);
   if (err) *err = r.err;
   EXPECT_EQ(r.code, 0) << r.err;
   return r.code == 0 ? furnihost::ReadJson(dir + "/out/detections.json") : json();

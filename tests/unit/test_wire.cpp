@@ -19,6 +19,7 @@ Detection FullDetection() {
   d.center = {1.25f, -2.5f, 0.375f};
   d.yaw = 0.7f;
   d.score = 0.123456789f;
+  d.confidence = 0.8125f;
   d.model = "sh3d_chair2";
   d.verified = false;
   d.coverage = 0.61f;
@@ -81,6 +82,7 @@ TEST(Wire, DetectionsComeBackBitForBit) {
     EXPECT_EQ(std::memcmp(in[i].center.data(), out[i].center.data(), 12), 0);
     EXPECT_EQ(std::memcmp(in[i].model_pose.data(), out[i].model_pose.data(), 64), 0);
     EXPECT_EQ(in[i].verified, out[i].verified);
+    EXPECT_EQ(in[i].confidence, out[i].confidence);
     EXPECT_EQ(in[i].coverage, out[i].coverage);
     EXPECT_EQ(in[i].box.has_value(), out[i].box.has_value());
     EXPECT_EQ(in[i].proposal_scene, out[i].proposal_scene);
@@ -144,7 +146,7 @@ TEST(Wire, TrainingViewsComeBackBitForBit) {
 // Every field of these types is encoded by hand in wire.cpp: a field added to one of them changes
 // its size and fails this, so that wire.cpp is updated with it (else an MPI run would drop it).
 TEST(Wire, EveryFieldIsEncoded) {
-  EXPECT_EQ(sizeof(Detection), 416u) << "Detection changed: encode the new field in framework/app/wire.cpp";
+  EXPECT_EQ(sizeof(Detection), 432u) << "Detection changed: encode the new field in framework/app/wire.cpp";
   EXPECT_EQ(sizeof(Scan), 720u) << "Scan changed: encode the new field in framework/app/wire.cpp";
   EXPECT_EQ(sizeof(GroundModel), 128u) << "GroundModel changed: encode the new field in framework/app/wire.cpp";
   EXPECT_EQ(sizeof(GroundTruthObject), 104u) << "GroundTruthObject changed: encode it in framework/app/wire.cpp";

@@ -306,6 +306,9 @@ struct Detection {
   Eigen::Vector3f center = Eigen::Vector3f::Zero();
   float yaw = 0.f;            // [rad] about +z
   float score = 0.f;          // voter score
+  // Calibrated probability that the detection is a true positive (its box overlaps an object of
+  // its class at 3D IoU >= 0.25), set by the host when the graph names a calibration.
+  std::optional<float> confidence;
   std::string model;          // fitted catalog model id ("" before fitting)
   std::optional<bool> verified;            // unset when no fitter ran
   std::optional<float> coverage;           // share of part points covered by the model (when fitted)

@@ -37,6 +37,7 @@ struct Scored {
   float score;
   size_t scene, index;  // for a deterministic order among equal scores
   bool tp;
+  std::optional<float> confidence = std::nullopt;
 };
 
 struct ErrorAccumulator {
@@ -148,6 +149,35 @@ ErrorStats Summarise(std::vector<double> v) {
   return e;
 }
 
+Reliability MakeReliability(const std::vector<std::pair<float, bool>>& confidence_true, int bins) {
+  Reliability r;
+  r.bins.resize(size_t(std::max(bins, 1)));
+  std::vector<double> sum_conf(r.bins.size(), 0.0), sum_true(r.bins.size(), 0.0);
+  for (size_t b = 0; b < r.bins.size(); ++b) {
+    r.bins[b].lo = double(b) / double(r.bins.size());
+    r.bins[b].hi = double(b + 1) / double(r.bins.size());
+  }
+  for (const auto& [c, t] : confidence_true) {
+    if (!std::isfinite(c)) continue;
+    const size_t b = std::min(r.bins.size() - 1, size_t(std::max(0.0, double(c)) * double(r.bins.size())));
+    ++r.bins[b].n;
+    sum_conf[b] += c;
+    sum_true[b] += t ? 1.0 : 0.0;
+    ++r.detections;
+  }
+  if (r.detections == 0) return r;
+  double ece = 0;
+  for (size_t b = 0; b < r.bins.size(); ++b) {
+    Reliability::Bin& x = r.bins[b];
+    if (x.n == 0) continue;
+    x.confidence = sum_conf[b] / x.n;
+    x.accuracy = sum_true[b] / x.n;
+    ece += x.n * std::abs(x.accuracy - x.confidence);
+  }
+  r.ece = ece / r.detections;
+  return r;
+}
+
 EvalMetrics Evaluate(const std::vector<SceneEval>& scenes, const ClassMap& classes, WidthConvention width) {
   EvalMetrics out;
   std::map<std::string, int> gt_count;
@@ -156,6 +186,8 @@ EvalMetrics Evaluate(const std::vector<SceneEval>& scenes, const ClassMap& class
   std::map<std::string, ErrorAccumulator> hyp_err, ver_err;
   std::map<std::string, VerificationFigures> ver_fig;
   std::map<std::string, AlignmentFigures> alignment;
+  std::map<std::string, std::pair<int, int>> acc25_counts;
+  std::map<std::string, ErrorAccumulator> acc25_err;
   for (size_t s = 0; s < scenes.size(); ++s) {
     const SceneEval& se = scenes[s];
     const std::vector<GroundTruthObject> truth = WithClassSymmetry(se.truth, classes);
@@ -176,7 +208,8 @@ EvalMetrics Evaluate(const std::vector<SceneEval>& scenes, const ClassMap& class
       const SceneMatch mi = MatchSceneIou(se.detections, truth, classes, threshold);
       for (size_t i = 0; i < se.detections.size(); ++i)
         if (mi.det_to_gt[i] != SceneMatch::kIgnored)
-          (*target)[mi.det_class[i]].push_back({se.detections[i].score, s, i, mi.det_to_gt[i] >= 0});
+          (*target)[mi.det_class[i]].push_back(
+              {se.detections[i].score, s, i, mi.det_to_gt[i] >= 0, se.detections[i].confidence});
     }
     Accumulate(se.detections, truth, m, se.fitted, hyp_counts, hyp_err);
     // Rejected detections leave the set, so the remaining ones are matched on their own: a
@@ -187,6 +220,7 @@ EvalMetrics Evaluate(const std::vector<SceneEval>& scenes, const ClassMap& class
     const SceneMatch mv = MatchScene(kept, truth, classes, width);
     Accumulate(kept, truth, mv, se.fitted, ver_counts, ver_err);
     AccumulateAlignment(kept, truth, classes, alignment);
+    Accumulate(kept, truth, MatchSceneIou(kept, truth, classes, 0.25f), se.fitted, acc25_counts, acc25_err);
 
     // The voter's hypotheses where the voter put them: which were true, and what did the
     // verification do with each.
@@ -249,8 +283,9 @@ EvalMetrics Evaluate(const std::vector<SceneEval>& scenes, const ClassMap& class
     }
   }
 
-  int tp_h = 0, fp_h = 0, tp_v = 0, fp_v = 0, gt_all = 0;
+  int tp_h = 0, fp_h = 0, tp_v = 0, fp_v = 0, tp_a = 0, fp_a = 0, gt_all = 0;
   ErrorAccumulator all_h, all_v;
+  std::vector<std::pair<float, bool>> all_conf;
   double ap_sum = 0, ap25_sum = 0, ap50_sum = 0;
   int ap_n = 0;
   // The precision-recall curve of scored detections (one point per distinct score) and its AP.
@@ -292,6 +327,17 @@ EvalMetrics Evaluate(const std::vector<SceneEval>& scenes, const ClassMap& class
     }
     const auto h = hyp_counts[c];
     cm.hypotheses = MakePoint(h.first, h.second, cm.gt, hyp_err[c]);
+    const auto a = acc25_counts[c];
+    cm.accepted25 = MakePoint(a.first, a.second, cm.gt, acc25_err[c]);
+    tp_a += a.first;
+    fp_a += a.second;
+    std::vector<std::pair<float, bool>> conf;
+    for (const Scored& x : scored25[c])
+      if (x.confidence) conf.emplace_back(*x.confidence, x.tp);
+    if (!conf.empty()) {
+      cm.reliability = MakeReliability(conf);
+      all_conf.insert(all_conf.end(), conf.begin(), conf.end());
+    }
     tp_h += h.first;
     fp_h += h.second;
     gt_all += cm.gt;
@@ -322,6 +368,8 @@ EvalMetrics Evaluate(const std::vector<SceneEval>& scenes, const ClassMap& class
   out.map25 = ap_n ? ap25_sum / ap_n : NAN;
   out.map50 = ap_n ? ap50_sum / ap_n : NAN;
   out.hypotheses = MakePoint(tp_h, fp_h, gt_all, all_h);
+  out.accepted25 = MakePoint(tp_a, fp_a, gt_all, ErrorAccumulator{});
+  if (!all_conf.empty()) out.reliability = MakeReliability(all_conf);
   if (out.fitted) out.verified = MakePoint(tp_v, fp_v, gt_all, all_v);
   FinishRates(&out.verification);
   out.alignment.accuracy = SafeDiv(out.alignment.aligned, out.alignment.objects);

@@ -190,6 +190,30 @@ std::vector<PrPoint> CurveFromJson(const json& rows) {
   }
   return out;
 }
+json ToJson(const std::optional<Reliability>& r) {
+  if (!r) return json(nullptr);
+  json bins = json::array();
+  // Compact rows: [lo, hi, n, mean confidence, share true].
+  for (const auto& b : r->bins) bins.push_back({b.lo, b.hi, b.n, Num(b.confidence), Num(b.accuracy)});
+  return {{"detections", r->detections}, {"ece", Num(r->ece)},
+          {"bin_columns", {"lo", "hi", "n", "confidence", "share_true"}}, {"bins", bins}};
+}
+
+std::optional<Reliability> ReliabilityFromJson(const json& j, const std::string& where) {
+  if (j.is_null()) return std::nullopt;
+  Reliability r;
+  r.detections = static_cast<int>(GetNum(j, "detections", where));
+  r.ece = j.contains("ece") && j["ece"].is_number() ? j["ece"].get<double>() : NAN;
+  if (j.contains("bins") && j["bins"].is_array())
+    for (size_t k = 0; k < j["bins"].size(); ++k) {
+      const json& b = j["bins"][k];
+      if (!b.is_array() || b.size() != 5)
+        throw InputError(where + "/bins/" + std::to_string(k) + ": expected 5 numbers");
+      auto num = [](const json& v) { return v.is_number() ? v.get<double>() : NAN; };
+      r.bins.push_back({num(b[0]), num(b[1]), static_cast<int>(num(b[2])), num(b[3]), num(b[4])});
+    }
+  return r;
+}
 }  // namespace
 
 json ToJson(const EvalMetrics& m) {
@@ -208,6 +232,8 @@ json ToJson(const EvalMetrics& m) {
                        {"verified", c.verified ? ToJson(*c.verified) : json(nullptr)},
                        {"verification", c.verification ? ToJson(*c.verification) : json(nullptr)},
                        {"alignment", ToJson(c.alignment)},
+                       {"accepted_iou25", ToJson(c.accepted25)},
+                       {"reliability", ToJson(c.reliability)},
                        {"pr_curve_columns", {"score", "tp", "fp", "precision", "recall"}},
                        {"pr_curve", curve},
                        {"pr_curve_iou25", CurveJson(c.curve25)},
@@ -224,7 +250,9 @@ json ToJson(const EvalMetrics& m) {
            {{"hypotheses", ToJson(m.hypotheses)},
             {"verified", m.fitted ? ToJson(m.verified) : json(nullptr)},
             {"verification", m.fitted ? ToJson(m.verification) : json(nullptr)},
-            {"alignment", ToJson(m.alignment)}}},
+            {"alignment", ToJson(m.alignment)},
+            {"accepted_iou25", ToJson(m.accepted25)},
+            {"reliability", ToJson(m.reliability)}}},
           {"ignored_gt", m.ignored_gt},
           {"ignored_detections", m.ignored_detections},
           {"objects", objects}};
@@ -257,6 +285,9 @@ EvalMetrics EvalMetricsFromJson(const json& j, const std::string& where) {
       cm.verification = VerificationFromJson(c["verification"], w + "/verification");
     // Records written before poses were evaluated have no alignment.
     if (c.contains("alignment")) cm.alignment = AlignmentFromJson(c["alignment"], w + "/alignment");
+    // Records written before the working point and calibration were evaluated have neither.
+    if (c.contains("accepted_iou25")) cm.accepted25 = OperatingPointFromJson(c["accepted_iou25"], w + "/accepted_iou25");
+    if (c.contains("reliability")) cm.reliability = ReliabilityFromJson(c["reliability"], w + "/reliability");
     if (c.contains("pr_curve")) {
       if (!c["pr_curve"].is_array()) throw InputError(w + "/pr_curve: expected a list");
       for (size_t k = 0; k < c["pr_curve"].size(); ++k) {
@@ -280,6 +311,10 @@ EvalMetrics EvalMetricsFromJson(const json& j, const std::string& where) {
     if (j["all"].contains("verification") && !j["all"]["verification"].is_null())
       m.verification = VerificationFromJson(j["all"]["verification"], where + "/all/verification");
     if (j["all"].contains("alignment")) m.alignment = AlignmentFromJson(j["all"]["alignment"], where + "/all/alignment");
+    if (j["all"].contains("accepted_iou25"))
+      m.accepted25 = OperatingPointFromJson(j["all"]["accepted_iou25"], where + "/all/accepted_iou25");
+    if (j["all"].contains("reliability"))
+      m.reliability = ReliabilityFromJson(j["all"]["reliability"], where + "/all/reliability");
   }
   if (j.contains("objects") && j["objects"].is_array())
     for (size_t i = 0; i < j["objects"].size(); ++i)
@@ -364,6 +399,8 @@ std::map<std::string, double> FlatFigures(const RunFigures& r) {
     if (c.verified) AddPointFigures(f, c.cls + "/verified", *c.verified);
     if (c.verification) AddVerificationFigures(f, c.cls, *c.verification);
     if (c.alignment.objects > 0) AddAlignmentFigures(f, c.cls, c.alignment);
+    AddPointFigures(f, c.cls + "/accepted_iou25", c.accepted25);
+    if (c.reliability) f[c.cls + "/ece"] = c.reliability->ece;
   }
   f["all/map"] = r.metrics.map;
   f["all/map25"] = r.metrics.map25;
@@ -374,6 +411,8 @@ std::map<std::string, double> FlatFigures(const RunFigures& r) {
     AddVerificationFigures(f, "all", r.metrics.verification);
   }
   if (r.metrics.alignment.objects > 0) AddAlignmentFigures(f, "all", r.metrics.alignment);
+  AddPointFigures(f, "all/accepted_iou25", r.metrics.accepted25);
+  if (r.metrics.reliability) f["all/ece"] = r.metrics.reliability->ece;
   const double n = static_cast<double>(r.scenes.size());
   std::vector<double> scene_ms;
   for (const auto& s : r.scenes) scene_ms.push_back(s.total_ms);

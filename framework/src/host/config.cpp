@@ -21,7 +21,7 @@ namespace {
 
 const std::vector<std::string> kTopKeys = {"extends", "description", "comment", "seed", "threads",
                                            "catalog", "model_cache", "training", "stages", "limits",
-                                           "ground", "frame", "ensemble"};
+                                           "ground", "frame", "ensemble", "calibration"};
 const std::vector<std::string> kStageKeys = {"type", "inputs", "params", "comment"};
 const std::vector<std::string> kTrainingKeys = {"sensor", "comment"};
 const std::vector<std::string> kLimitKeys = {"max_points", "max_grid_cells", "comment"};
@@ -56,6 +56,11 @@ void AbsolutisePaths(nlohmann::json& j, const fs::path& dir) {
       fs::path p = j[key].get<std::string>();
       if (!p.empty() && p.is_relative()) j[key] = (dir / p).lexically_normal().string();
     }
+  }
+  if (j.contains("calibration") && j["calibration"].is_object() && j["calibration"].contains("file") &&
+      j["calibration"]["file"].is_string()) {
+    fs::path p = j["calibration"]["file"].get<std::string>();
+    if (!p.empty() && p.is_relative()) j["calibration"]["file"] = (dir / p).lexically_normal().string();
   }
 }
 
@@ -193,6 +198,15 @@ GraphConfig ValidateGraph(const std::string& path, const nlohmann::json& config,
   resolved["frame"] = ToJson(g.frame);
   g.ensemble = EnsembleOptionsFromJson(config.value("ensemble", nlohmann::json()), w + "/ensemble");
   resolved["ensemble"] = ToJson(g.ensemble);
+  g.calibration = CalibrationSectionFromJson(config.value("calibration", nlohmann::json()), w + "/calibration");
+  resolved["calibration"] = ToJson(g.calibration);
+  if (!g.calibration.file.empty()) {
+    try {
+      g.calibration_map = std::make_shared<const Calibration>(Calibration::Load(g.calibration.file));
+    } catch (const InputError& e) {
+      throw InputError(w + "/calibration/file: " + e.what());
+    }
+  }
   if (config.contains("catalog")) g.catalog = config["catalog"].get<std::string>();
   if (config.contains("model_cache")) g.model_cache = config["model_cache"].get<std::string>();
   if (config.contains("limits")) {
@@ -359,7 +373,7 @@ GraphConfig LoadGraph(const std::string& path, const Registry& registry, const s
     const std::string tag = s.substr(0, dot), key = s.substr(dot + 1, eq - dot - 1), text = s.substr(eq + 1);
     RequireUtf8(s, "--set");  // the override goes into run records
     const nlohmann::json value = ParseCliJson(text, "--set " + s.substr(0, eq), true);  // a bare word: a string
-    if (tag == "ground" || tag == "frame" || tag == "ensemble") {
+    if (tag == "ground" || tag == "frame" || tag == "ensemble" || tag == "calibration") {
       if (!config.contains(tag) || !config[tag].is_object()) config[tag] = nlohmann::json::object();
       config[tag][key] = value;
       applied.push_back({s.substr(0, eq), "/" + tag + "/" + key});
@@ -369,7 +383,7 @@ GraphConfig LoadGraph(const std::string& path, const Registry& registry, const s
       std::string tags;
       if (config.contains("stages") && config["stages"].is_object())
         for (auto it = config["stages"].begin(); it != config["stages"].end(); ++it) tags += (tags.empty() ? "" : ", ") + it.key();
-      throw InputError(where + ": no stage '" + tag + "' in " + path + " (stages: " + tags + "; or ground, frame, ensemble)");
+      throw InputError(where + ": no stage '" + tag + "' in " + path + " (stages: " + tags + "; or ground, frame, ensemble, calibration)");
     }
     auto& st = config["stages"][tag];
     if (!st.is_object()) throw InputError(where + ": stage '" + tag + "' is not an object");

@@ -39,6 +39,7 @@ nlohmann::json DetectionToJson(const Detection& d, const Scan* scan) {
                       {"yaw_deg", yaw * 180.0 / M_PI},
                       {"facing", d.model.empty() ? nlohmann::json(nullptr) : D(facing_w)},
                       {"score", d.score},
+                      {"confidence", d.confidence ? nlohmann::json(*d.confidence) : nlohmann::json(nullptr)},
                       {"model", d.model.empty() ? nlohmann::json(nullptr) : nlohmann::json(d.model)},
                       {"verified", d.verified ? nlohmann::json(*d.verified) : nlohmann::json(nullptr)}};
   if (d.coverage) j["coverage"] = *d.coverage;

@@ -15,7 +15,16 @@ namespace furnihost {
 
 Detector::Detector(GraphConfig graph, std::shared_ptr<const Registry> registry, const RunContext& ctx,
                    const DetectorOptions& options)
-    : graph_(std::move(graph)), registry_(std::move(registry)), ctx_(ctx), options_(options), pipeline_(graph_, *registry_) {}
+    : graph_(std::move(graph)), registry_(std::move(registry)), ctx_(ctx), options_(options), pipeline_(graph_, *registry_) {
+  if (!pipeline_.HasDetectionChain()) return;
+  if (const auto& c = graph_.calibration_map)
+    spdlog::info("calibration: {} ({} classes); detections accepted at confidence >= {}", c->Path(),
+                 c->Classes().size(), graph_.calibration.min_confidence);
+  else
+    spdlog::info("no calibration in {}: detections carry no confidence and the stages' thresholds decide "
+                 "(docs/calibration.md)",
+                 graph_.path);
+}
 
 Detector::~Detector() {
   try {

@@ -99,12 +99,19 @@ std::vector<Detection> FuseDetections(const std::vector<std::vector<Detection>>&
   return out;
 }
 
+void Pipeline::Calibrate(std::vector<Detection>& detections) const {
+  if (graph_.calibration_map) graph_.calibration_map->Apply(detections, graph_.calibration.min_confidence);
+}
+
 Pipeline::Result Pipeline::Detect(const std::vector<SceneInput>& scenes, const TrainedModel* model,
                                   const Catalog* catalog, const RunContext& ctx,
                                   const std::function<void()>& before_stages) {
   const EnsembleOptions& e = graph_.ensemble;
   Result first = DetectOnce(scenes, model, catalog, ctx, before_stages, {});
-  if (e.runs <= 1) return first;
+  if (e.runs <= 1) {
+    Calibrate(first.detections);
+    return first;
+  }
   std::vector<std::vector<Detection>> runs;
   runs.push_back(std::move(first.detections));
   for (int k = 1; k < e.runs; ++k) {
@@ -125,6 +132,7 @@ Pipeline::Result Pipeline::Detect(const std::vector<SceneInput>& scenes, const T
   Stopwatch sf;
   first.detections = FuseDetections(runs, e.join_iou);
   first.timings_ms.emplace_back("ensemble", sf.Ms());
+  Calibrate(first.detections);
   return first;
 }
 

@@ -1,4 +1,4 @@
-// The host's own sections of a graph config ("ground", "frame", "ensemble"), each parameter
+// The host's own sections of a graph config ("ground", "frame", "ensemble", "calibration"), each parameter
 // declared once (ParamBinding) with its range and unit, as a plugin declares its parameters: the
 // schema, the defaults (read from the structs), parsing and the errors come from one declaration.
 #include <cmath>
@@ -50,6 +50,17 @@ const ParamBinding<EnsembleOptions>& EnsembleBinding() {
   return b;
 }
 
+const ParamBinding<CalibrationSection>& CalibrationBinding() {
+  static const auto b =
+      ParamBinding<CalibrationSection>()
+          .String("file", &CalibrationSection::file,
+                  "calibration file of scripts/calibrate.py, relative to the config naming it; \"\": none (the "
+                  "stages' thresholds decide)")
+          .Number("min_confidence", &CalibrationSection::min_confidence, 0, 1, "1",
+                  "confidence at or above which a detection of a calibrated class is accepted");
+  return b;
+}
+
 // A section as written: null (the defaults) or an object, whose "comment" is the reader's.
 template <class O>
 O ParseSection(const ParamBinding<O>& binding, const nlohmann::json& j, const std::string& where, const char* example) {
@@ -92,8 +103,19 @@ nlohmann::json ToJson(const EnsembleOptions& e) {
   return {{"runs", e.runs}, {"jitter_m", e.jitter_m}, {"join_iou", e.join_iou}};
 }
 
+CalibrationSection CalibrationSectionFromJson(const nlohmann::json& j, const std::string& where) {
+  return ParseSection(CalibrationBinding(), j, where, "{\"file\": \"calibration/scannet.json\"}");
+}
+
+nlohmann::json ToJson(const CalibrationSection& c) {
+  return {{"file", c.file}, {"min_confidence", c.min_confidence}};
+}
+
 std::vector<std::pair<std::string, ParamSchema>> HostSectionSchemas() {
-  return {{"ground", GroundBinding().Schema()}, {"frame", FrameBinding().Schema()}, {"ensemble", EnsembleBinding().Schema()}};
+  return {{"ground", GroundBinding().Schema()},
+          {"frame", FrameBinding().Schema()},
+          {"ensemble", EnsembleBinding().Schema()},
+          {"calibration", CalibrationBinding().Schema()}};
 }
 
 }  // namespace furnihost

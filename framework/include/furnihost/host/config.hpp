@@ -15,6 +15,8 @@
 //     "ensemble": {"runs": 5, "jitter_m": 0.0005, "join_iou": 0.3},  // detection run on the scan and on
 //                                                  // runs - 1 jittered copies, the runs' detections fused
 //                                                  // (FuseDetections); runs 1 (the default): once
+//     "calibration": {"file": "calibration/scannet.json", "min_confidence": 0.5},  // each detection's
+//                                                  // confidence (calibration.hpp); accepted at min_confidence
 //     "stages": {                               // an object keyed by tag (not an array) so a
 //       "input":   {"type": "sensors.scan_file"},//   merge patch can change one stage's params
 //       "segment": {"type": "segmenters.region_growing", "inputs": ["input"], "params": {...}},
@@ -39,12 +41,14 @@
 // ("chain") when there are several. Training trains every voter on the views of the training
 // sensor through its own segmenter and features.
 #pragma once
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "furnihost/host/calibration.hpp"
 #include "furnihost/host/ground_estimation.hpp"
 #include "furnihost/params.hpp"
 #include "furnihost/host/registry.hpp"
@@ -86,14 +90,24 @@ struct FrameSection {
   bool level = false;
 };
 
-// The host's own sections of a graph config ("ground", "frame", "ensemble"; null: the
+// The graph's calibration ("calibration" key): the calibration file (calibration.hpp; relative to
+// the config that names it) and the confidence at which detections are accepted. Without a
+// file, detections carry no confidence and the stages' thresholds decide.
+struct CalibrationSection {
+  std::string file;
+  double min_confidence = 0.5;
+};
+
+// The host's own sections of a graph config ("ground", "frame", "ensemble", "calibration"; null: the
 // defaults), each parameter declared once with its range and unit (host_options.cpp), as a
 // plugin's are. InputError naming `where`/<key> on an unknown key or a bad value; a "comment"
 // key is allowed. `furnihost plugins` lists them (HostSectionSchemas).
 FURNIHOST_API FrameSection FrameSectionFromJson(const nlohmann::json& j, const std::string& where);
 FURNIHOST_API EnsembleOptions EnsembleOptionsFromJson(const nlohmann::json& j, const std::string& where);
+FURNIHOST_API CalibrationSection CalibrationSectionFromJson(const nlohmann::json& j, const std::string& where);
 FURNIHOST_API nlohmann::json ToJson(const FrameSection& f);
 FURNIHOST_API nlohmann::json ToJson(const EnsembleOptions& e);
+FURNIHOST_API nlohmann::json ToJson(const CalibrationSection& c);
 // Each host section's name and schema, for listings.
 FURNIHOST_API std::vector<std::pair<std::string, ParamSchema>> HostSectionSchemas();
 
@@ -118,6 +132,8 @@ struct FURNIHOST_API GraphConfig {
   GroundOptions ground;         // how the pipeline gets each scan's ground ("ground" key)
   FrameSection frame;           // "frame" key
   EnsembleOptions ensemble;  // "ensemble" key
+  CalibrationSection calibration;  // "calibration" key
+  std::shared_ptr<const Calibration> calibration_map;  // calibration.file read; null without
   std::vector<StageConfig> stages;  // in execution (topological) order
 
   const StageConfig* Find(const std::string& tag) const;
@@ -155,7 +171,7 @@ FURNIHOST_API GraphConfig ValidateGraph(const std::string& path, const nlohmann:
 // `sets`: command-line overrides "TAG.PARAM=VALUE" (VALUE is JSON: 0.2, true, "text" or an
 // object; anything that is not JSON is taken as a string), applied to the stage TAG's params
 // after `extends` and before validation; "ground.KEY=VALUE" sets the ground options (and
-// "frame.KEY=VALUE", "ensemble.KEY=VALUE" theirs). A bad
+// "frame.KEY=VALUE", "ensemble.KEY=VALUE", "calibration.KEY=VALUE" theirs). A bad
 // override is an InputError naming it ("--set vote.nope=1: ...").
 FURNIHOST_API GraphConfig LoadGraph(const std::string& path, const Registry& registry,
                                     const std::vector<std::string>& sets = {});

@@ -165,6 +165,22 @@ struct OperatingPoint {
                                          // folded by the gt's yaw_symmetry when it declares one
 };
 
+// How well detections' confidences (Detection::confidence, a calibrated graph's) say how often
+// they are right: the detections of a class that carry a confidence, labelled true when AP25's
+// matching (MatchSceneIou at 0.25) takes them, in 10 equal-width confidence bins; the expected
+// calibration error is the detection-weighted mean |share true - mean confidence| over the bins.
+struct Reliability {
+  struct Bin {
+    double lo = 0, hi = 0;  // confidence range [lo, hi) (the last bin includes 1)
+    int n = 0;               // detections in it
+    double confidence = NAN, accuracy = NAN;  // their mean confidence and share true; NaN when n = 0
+  };
+  int detections = 0;  // with a confidence
+  double ece = NAN;    // NaN when detections = 0
+  std::vector<Bin> bins;
+};
+FURNIHOST_API Reliability MakeReliability(const std::vector<std::pair<float, bool>>& confidence_true, int bins = 10);
+
 // Verification as a filter of the voter's hypotheses: each hypothesis is matched at the centre
 // the voter gave it (before a fitter moved it), then counted by whether the fitter kept it.
 struct VerificationFigures {
@@ -212,6 +228,11 @@ struct ClassMetrics {
   std::optional<OperatingPoint> verified;
   std::optional<VerificationFigures> verification;  // present when a fitter ran
   AlignmentFigures alignment;  // the Scan2CAD rule on the accepted detections
+  // The accepted detections (verified != false; of a calibrated graph: at its min_confidence)
+  // matched on their own by box IoU >= 0.25: the working point's precision and recall by the
+  // ScanNet rule.
+  OperatingPoint accepted25;
+  std::optional<Reliability> reliability;  // when its detections carry a confidence
 };
 
 struct EvalMetrics {
@@ -223,6 +244,8 @@ struct EvalMetrics {
   std::map<std::string, int> ignored_gt, ignored_detections;  // original class -> count
   VerificationFigures verification;  // micro totals (fitted only)
   AlignmentFigures alignment;         // micro totals
+  OperatingPoint accepted25;          // micro totals
+  std::optional<Reliability> reliability;  // every class's detections with a confidence pooled
   std::vector<ObjectRecord> objects;  // every evaluated gt object, scene by scene
 };
 

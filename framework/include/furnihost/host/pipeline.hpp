@@ -85,6 +85,8 @@ class FURNIHOST_API Pipeline {
   // With the graph's ensemble (EnsembleOptions) the chain runs ensemble.runs times: first on
   // the scans as read, then on jittered copies; the detections are the runs' fused
   // (FuseDetections), every other field is the first run's (the timings summed). ensemble.cpp.
+  // With the graph's calibration, the detections get their confidence and are decided at its
+  // min_confidence (Calibration::Apply), last.
   Result Detect(const std::vector<SceneInput>& scenes, const TrainedModel* model,
                 const Catalog* catalog, const RunContext& ctx, const std::function<void()>& before_stages = {});
 
@@ -92,6 +94,7 @@ class FURNIHOST_API Pipeline {
   // One run of the chain: the scans read (scan_input.hpp), then the stages (the executor).
   Result DetectOnce(const std::vector<SceneInput>& scenes, const TrainedModel* model, const Catalog* catalog,
                     const RunContext& ctx, const std::function<void()>& before_stages, const RunJitter& jitter);
+  void Calibrate(std::vector<Detection>& detections) const;
   GraphConfig graph_;
   std::shared_ptr<graph::StageInstances> stages_;
   const StageConfig* input_ = nullptr;  // the detection sensor
