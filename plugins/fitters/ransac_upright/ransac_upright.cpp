@@ -234,6 +234,22 @@ const ParamBinding<RansacUprightOptions>& Binding() {
           .Number("completeness_exponent", &O::completeness_exponent, 0, 10, "1",
                   "synthesis: exponent of the share of the model's surface facing the sensor (not hidden behind "
                   "anything measured) that it saw: the seen surface over the seen, free and unmeasured")
+          .Number("view_prior_exponent", &O::view_prior_exponent, 0, 10, "1",
+                  "synthesis: the score is also multiplied by the view prior^this: how the detection's points within "
+                  "the fitted model's box compare, in extents along the model's axes, top, bottom and top-view "
+                  "profile, with the part of the posed model the sensor should see (its surface seen or in free "
+                  "space; a chair the view's edge cuts or whose legs are hidden is compared with that part of a "
+                  "chair) (0 = off)")
+          .Number("class_compete_exponent", &O::class_compete_exponent, 0, 10, "1",
+                  "synthesis: a detection whose box overlaps one of another class by more than max_box_iou (another "
+                  "reading of the object) is weighed by (its pose objective / the best of those readings')^this: the "
+                  "class whose posed model explains more of the object wins (0 = off)")
+          .Number("view_prior_size", &O::view_prior_size, 0.01, 10, "1",
+                  "synthesis: view prior's spread of the log ratio of the extents and tops")
+          .Number("view_prior_bottom_m", &O::view_prior_bottom_m, 0.01, 10, "m",
+                  "synthesis: view prior's spread of the difference of the bottoms")
+          .Number("view_prior_profile", &O::view_prior_profile, 0.001, 10, "1",
+                  "synthesis: view prior's spread of the top-view profiles' earth mover's distance")
           .Number("evidence_m2", &O::evidence_m2, 0, 100, "m2",
                   "synthesis: the score is also multiplied by 1 - exp(-seen / evidence_m2): a few square centimetres "
                   "that a model explains fully are weak evidence of it (0 = off)")
@@ -390,5 +406,5 @@ std::shared_ptr<const octomap::OcTree> RansacUprightFitter::Grid(const Scan& sca
 
 }  // namespace furnihost::ransac_upright
 
-FURNIHOST_PLUGIN(furnihost::ransac_upright::RansacUprightFitter, "fitters.ransac_upright", "1.6.0",
+FURNIHOST_PLUGIN(furnihost::ransac_upright::RansacUprightFitter, "fitters.ransac_upright", "1.7.0",
                  "upright RANSAC fit of catalog models (x, y, yaw) with coverage and OctoMap free-space verification")

@@ -69,6 +69,11 @@ struct RansacUprightOptions {
   float evidence_m2 = 0.1f;
   float explained_exponent = 1.f;
   float agreement_exponent = 0.5f;
+  float view_prior_exponent = 0.f;
+  float class_compete_exponent = 0.f;
+  float view_prior_size = 0.25f;
+  float view_prior_bottom_m = 0.15f;
+  float view_prior_profile = 0.08f;
   std::map<std::string, float> thresholds;
   float default_threshold = 0.1f;
 

@@ -31,6 +31,52 @@
 
 namespace furnihost::ransac_upright {
 
+namespace {
+
+// What the view prior compares of a set of points about a posed model: their extents along the
+// model's two axes (2nd to 98th percentile), their top and bottom above the floor (98th and 2nd
+// percentiles) and their top-view profile under the model's top.
+struct ViewShape {
+  float u = 0.f, v = 0.f, top = 0.f, bottom = 0.f;
+  shape::Profile profile{};
+};
+
+float Spread(std::vector<float>* x, float* lo) {
+  const size_t a = x->size() * 2 / 100, b = x->size() * 98 / 100;
+  std::nth_element(x->begin(), x->begin() + long(a), x->end());
+  *lo = (*x)[a];
+  std::nth_element(x->begin(), x->begin() + long(b), x->end());
+  return (*x)[b] - *lo;
+}
+
+// The shape of `points` (world frame) within `margin` of the box `bounds` (model frame) posed
+// at `p`, leaving out those less than `low` above the floor; false with fewer than 10 points.
+bool ShapeAbout(const Points& points, const Eigen::AlignedBox3f& bounds, const ModelPlacement& p, float floor_z,
+                float low, float margin, ViewShape* out) {
+  const float c = std::cos(p.yaw), s = std::sin(p.yaw);
+  const Eigen::Vector3f lo = bounds.min().cwiseProduct(Eigen::Vector3f(p.sx, p.sy, p.sz));
+  const Eigen::Vector3f hi = bounds.max().cwiseProduct(Eigen::Vector3f(p.sx, p.sy, p.sz));
+  std::vector<float> us, vs, hs;
+  std::vector<Eigen::Vector2f> xy;
+  for (const auto& w : points) {
+    const float dx = w.x() - p.x, dy = w.y() - p.y;
+    const float u = c * dx + s * dy, v = -s * dx + c * dy, h = w.z() - floor_z;
+    if (h < low || u < lo.x() - margin || u > hi.x() + margin || v < lo.y() - margin || v > hi.y() + margin ||
+        h > hi.z() + margin)
+      continue;
+    us.push_back(u), vs.push_back(v), hs.push_back(h), xy.push_back(w.head<2>());
+  }
+  if (us.size() < 10) return false;
+  out->profile = shape::TopViewProfile(xy, hs, std::max(hi.z(), 0.05f));
+  float ignored;
+  out->u = Spread(&us, &ignored);
+  out->v = Spread(&vs, &ignored);
+  out->top = Spread(&hs, &out->bottom) + out->bottom;
+  return true;
+}
+
+}  // namespace
+
 // The render clouds of `models` (same order): kept per stage object, and between runs in
 // cloud_cache beside the sampled clouds (a few kilobytes each: loading them spares sampling
 // or loading the dense clouds); the missing ones thinned from the sampled clouds.
@@ -278,6 +324,8 @@ std::vector<Detection> RansacUprightFitter::FitSynthesis(const std::vector<Detec
     ExplainedPixels pixels;
     double explained_share = 0.0, own_area = 0.0, explained_area = 0.0;
     float prior = 0.f;
+    float view_prior = 1.f, view_size = 0.f, view_profile = 0.f;  // the view prior, its size and profile energies
+    float compete = 1.f;  // the class competition's factor
   };
   std::vector<Fitted> fit(order.size());
   tbb::parallel_for(size_t(0), order.size(), [&](size_t j) {
@@ -294,7 +342,9 @@ std::vector<Detection> RansacUprightFitter::FitSynthesis(const std::vector<Detec
     ft.model = ms[x.models[size_t(ft.r.model)]];
     std::vector<uint64_t> keys;
     std::vector<float> areas;
-    ComparePose(*renders[size_t(ft.r.model)], ft.r.pose, views, o_.compare, &sc, &keys, &areas, sel);
+    Points observable;
+    ComparePose(*renders[size_t(ft.r.model)], ft.r.pose, views, o_.compare, &sc, &keys, &areas, sel,
+                o_.view_prior_exponent > 0.f ? &observable : nullptr);
     std::vector<size_t> idx(keys.size());
     for (size_t i = 0; i < idx.size(); ++i) idx[i] = i;
     std::sort(idx.begin(), idx.end(), [&](size_t a, size_t b) { return keys[a] < keys[b]; });
@@ -325,6 +375,27 @@ std::vector<Detection> RansacUprightFitter::FitSynthesis(const std::vector<Detec
     const Comparison& c = ft.r.comparison;
     const double agree = c.seen_object + c.free > 0.0 ? c.seen_object / (c.seen_object + c.free) : 0.0;
     ft.prior = float(std::pow(std::max(double(det.score), double(o_.prior_floor)), double(o_.shape_exponent)));
+    if (o_.view_prior_exponent > 0.f) {
+      // The view prior: the detection's points about the fitted model against the part of the
+      // model the sensor should see, both above the lowest height the proposals keep.
+      ViewShape a, b;
+      const Eigen::AlignedBox3f& bounds = renders[size_t(ft.r.model)]->bounds;
+      ft.view_prior = o_.prior_floor;
+      if (ShapeAbout(x.points, bounds, ft.r.pose, x.floor_z, 0.05f, 0.05f, &a) &&
+          ShapeAbout(observable, bounds, ft.r.pose, x.floor_z, 0.05f, 0.05f, &b)) {
+        auto ratio = [](float p, float q) {
+          const float r = std::log(std::max(p, 0.05f) / std::max(q, 0.05f));
+          return r * r;
+        };
+        const float ss = o_.view_prior_size, sb = o_.view_prior_bottom_m, sp = o_.view_prior_profile;
+        ft.view_size = (ratio(a.u, b.u) + ratio(a.v, b.v) + ratio(a.top, b.top)) / (2 * ss * ss) +
+                       (a.bottom - b.bottom) * (a.bottom - b.bottom) / (2 * sb * sb);
+        const float emd = shape::ProfileDistance(a.profile, b.profile);
+        ft.view_profile = emd * emd / (2 * sp * sp);
+        ft.view_prior = std::max(std::exp(-(ft.view_size + ft.view_profile)), o_.prior_floor);
+      }
+      ft.prior *= std::pow(ft.view_prior, o_.view_prior_exponent);
+    }
     const double visible = c.seen_object + c.seen_other + c.free + c.unknown;
     const double complete = visible > 0.0 ? c.seen_object / visible : 0.0;
     ft.pixels.score = ft.prior * std::pow(ft.explained_share, double(o_.explained_exponent)) *
@@ -341,6 +412,30 @@ std::vector<Detection> RansacUprightFitter::FitSynthesis(const std::vector<Detec
       const ModelPlacement& p = fit[j].r.pose;
       chosen[j].box = OrientedBox{p.Apply(b.center()), b.sizes().cwiseProduct(Eigen::Vector3f(p.sx, p.sy, p.sz)), p.yaw}.Aabb();
     }
+  }
+  if (o_.class_compete_exponent > 0.f) {
+    // Readings of one object by several classes (boxes overlapping by more than max_box_iou):
+    // each weighed by how much of the view it explains against the best reading of another class
+    // there (the pose search's objective: seen furniture surface less weighted free space), so
+    // the class whose posed model explains the object wins (a sofa's model explains all of a
+    // loveseat, an armchair's a part).
+    std::vector<double> objective(order.size(), 0.0), factor(order.size(), 1.0);
+    for (size_t j = 0; j < order.size(); ++j)
+      if (fit[j].model) objective[j] = std::max(Objective(fit[j].r.comparison, o_.search), 0.0);
+    for (size_t j = 0; j < order.size(); ++j) {
+      if (!fit[j].model) continue;
+      const std::string& cls = input[cand[order[j]]].cls;
+      double best = objective[j];
+      for (size_t i = 0; i < order.size(); ++i) {
+        if (i == j || !fit[i].model || input[cand[order[i]]].cls == cls) continue;
+        const Eigen::AlignedBox3f inter = chosen[i].box.intersection(chosen[j].box);
+        if (inter.isEmpty()) continue;
+        const float vi = inter.volume(), u = chosen[i].box.volume() + chosen[j].box.volume() - vi;
+        if (u > 0.f && vi / u > o_.max_box_iou) best = std::max(best, objective[i]);
+      }
+      factor[j] = best > 0.0 ? std::pow(objective[j] / best, double(o_.class_compete_exponent)) : 1.0;
+    }
+    for (size_t j = 0; j < order.size(); ++j) chosen[j].score *= factor[j], fit[j].compete = float(factor[j]);
   }
   const std::vector<Choice> choice = ExplainAway(chosen, o_.min_new_share, o_.max_box_iou);
   std::vector<Detection> out;
@@ -368,7 +463,7 @@ std::vector<Detection> RansacUprightFitter::FitSynthesis(const std::vector<Detec
     det.coverage = float(ft.explained_share);
     const double seen = c.seen_object + c.seen_other;
     det.free_space_ratio = seen + c.free > 0.0 ? float(c.free / (seen + c.free)) : 0.f;
-    det.score = float(ft.pixels.score) * choice[j].share;
+    det.score = float(chosen[j].score) * choice[j].share;
     det.evidence["recogniser_score"] = voter_score;
     det.evidence["syn_seen_m2"] = float(c.seen_object);
     det.evidence["syn_seen_other_m2"] = float(c.seen_other);
@@ -382,6 +477,12 @@ std::vector<Detection> RansacUprightFitter::FitSynthesis(const std::vector<Detec
     det.evidence["syn_stretch_x"] = p.sx;
     det.evidence["syn_stretch_y"] = p.sy;
     det.evidence["syn_stretch_z"] = p.sz;
+    if (o_.class_compete_exponent > 0.f) det.evidence["syn_compete"] = ft.compete;
+    if (o_.view_prior_exponent > 0.f) {
+      det.evidence["syn_view_prior"] = ft.view_prior;
+      det.evidence["syn_view_e_size"] = ft.view_size;
+      det.evidence["syn_view_e_profile"] = ft.view_profile;
+    }
     const auto thr = o_.thresholds.find(det.cls);
     det.checks.push_back(Check::AtMost("free_space_ratio", *det.free_space_ratio, o_.max_free_space_ratio));
     det.checks.push_back(Check::AtLeast("score", det.score, thr == o_.thresholds.end() ? o_.default_threshold : thr->second));

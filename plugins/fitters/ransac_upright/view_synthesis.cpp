@@ -266,7 +266,7 @@ std::vector<float>& Scratch::Buffer(size_t view, int level, size_t pixels) {
 
 Comparison ComparePose(const RenderCloud& model, const ModelPlacement& pose, const std::vector<View>& views,
                        const CompareOptions& o, Scratch* scratch, std::vector<uint64_t>* explained,
-                       std::vector<float>* areas, int key_level) {
+                       std::vector<float>* areas, int key_level, Points* observable) {
   Comparison c;
   if (model.points.empty()) return c;
   const float c0 = std::cos(pose.yaw), s0 = std::sin(pose.yaw);
@@ -291,7 +291,8 @@ Comparison ComparePose(const RenderCloud& model, const ModelPlacement& pose, con
     std::vector<float>& z = scratch->Buffer(v, lev, img.Pixels(lev));
     std::vector<uint32_t>& touched = scratch->touched;
     std::vector<uint32_t>& front = scratch->front;
-    if (explained && front.size() < z.size()) front.resize(z.size());
+    const bool keep_front = explained || observable;
+    if (keep_front && front.size() < z.size()) front.resize(z.size());
     touched.clear();
     for (size_t k = 0; k < model.points.size(); ++k) {
       const Eigen::Vector3f& m = model.points[k];
@@ -303,7 +304,24 @@ Comparison ComparePose(const RenderCloud& model, const ModelPlacement& pose, con
       if (z[id] == kInf) touched.push_back(id);
       if (d < z[id]) {
         z[id] = d;
-        if (explained) front[id] = uint32_t(k);
+        if (keep_front) front[id] = uint32_t(k);
+      }
+    }
+    if (observable) {
+      // Every sample within the depth tolerance of its pixel's front-most one (not hidden by the
+      // model itself), where the sensor measured that front surface or through it.
+      for (size_t k = 0; k < model.points.size(); ++k) {
+        const Eigen::Vector3f& m = model.points[k];
+        const float mx = m.x() * pose.sx, my = m.y() * pose.sy;
+        const Eigen::Vector3f w(pose.x + c0 * mx - s0 * my, pose.y + s0 * mx + c0 * my, pose.z + m.z() * pose.sz);
+        uint32_t id;
+        float d;
+        if (!img.Project(R * w + t, lev, &id, &d)) continue;
+        const float dm = z[id], dobs = img.Depth(lev, id);
+        const float range_term = o.seen_per_m2 * dm * dm;
+        if (!(d - dm <= o.seen_tolerance + range_term) || !(dobs < kInf)) continue;
+        if (std::abs(dobs - dm) <= o.seen_tolerance + range_term || dobs > dm + o.free_margin + range_term)
+          observable->push_back(w);
       }
     }
     for (uint32_t id : touched) {
@@ -317,7 +335,8 @@ Comparison ComparePose(const RenderCloud& model, const ModelPlacement& pose, con
       }
       const float range_term = o.seen_per_m2 * dm * dm;
       const float tol = o.seen_tolerance + range_term;
-      if (std::abs(dobs - dm) <= tol) {
+      const bool is_seen = std::abs(dobs - dm) <= tol, is_free = !is_seen && dobs > dm + o.free_margin + range_term;
+      if (is_seen) {
         if (img.Object(lev, id)) {
           c.seen_object += a;
           if (explained) {
@@ -336,7 +355,7 @@ Comparison ComparePose(const RenderCloud& model, const ModelPlacement& pose, con
         }
       } else if (dobs < dm) {
         c.occluded += a;
-      } else if (dobs > dm + o.free_margin + range_term) {
+      } else if (is_free) {
         c.free += a;
       } else {
         c.unknown += a;  // a little behind the model, within the free margin: no evidence either way

@@ -169,9 +169,13 @@ class Scratch {
 // pixels it explains as pixels of `key_level` (the pixel of `key_level` holding each explained
 // pixel's front-most sample; comparable between candidates whatever level each was rendered at),
 // with their explained areas in `areas` (a key may repeat: several rendered pixels in one).
+// With `observable`, also appends (world frame) the samples the sensor would have measured:
+// those within the seen tolerance of their pixel's front-most sample where that is seen or in
+// free space (neither hidden behind something nearer nor outside what the sensor measured): the
+// part of the posed model the sensor should see.
 Comparison ComparePose(const RenderCloud& model, const ModelPlacement& pose, const std::vector<View>& views,
                        const CompareOptions& options, Scratch* scratch, std::vector<uint64_t>* explained = nullptr,
-                       std::vector<float>* areas = nullptr, int key_level = 0);
+                       std::vector<float>* areas = nullptr, int key_level = 0, Points* observable = nullptr);
 
 // The key ComparePose uses for pixel `id` of view `view`.
 inline uint64_t PixelKey(size_t view, uint32_t id) { return (uint64_t(view) << 32) | id; }
