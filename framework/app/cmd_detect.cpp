@@ -218,10 +218,7 @@ int RunTrain(const std::vector<std::string>& args) {
   options.strict_catalog = strict;
   // Under mpirun the ranks share the catalog's models; rank 0 writes the model.
   const World& world = World::Get();
-  if (world.Shared())
-    options.ensure_model = [&world](Pipeline& p, const Catalog& catalog, const RunContext& ctx, bool force) {
-      return EnsureModelShared(world, p, catalog, ctx, force);
-    };
+  ShareTraining(world, options);
   Detector detector(g, reg, common.Context(g.seed), options);
   const TrainedModel& m = detector.Train();
   if (world.Root())

@@ -382,10 +382,7 @@ int RunEval(const std::vector<std::string>& args) {
     DetectorOptions options;
     options.strict_catalog = strict;
     options.retrain = retrain;
-    if (world.Shared())
-      options.ensure_model = [&world](Pipeline& p, const Catalog& catalog, const RunContext& ctx, bool force) {
-        return EnsureModelShared(world, p, catalog, ctx, force);
-      };
+    ShareTraining(world, options);
     // Destroyed at the end of the config: its model is freed before the next config loads.
     Detector detector(graph, reg, common.Context(graph.seed), options);
     Stopwatch model_clock;

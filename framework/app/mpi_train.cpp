@@ -88,4 +88,11 @@ TrainedModel EnsureModelShared(const World& world, Pipeline& p, const Catalog& c
   return m;
 }
 
+void ShareTraining(const World& world, DetectorOptions& options) {
+  if (!world.Shared()) return;
+  options.ensure_model = [&world](Pipeline& p, const Catalog& catalog, const RunContext& ctx, bool force) {
+    return EnsureModelShared(world, p, catalog, ctx, force);
+  };
+}
+
 }  // namespace furnihost::app

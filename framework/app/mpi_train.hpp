@@ -4,6 +4,7 @@
 // writes the model; every rank gets the model. The model is the one process's byte for byte:
 // a model's views depend on the model, the graph and the seed only, whichever rank scans them.
 #pragma once
+#include "furnihost/host/detector.hpp"
 #include "furnihost/host/pipeline.hpp"
 #include "mpi_world.hpp"
 
@@ -18,5 +19,10 @@ TrainedModel TrainShared(const World& world, Pipeline& pipeline, const Catalog& 
 // returns the model.
 TrainedModel EnsureModelShared(const World& world, Pipeline& pipeline, const Catalog& catalog, const RunContext& ctx,
                                bool force);
+
+// Under mpirun (world.Shared()), sets `options.ensure_model` to EnsureModelShared over `world`,
+// so a Detector's training is shared among the ranks; outside, leaves the options alone.
+// `world` outlives the detector (World::Get()).
+void ShareTraining(const World& world, DetectorOptions& options);
 
 }  // namespace furnihost::app
