@@ -4,9 +4,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
+#include <numeric>
 #include <nanoflann.hpp>
 
 #include "furnihost/error.hpp"
+#include "furnihost/hash.hpp"
 
 namespace furnihost::voting {
 
@@ -26,6 +29,7 @@ Codebook BuildCodebook(const TrainingParts& parts, const RowMatrixXf& words,
   Codebook b;
   b.feature_names = parts.feature_names;
   b.words = words;
+  b.vocabulary_begin = {0, static_cast<int>(words.rows())};
   b.classes = parts.classes;
   b.models = parts.models;
   const int K = static_cast<int>(words.rows());
@@ -51,6 +55,44 @@ Codebook BuildCodebook(const TrainingParts& parts, const RowMatrixXf& words,
   return b;
 }
 
+Codebook PoolCodebooks(const std::vector<Codebook>& books) {
+  if (books.empty()) throw StageError("no vocabularies to pool");
+  Codebook b = books.front();
+  for (size_t i = 1; i < books.size(); ++i) {
+    const Codebook& o = books[i];
+    if (o.Dim() != b.Dim() || o.classes.size() != b.classes.size() || o.models != b.models)
+      throw StageError("pooled vocabularies differ in their features, classes or models");
+    const int words0 = b.Words();
+    const int elements0 = static_cast<int>(b.d.size());
+    RowMatrixXf words(words0 + o.Words(), b.Dim());
+    words << b.words, o.words;
+    b.words = std::move(words);
+    for (size_t v = 1; v < o.vocabulary_begin.size(); ++v) b.vocabulary_begin.push_back(words0 + o.vocabulary_begin[v]);
+    for (size_t k = 1; k < o.element_begin.size(); ++k) b.element_begin.push_back(elements0 + o.element_begin[k]);
+    b.d.insert(b.d.end(), o.d.begin(), o.d.end());
+    b.element_class.insert(b.element_class.end(), o.element_class.begin(), o.element_class.end());
+    b.element_model.insert(b.element_model.end(), o.element_model.begin(), o.element_model.end());
+    b.element_view.insert(b.element_view.end(), o.element_view.begin(), o.element_view.end());
+    b.element_height.insert(b.element_height.end(), o.element_height.begin(), o.element_height.end());
+  }
+  b.ComputeNorms();
+  return b;
+}
+
+Codebook TrainCodebook(const TrainingParts& parts, const KMeansOptions& opt, uint64_t seed,
+                       std::vector<double>* inertia) {
+  if (opt.vocabularies < 1) throw StageError("vocabularies must be positive");
+  std::vector<Codebook> books;
+  if (inertia) inertia->clear();
+  for (int v = 0; v < opt.vocabularies; ++v) {
+    const uint64_t s = opt.vocabularies == 1 ? seed : SplitMix64(SplitMix64(seed) ^ static_cast<uint64_t>(v));
+    const KMeansResult km = KMeans(parts.features, opt, s);
+    if (inertia) inertia->push_back(km.inertia);
+    books.push_back(BuildCodebook(parts, km.centers, km.labels));
+  }
+  return books.size() == 1 ? std::move(books.front()) : PoolCodebooks(books);
+}
+
 void Codebook::ComputeNorms() {
   element_norm.assign(d.size(), 0.f);
   std::vector<int> count(classes.size());
@@ -68,6 +110,7 @@ nlohmann::json Codebook::ToJson(const std::string& format) const {
   j["feature_names"] = feature_names;
   j["dim"] = Dim();
   j["words"] = FlatArray(std::vector<float>(words.data(), words.data() + words.size()));
+  if (Vocabularies() > 1) j["vocabulary_begin"] = vocabulary_begin;
   nlohmann::json cls = nlohmann::json::array();
   for (const auto& c : classes)
     cls.push_back({{"name", c.name}, {"width", c.width}, {"models", c.models}, {"parts", c.parts},
@@ -99,6 +142,12 @@ Codebook Codebook::FromJson(const nlohmann::json& j, const std::string& format) 
     const auto w = j.at("words").get<std::vector<float>>();
     if (dim <= 0 || w.empty() || w.size() % dim) throw bad("words do not match dim");
     b.words = Eigen::Map<const RowMatrixXf>(w.data(), static_cast<Eigen::Index>(w.size() / dim), dim);
+    b.vocabulary_begin = j.contains("vocabulary_begin") ? j.at("vocabulary_begin").get<std::vector<int>>()
+                                                        : std::vector<int>{0, b.Words()};
+    if (b.vocabulary_begin.size() < 2 || b.vocabulary_begin.front() != 0 || b.vocabulary_begin.back() != b.Words() ||
+        std::adjacent_find(b.vocabulary_begin.begin(), b.vocabulary_begin.end(), std::greater_equal<int>()) !=
+            b.vocabulary_begin.end())
+      throw bad("vocabulary_begin does not split the words into non-empty vocabularies");
     for (const auto& c : j.at("classes"))
       b.classes.push_back({c.at("name").get<std::string>(), c.at("width").get<float>(),
                            c.at("models").get<int>(), c.at("parts").get<int>(), c.at("height").get<float>()});
@@ -142,29 +191,44 @@ float SelectionOptions::ThresholdFor(const std::string& cls) const {
 
 struct WordIndex::Impl {
   using Tree = nanoflann::KDTreeEigenMatrixAdaptor<RowMatrixXf, -1, nanoflann::metric_L2, true>;
-  RowMatrixXf words;  // the tree refers to this copy
-  std::unique_ptr<Tree> tree;
+  std::vector<RowMatrixXf> words;  // per vocabulary; the trees refer to these copies
+  std::vector<long> offset;        // index of each vocabulary's first word among all words
+  std::vector<std::unique_ptr<Tree>> trees;
 };
 
-WordIndex::WordIndex(const RowMatrixXf& words, int leaf_size) : impl_(std::make_unique<Impl>()) {
+WordIndex::WordIndex(const RowMatrixXf& words, int leaf_size, const std::vector<int>& vocabulary_begin)
+    : impl_(std::make_unique<Impl>()) {
   if (words.rows() == 0) throw StageError("voter model has no words");
-  impl_->words = words;
-  impl_->tree = std::make_unique<Impl::Tree>(static_cast<size_t>(words.cols()),
-                                             std::cref(impl_->words), leaf_size);  // builds the tree
+  const std::vector<int> begin =
+      vocabulary_begin.empty() ? std::vector<int>{0, static_cast<int>(words.rows())} : vocabulary_begin;
+  const size_t n = begin.size() - 1;
+  impl_->words.resize(n);  // sized once: the trees keep references into it
+  for (size_t v = 0; v < n; ++v) {
+    if (begin[v + 1] <= begin[v] || begin[v + 1] > words.rows()) throw StageError("voter model: bad vocabulary bounds");
+    impl_->words[v] = words.middleRows(begin[v], begin[v + 1] - begin[v]);
+    impl_->offset.push_back(begin[v]);
+    impl_->trees.push_back(std::make_unique<Impl::Tree>(static_cast<size_t>(words.cols()),
+                                                        std::cref(impl_->words[v]), leaf_size));  // builds it
+  }
 }
 
 WordIndex::~WordIndex() = default;
 
-int WordIndex::Nearest(const float* query, int k, long* indices, float* dist_sq, float max_dist_sq) const {
-  const size_t want = std::min<size_t>(static_cast<size_t>(k), impl_->words.rows());
+int WordIndex::Vocabularies() const { return static_cast<int>(impl_->trees.size()); }
+
+int WordIndex::Nearest(const float* query, int k, long* indices, float* dist_sq, float max_dist_sq,
+                       int vocabulary) const {
+  const size_t want = std::min<size_t>(static_cast<size_t>(k), impl_->words[vocabulary].rows());
   if (want == 0) return 0;
   nanoflann::KNNResultSet<float, long> result(want);
   result.init(indices, dist_sq);
   // init() sets the worst distance to +max; a bound in its place prunes every branch farther
   // than it (the tree only offers points closer than worstDist()).
   if (max_dist_sq > 0.f) dist_sq[want - 1] = max_dist_sq;
-  impl_->tree->index->findNeighbors(result, query, nanoflann::SearchParams());
-  return static_cast<int>(result.size());
+  impl_->trees[vocabulary]->index->findNeighbors(result, query, nanoflann::SearchParams());
+  const int got = static_cast<int>(result.size());
+  for (int i = 0; i < got; ++i) indices[i] += impl_->offset[vocabulary];
+  return got;
 }
 
 }  // namespace furnihost::voting

@@ -361,6 +361,10 @@ VoteResult VoteAndSelect(const Codebook& book, const WordIndex& index,
   std::vector<float> scene_yaw(scenes.size(), 0.f);
   const int dim = book.Dim();
   const int act = std::max(1, opt.activations);
+  const int vocabularies = index.Vocabularies();
+  if (vocabularies != book.Vocabularies())
+    throw StageError("voter: the word index has " + std::to_string(vocabularies) + " vocabularies, the codebook " +
+                     std::to_string(book.Vocabularies()));
   std::vector<long> idx(act);
   std::vector<float> d2(act), q(dim);
   std::vector<double> wv(act);
@@ -393,24 +397,30 @@ VoteResult VoteAndSelect(const Codebook& book, const WordIndex& index,
         continue;
       }
       for (int j = 0; j < dim; ++j) q[j] = F(i, j);
-      const int n = index.Nearest(q.data(), act, idx.data(), d2.data(), bound);
-      double wsum = 0.0;
-      int used = 0;
-      for (int a = 0; a < n; ++a) {
-        const double dist = std::sqrt(std::max(0.f, d2[a]));
-        if (opt.max_distance > 0.f && dist > opt.max_distance) break;  // nearest first
-        d2[a] = static_cast<float>(dist);
-        wv[a] = 1.0 / (dist + 1e-6);
-        wsum += wv[a];
-        ++used;
-      }
-      if (used == 0) continue;
-      const int gpart = static_cast<int>(parts.size());
-      parts.push_back({static_cast<int>(s), static_cast<int>(i), pose * segs[i].centroid});
-      for (int a = 0; a < used; ++a) {
-        float pa = static_cast<float>(wv[a] / wsum);
-        if (opt.inverse_distance) pa /= 1.f + d2[a];
-        acts.push_back({gpart, static_cast<int>(idx[a]), pa});
+      // Eq. 4 within each vocabulary; a pooled codebook's vocabularies weigh 1 / V each.
+      int gpart = -1;
+      for (int v = 0; v < vocabularies; ++v) {
+        const int n = index.Nearest(q.data(), act, idx.data(), d2.data(), bound, v);
+        double wsum = 0.0;
+        int used = 0;
+        for (int a = 0; a < n; ++a) {
+          const double dist = std::sqrt(std::max(0.f, d2[a]));
+          if (opt.max_distance > 0.f && dist > opt.max_distance) break;  // nearest first
+          d2[a] = static_cast<float>(dist);
+          wv[a] = 1.0 / (dist + 1e-6);
+          wsum += wv[a];
+          ++used;
+        }
+        if (used == 0) continue;
+        if (gpart < 0) {
+          gpart = static_cast<int>(parts.size());
+          parts.push_back({static_cast<int>(s), static_cast<int>(i), pose * segs[i].centroid});
+        }
+        for (int a = 0; a < used; ++a) {
+          float pa = static_cast<float>(wv[a] / wsum / vocabularies);
+          if (opt.inverse_distance) pa /= 1.f + d2[a];
+          acts.push_back({gpart, static_cast<int>(idx[a]), pa});
+        }
       }
     }
   }

@@ -64,9 +64,17 @@ struct ClassModel {
 
 // Words plus the shape-model elements of each word. Elements of word k are the index range
 // [element_begin[k], element_begin[k + 1]).
+//
+// A pooled codebook holds V vocabularies, each a k-means of the same training parts with its own
+// seed: vocabulary v is the words [vocabulary_begin[v], vocabulary_begin[v + 1]), each with its
+// own copy of the shape-model elements. A part activates its nearest words in every vocabulary
+// (eq. 4 within each) and each vocabulary's votes weigh 1 / V, so a part still brings a mass of at
+// most 1 per class and the score is the mean of the V vocabularies' scores: the paper's vote with
+// the k-means draw averaged out.
 struct Codebook {
   std::vector<std::string> feature_names;  // one per column of `words`
   RowMatrixXf words;                       // K x D word means (normalised feature space)
+  std::vector<int> vocabulary_begin;       // V + 1 word offsets ({0, K}: one vocabulary)
   std::vector<ClassModel> classes;
   std::vector<std::string> models;         // training model ids
   std::vector<int> element_begin;          // K + 1
@@ -79,6 +87,7 @@ struct Codebook {
 
   int Words() const { return static_cast<int>(words.rows()); }
   int Dim() const { return static_cast<int>(words.cols()); }
+  int Vocabularies() const { return static_cast<int>(vocabulary_begin.size()) - 1; }
   // Fills element_norm from element_begin / element_class.
   void ComputeNorms();
   // Compact JSON (flat float arrays) tagged with `format`; FromJson checks the tag.
@@ -105,6 +114,7 @@ struct KMeansOptions {
   int k = 40;
   int max_iterations = 100;
   int restarts = 3;
+  int vocabularies = 1;  // pooled vocabularies (Codebook), each from its own seed
 };
 
 struct KMeansResult {
@@ -121,6 +131,15 @@ KMeansResult KMeans(const RowMatrixXf& data, const KMeansOptions& opt, uint64_t 
 // Builds a codebook whose word k holds the training parts with label k.
 Codebook BuildCodebook(const TrainingParts& parts, const RowMatrixXf& words,
                        const std::vector<int>& labels);
+
+// One codebook holding the vocabularies of `books` (same parts, classes and models), in order.
+Codebook PoolCodebooks(const std::vector<Codebook>& books);
+
+// The codebook of opt.vocabularies k-means vocabularies of `parts`: vocabulary v from seed
+// SplitMix64(SplitMix64(seed) ^ v) when there are several (the draws of seeds s and s + 1 share none), from `seed` itself when there is one (the
+// single vocabulary of earlier models). `inertia` (optional) receives each vocabulary's.
+Codebook TrainCodebook(const TrainingParts& parts, const KMeansOptions& opt, uint64_t seed,
+                       std::vector<double>* inertia = nullptr);
 
 // Options of activation, accumulation and hypothesis selection (shared parameter block). The
 // defaults are the declared parameters' (BindSelection below reads them from here).
@@ -224,18 +243,22 @@ ParamBinding<O>& BindSelection(ParamBinding<O>& b, SelectionOptions O::*sel) {
       .DetectionOnly();
 }
 
-// kd-tree over the words of a codebook (nanoflann). Keeps its own copy of the words.
-// `leaf_size`: points per leaf (larger leaves pay off for thousands of points in 24-D).
+// kd-trees over the words of a codebook (nanoflann), one per vocabulary. Keeps its own copy of
+// the words. `leaf_size`: points per leaf (larger leaves pay off for thousands of points in
+// 24-D). `vocabulary_begin`: word offsets of the vocabularies (empty: one of all words).
 class WordIndex {
  public:
-  explicit WordIndex(const RowMatrixXf& words, int leaf_size = 10);
+  explicit WordIndex(const RowMatrixXf& words, int leaf_size = 10, const std::vector<int>& vocabulary_begin = {});
   ~WordIndex();
   WordIndex(const WordIndex&) = delete;
   WordIndex& operator=(const WordIndex&) = delete;
-  // Nearest `k` words of `query` (D floats): indices and squared distances, nearest first.
-  // With `max_dist_sq` > 0 only words closer than that count (fewer may come back): the bound
-  // prunes the tree from the start, which is what makes far-off queries cheap in 24-D.
-  int Nearest(const float* query, int k, long* indices, float* dist_sq, float max_dist_sq = 0.f) const;
+  int Vocabularies() const;
+  // Nearest `k` words of vocabulary `vocabulary` to `query` (D floats): indices into all words
+  // and squared distances, nearest first. With `max_dist_sq` > 0 only words closer than that
+  // count (fewer may come back): the bound prunes the tree from the start, which is what makes
+  // far-off queries cheap in 24-D.
+  int Nearest(const float* query, int k, long* indices, float* dist_sq, float max_dist_sq = 0.f,
+              int vocabulary = 0) const;
 
  private:
   struct Impl;
@@ -254,7 +277,7 @@ class CodebookVoter : public Voter {
  public:
   void Load(const nlohmann::json& model) override {
     auto book = std::make_unique<Codebook>(Codebook::FromJson(model, format_));
-    index_ = std::make_unique<WordIndex>(book->words, leaf_size_);
+    index_ = std::make_unique<WordIndex>(book->words, leaf_size_, book->vocabulary_begin);
     book_ = std::move(book);
   }
 

@@ -4,6 +4,7 @@
 // the score.
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <chrono>
 #include <memory>
 
@@ -31,6 +32,9 @@ const ParamBinding<Options>& Binding() {
              "Lloyd iterations per k-means run")
         .Int("restarts", [](O& o) -> int& { return o.km.restarts; }, 1, 1000, "count",
              "k-means runs from different k-means++ seeds; the lowest inertia wins")
+        .Int("vocabularies", [](O& o) -> int& { return o.km.vocabularies; }, 1, 100, "count",
+             "k-means vocabularies from different seeds, pooled: a part activates its nearest words in each, "
+             "each weighs 1 / vocabularies (1 = one vocabulary, paper)")
         .Int("activations", [](O& o) -> int& { return o.sel.activations; }, 1, 1000, "count",
              "words activated per scene part (paper: 2)")
         .DetectionOnly();
@@ -54,12 +58,14 @@ class HoughVocabularyVoter : public voting::CodebookVoter {
   nlohmann::json Train(const std::vector<TrainingView>& views, const RunContext& ctx) override {
     const auto t0 = std::chrono::steady_clock::now();
     const voting::TrainingParts parts = voting::CollectTrainingParts(views);
-    const voting::KMeansResult km = voting::KMeans(parts.features, km_, ctx.seed);
-    nlohmann::json model = voting::BuildCodebook(parts, km.centers, km.labels).ToJson(kFormat);
+    std::vector<double> inertia;
+    const voting::Codebook book = voting::TrainCodebook(parts, km_, ctx.seed, &inertia);
+    nlohmann::json model = book.ToJson(kFormat);
     const double ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-    spdlog::info("hough_vocabulary: {} words from {} parts of {} views ({} iterations, inertia {:.3f}, {:.0f} ms)",
-                 km.centers.rows(), parts.d.size(), views.size(), km.iterations, km.inertia, ms);
+    const auto [lo, hi] = std::minmax_element(inertia.begin(), inertia.end());
+    spdlog::info("hough_vocabulary: {} words in {} vocabularies from {} parts of {} views (inertia {:.3f} .. {:.3f}, "
+                 "{:.0f} ms)", book.Words(), book.Vocabularies(), parts.d.size(), views.size(), *lo, *hi, ms);
     // Installing through Load keeps Train-then-Vote identical to a save/load round trip.
     Load(model);
     return model;
@@ -71,5 +77,5 @@ class HoughVocabularyVoter : public voting::CodebookVoter {
 
 }  // namespace furnihost::voters
 
-FURNIHOST_PLUGIN(furnihost::voters::HoughVocabularyVoter, "voters.hough_vocabulary", "1.3.0",
+FURNIHOST_PLUGIN(furnihost::voters::HoughVocabularyVoter, "voters.hough_vocabulary", "1.4.0",
                  "k-means vocabulary of parts + probabilistic Hough voting (Mozos et al. Sect. V-VI)")

@@ -3,12 +3,15 @@
 // true-positive rule (Sect. VII-A); exact reproductions are checked to 1e-4 m (float sums).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <functional>
 
 #include "furnihost/host/ground_estimation.hpp"
 #include "test_support.hpp"
 #include "synthetic_views.hpp"
+#include "voting/voting.hpp"
 
 namespace furnihost {
 namespace {
@@ -206,6 +209,82 @@ TEST(HoughVocabulary, LoadAfterCborRoundTripVotesIdentically) {
   }
   ASSERT_EQ(a.grids.size(), b.grids.size());
   for (size_t i = 0; i < a.grids.size(); ++i) EXPECT_EQ(a.grids[i].values, b.grids[i].values);
+}
+
+// The score of the best hypothesis of class `cls` within half a class width of `at` (0 if none).
+float ScoreNear(const VoteResult& r, const std::string& cls, const Eigen::Vector3f& at, float width) {
+  float best = 0.f;
+  for (const auto* h : OfClass(r, cls))
+    if (Dist2D(h->center, at) < 0.5f * width) best = std::max(best, h->score);
+  return best;
+}
+
+TEST(HoughVocabulary, PooledCopiesOfOneVocabularyVoteAsIt) {
+  RunContext ctx;
+  auto one = MakeVoter(BaseParams());
+  const json model = one->Train(TwoClassViews(), ctx);
+  const voting::Codebook book = voting::Codebook::FromJson(model, model.at("format").get<std::string>());
+  const voting::Codebook pooled = voting::PoolCodebooks({book, book, book});
+  ASSERT_EQ(pooled.Vocabularies(), 3);
+  ASSERT_EQ(pooled.Words(), 3 * book.Words());
+  auto three = MakeVoter(BaseParams());
+  three->Load(json::from_cbor(json::to_cbor(pooled.ToJson(model.at("format").get<std::string>()))));
+
+  const auto scene = MakeScene({{Chair(), {1.f, 1.f, 0.45f}, {}}, {Table(), {2.f, 3.f, 0.45f}, {1}}},
+                               Pose(0.2f, 0.1f, -0.4f), 0.02f, 5);
+  const VoteResult a = one->Vote({scene.Parts()}, ctx);
+  const VoteResult b = three->Vote({scene.Parts()}, ctx);
+  EXPECT_EQ(b.votes.size(), 3 * a.votes.size());  // every vote thrice, at a third of the weight
+  ASSERT_EQ(a.hypotheses.size(), b.hypotheses.size());
+  ASSERT_FALSE(a.hypotheses.empty());
+  for (size_t i = 0; i < a.hypotheses.size(); ++i) {
+    EXPECT_EQ(a.hypotheses[i].cls, b.hypotheses[i].cls);
+    EXPECT_LT(Dist2D(a.hypotheses[i].center, b.hypotheses[i].center), 1e-3f);
+    EXPECT_NEAR(a.hypotheses[i].score, b.hypotheses[i].score, 1e-4f * a.hypotheses[i].score);
+  }
+}
+
+// Pooling vocabularies averages the k-means draw out of the votes: trained with other seeds on
+// the same views, the objects' scores move far less than with one vocabulary.
+TEST(HoughVocabulary, PooledVocabulariesAgreeAcrossSeeds) {
+  const auto views = MakeViews({Chair(), Table()}, /*models=*/2, /*views=*/6, /*noise=*/0.03f, /*seed=*/11);
+  const std::vector<SceneObject> objects = {{Chair(), {1.f, 1.f, 0.45f}, {}},
+                                            {Chair(), {2.6f, 1.1f, 0.45f}, {}},
+                                            {Table(), {2.f, 3.f, 0.45f}, {}}};
+  const auto scene = MakeScene(objects, Pose(0.5f, -0.3f, 0.5236f), 0.03f, 3);
+  // Largest relative difference of the objects' scores over training seeds 1..5.
+  auto spread = [&](int vocabularies) {
+    json p = BaseParams();
+    p["vocabularies"] = vocabularies;
+    p["restarts"] = 1;
+    p["thresholds"] = {{"chair", 0.0}, {"table", 0.0}};
+    std::vector<std::vector<float>> scores;
+    for (uint64_t seed = 1; seed <= 5; ++seed) {
+      RunContext ctx;
+      ctx.seed = seed;
+      auto voter = MakeVoter(p);
+      voter->Train(views, ctx);
+      const VoteResult r = voter->Vote({scene.Parts()}, ctx);
+      std::vector<float> s;
+      for (const auto& o : objects) {
+        const bool chair = o.spec.cls == "chair";
+        s.push_back(ScoreNear(r, o.spec.cls, o.center, chair ? kChairWidth : kTableWidth));
+      }
+      scores.push_back(s);
+    }
+    float worst = 0.f;
+    for (size_t o = 0; o < objects.size(); ++o) {
+      float lo = 1e30f, hi = 0.f;
+      for (const auto& s : scores) lo = std::min(lo, s[o]), hi = std::max(hi, s[o]);
+      EXPECT_GT(lo, 0.f) << vocabularies << " vocabularies: object " << o << " has no hypothesis";
+      worst = std::max(worst, (hi - lo) / std::max(hi, 1e-6f));
+    }
+    return worst;
+  };
+  const float single = spread(1), pooled = spread(20);
+  std::printf("relative score spread over 5 seeds: 1 vocabulary %.3f, 20 pooled %.3f\n", single, pooled);
+  EXPECT_LT(pooled, 0.05f);
+  EXPECT_LT(pooled, 0.5f * single);
 }
 
 TEST(HoughVocabulary, OverlappingSameClassHypothesisIsRemovedOtherClassKept) {
