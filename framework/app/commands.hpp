@@ -16,5 +16,6 @@ int RunSimulate(const std::vector<std::string>& args);  // furnihost simulate
 int RunEval(const std::vector<std::string>& args);      // furnihost eval (A/B evaluation)
 int RunCompare(const std::vector<std::string>& args);   // furnihost compare RUN_A RUN_B
 int RunGap(const std::vector<std::string>& args);       // furnihost gap (training views against real parts)
+int RunCatalog(const std::vector<std::string>& args);   // furnihost catalog (models, sizes, fronts)
 
 }  // namespace furnihost::app

@@ -31,6 +31,7 @@ usage:
   furnihost compare RUN_A.json RUN_B.json                A | B | B - A table of two eval run records
   furnihost gap --graph G.json --dataset D.json [--sensor NAME=PARAMS ...]
                                                          training views against real scans: part feature gap
+  furnihost catalog CATALOG.json [--out DIR]             each model's class, size and front, with a picture
   furnihost plugins  [--json]                            list the plugins found
 
 Run `furnihost <command> --help` (or `furnihost detect --help`) for the options of each.
@@ -56,7 +57,7 @@ int main(int argc, char** argv) {
   const std::map<std::string, int (*)(const std::vector<std::string>&)> commands = {
       {"detect", app::RunDetect},     {"train", app::RunTrain},       {"simulate", app::RunSimulate},
       {"validate", app::RunValidate}, {"plugins", app::RunPlugins},   {"eval", app::RunEval},
-      {"compare", app::RunCompare},   {"gap", app::RunGap}};
+      {"compare", app::RunCompare},   {"gap", app::RunGap},           {"catalog", app::RunCatalog}};
   try {
     if (args.empty() || args[0] == "-h" || args[0] == "--help" || args[0] == "help") {
       std::cout << kUsage;

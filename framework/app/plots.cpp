@@ -145,12 +145,16 @@ void WritePrPlot(const std::string& stem, const std::string& title, const std::v
 
 void WriteLinePlot(const std::string& stem, const std::string& title, const PlotAxes& axes,
                    const std::vector<PlotSeries>& series) {
+  WriteDrawing(stem, kWidth, TotalHeight(series), [&](cairo_t* cr) { Draw(cr, title, axes, series); });
+}
+
+void WriteDrawing(const std::string& stem, double width, double height, const std::function<void(cairo_t*)>& draw) {
   const std::string svg = stem + ".svg", png = stem + ".png";
   AtomicWrite(svg, [&](const std::string& tmp) {
-    std::unique_ptr<cairo_surface_t, void (*)(cairo_surface_t*)> s(cairo_svg_surface_create(tmp.c_str(), kWidth, TotalHeight(series)),
+    std::unique_ptr<cairo_surface_t, void (*)(cairo_surface_t*)> s(cairo_svg_surface_create(tmp.c_str(), width, height),
                                                                    cairo_surface_destroy);
     std::unique_ptr<cairo_t, void (*)(cairo_t*)> cr(cairo_create(s.get()), cairo_destroy);
-    Draw(cr.get(), title, axes, series);
+    draw(cr.get());
     Check(cairo_status(cr.get()), svg);
     cr.reset();
     cairo_surface_finish(s.get());  // flushes the SVG to the file
@@ -158,10 +162,10 @@ void WriteLinePlot(const std::string& stem, const std::string& title, const Plot
   });
   AtomicWrite(png, [&](const std::string& tmp) {
     std::unique_ptr<cairo_surface_t, void (*)(cairo_surface_t*)> s(
-        cairo_image_surface_create(CAIRO_FORMAT_ARGB32, static_cast<int>(kWidth), static_cast<int>(TotalHeight(series))),
+        cairo_image_surface_create(CAIRO_FORMAT_ARGB32, static_cast<int>(width), static_cast<int>(height)),
         cairo_surface_destroy);
     std::unique_ptr<cairo_t, void (*)(cairo_t*)> cr(cairo_create(s.get()), cairo_destroy);
-    Draw(cr.get(), title, axes, series);
+    draw(cr.get());
     Check(cairo_status(cr.get()), png);
     cairo_surface_flush(s.get());
     Check(cairo_surface_write_to_png(s.get(), tmp.c_str()), png);

@@ -3,8 +3,11 @@
 // different runs compare; and the distributions `furnihost gap` draws.
 #pragma once
 #include <array>
+#include <functional>
 #include <string>
 #include <vector>
+
+typedef struct _cairo cairo_t;  // as cairo.h declares it
 
 namespace furnihost::app {
 
@@ -30,5 +33,9 @@ struct PlotAxes {
 // As WritePrPlot, on the given axes (5 grid intervals each).
 void WriteLinePlot(const std::string& stem, const std::string& title, const PlotAxes& axes,
                    const std::vector<PlotSeries>& series);
+
+// Writes `<stem>.svg` and `<stem>.png` of a `width` x `height` px drawing, each atomically,
+// `draw` painting the whole page of each. InputError when a file cannot be written.
+void WriteDrawing(const std::string& stem, double width, double height, const std::function<void(cairo_t*)>& draw);
 
 }  // namespace furnihost::app

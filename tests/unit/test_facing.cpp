@@ -155,6 +155,37 @@ TEST(Front, AMissingFrontIsEstimatedAndLogged) {
   fs::remove_all(dir);
 }
 
+// `furnihost catalog` lists each model's front and where it comes from, and draws them: the
+// estimated chair faces its open side (+y), the sofa the way catalog.json says (+z of its y-up
+// file: -y of the catalog frame).
+TEST(Front, TheCatalogCommandListsAndDrawsEachModelsFront) {
+  const std::string dir = testing::TempDir("front_catalog_command");
+  WriteObjYUp(dir + "/chair.obj", Chair());
+  WriteObjYUp(dir + "/sofa.obj", Sofa());
+  WriteJson(dir + "/catalog.json", json::parse(R"({"models": [
+    {"id": "plain_chair", "class": "chair", "mesh": "chair.obj", "up": "+y", "scale": 1.0},
+    {"id": "known_sofa", "class": "sofa", "mesh": "sofa.obj", "up": "+y", "scale": 1.0, "front": "+z"}]})"));
+  const auto r = testing::RunFurnihost("catalog " + dir + "/catalog.json --out " + dir + "/out");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const json j = ReadJson(dir + "/out/fronts.json");
+  ASSERT_EQ(j["models"].size(), 2u);
+  std::map<std::string, json> by_id;
+  for (const auto& m : j["models"]) by_id[m["id"].get<std::string>()] = m;
+  EXPECT_NEAR(by_id["plain_chair"]["front_deg"].get<double>(), 90.0, 1e-3);
+  EXPECT_EQ(by_id["plain_chair"]["source"].get<std::string>().rfind("estimated", 0), 0u) << by_id["plain_chair"];
+  EXPECT_EQ(by_id["known_sofa"]["source"], "catalog");
+  EXPECT_NEAR(by_id["known_sofa"]["front_deg"].get<double>(), -90.0, 1e-3);
+  EXPECT_GT(fs::file_size(dir + "/out/fronts.png"), 1000u);
+  EXPECT_GT(fs::file_size(dir + "/out/fronts.svg"), 1000u);
+  EXPECT_NE(r.out.find("plain_chair"), std::string::npos) << r.out;
+  // A catalog that is not there: one line naming it, exit 2, nothing written.
+  const auto bad = testing::RunFurnihost("catalog " + dir + "/nothere.json --out " + dir + "/bad");
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_NE(bad.err.find("nothere.json"), std::string::npos) << bad.err;
+  EXPECT_FALSE(fs::exists(dir + "/bad"));
+  fs::remove_all(dir);
+}
+
 // The catalog chair's OBJ turned by `deg` about its file's up axis (+y).
 std::string TurnedObj(const std::string& source, float deg) {
   std::ifstream in(source);
