@@ -538,7 +538,7 @@ std::vector<size_t> SuppressOverlaps(std::vector<size_t> candidates, const std::
 
 Hypothesis ProposalHypothesis(const std::string& cls, float score, float threshold, const Proposal& p, int index,
                               int scene, const Footprint& f, const std::string& model_id, bool model_wide,
-                              const Eigen::Isometry3f& pose) {
+                              const Eigen::Isometry3f& pose, float turn) {
   Hypothesis h;
   h.cls = cls;
   h.score = score;
@@ -553,12 +553,43 @@ Hypothesis ProposalHypothesis(const std::string& cls, float score, float thresho
   h.checks.push_back(Check::AtLeast("score", score, threshold));
   h.accepted = h.checks.back().passed;
   h.model = model_id;
-  const float yaw = f.yaw + (model_wide ? 0.f : float(M_PI / 2));
+  const float yaw = ModelYaw(f, model_wide) + turn;
   Eigen::Isometry3f m = Eigen::Isometry3f::Identity();
   m.linear() = Eigen::AngleAxisf(yaw, Eigen::Vector3f::UnitZ()).toRotationMatrix();
   m.translation() = Eigen::Vector3f(f.center.x(), f.center.y(), p.ground_z);
   h.model_pose = pose * m;
   return h;
+}
+
+float ModelYaw(const Footprint& f, bool model_wide) { return f.yaw + (model_wide ? 0.f : float(M_PI / 2)); }
+
+float TurnToMatchTop(const Footprint& f, bool model_wide, const Eigen::Vector2f& model_top,
+                     const Eigen::Vector2f& model_size_xy, const std::vector<Eigen::Vector2f>& xy,
+                     const std::vector<float>& h, float height) {
+  // Offsets under 0.1 of the extent: no side stands out.
+  constexpr float kCentral = 0.1f;
+  if (model_top.norm() < kCentral || !(model_size_xy.minCoeff() > 0.f)) return 0.f;
+  Eigen::Vector2d sum = Eigen::Vector2d::Zero();
+  size_t n = 0;
+  for (size_t k = 0; k < xy.size() && k < h.size(); ++k)
+    if (h[k] >= 0.75f * height) sum += (xy[k] - f.center).cast<double>(), ++n;
+  if (n < 10) return 0.f;
+  const Eigen::Vector2f mean = (sum / double(n)).cast<float>();
+  const bool square = model_size_xy.maxCoeff() <= 1.2f * model_size_xy.minCoeff();
+  float best_turn = 0.f, best = -INFINITY;
+  for (int k = 0; k < 4; ++k) {
+    if (k % 2 == 1 && !square) continue;
+    const float turn = float(k) * float(M_PI / 2);
+    const float yaw = ModelYaw(f, model_wide) + turn;
+    // The points' top quarter in the model's frame as stood, over its extents.
+    const Eigen::Vector2f local(std::cos(yaw) * mean.x() + std::sin(yaw) * mean.y(),
+                                -std::sin(yaw) * mean.x() + std::cos(yaw) * mean.y());
+    const Eigen::Vector2f seen = local.cwiseQuotient(model_size_xy);
+    if (seen.norm() < kCentral) return 0.f;
+    const float agree = seen.dot(model_top);
+    if (agree > best) best = agree, best_turn = turn;
+  }
+  return best_turn;
 }
 
 }  // namespace furnihost::shape

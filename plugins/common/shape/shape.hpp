@@ -113,9 +113,25 @@ std::vector<size_t> SuppressOverlaps(std::vector<size_t> candidates, const std::
 // `cls` with `score`: the proposal's box (world frame through the scan's `pose`; upright poses
 // keep it upright), accepted when score >= threshold (its "score" check), and the
 // model `model_id` standing on the ground at the footprint's centre, its width along the
-// footprint's length when the model is wider than deep (`model_wide`; yaw modulo a half turn).
+// footprint's length when the model is wider than deep (`model_wide`), turned further by `turn`
+// [rad] (TurnToMatchTop).
 Hypothesis ProposalHypothesis(const std::string& cls, float score, float threshold, const Proposal& p, int index,
                               int scene, const Footprint& f, const std::string& model_id, bool model_wide,
-                              const Eigen::Isometry3f& pose);
+                              const Eigen::Isometry3f& pose, float turn = 0.f);
+
+// The yaw at which a model stands on footprint `f` (working frame): its x axis along the
+// footprint's length when `model_wide`, else across it; modulo a half turn.
+float ModelYaw(const Footprint& f, bool model_wide);
+
+// The further turn [rad] of a model stood at ModelYaw that puts its high part where the points'
+// high part is: `model_top` is where the model's top quarter stands in its frame over its x and
+// y extents (`model_size_xy`), and the points' top quarter (heights `h` above the ground,
+// `height` the proposal's) is measured alike. A half turn is always a candidate, quarter turns
+// when the model's footprint is near square (its sides within 20 %: the footprint's length may
+// be either). A back (a chair's, a sofa's) tells the model's way round; where either top quarter
+// is central (a table, a cabinet), or fewer than 10 points stand there, 0.
+float TurnToMatchTop(const Footprint& f, bool model_wide, const Eigen::Vector2f& model_top,
+                     const Eigen::Vector2f& model_size_xy, const std::vector<Eigen::Vector2f>& xy,
+                     const std::vector<float>& h, float height);
 
 }  // namespace furnihost::shape

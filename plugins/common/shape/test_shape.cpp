@@ -384,3 +384,51 @@ TEST(SuppressOverlaps, AWholeSurvivesItsFragmentOnlyWhenAsked) {
 
 }  // namespace
 }  // namespace furnihost::shape
+
+// A chair's back tells the model's way round: the model (its back at -y of its frame) turns a
+// half turn when the points' back stands at +y, none when at -y; a table (its top quarter
+// central) never turns; a near-square armchair may turn a quarter.
+TEST(TopTurn, TheModelsBackGoesWhereThePointsBackIs) {
+  using furnihost::shape::Footprint;
+  using furnihost::shape::TurnToMatchTop;
+  // A 0.5 x 0.5 seat at 0.45 m and a 0.95 m back along one side.
+  auto chair = [](float back_y, float back_x, std::vector<Eigen::Vector2f>& xy, std::vector<float>& h) {
+    for (int i = 0; i <= 10; ++i)
+      for (int j = 0; j <= 10; ++j) {
+        xy.emplace_back(-0.25f + 0.05f * float(i), -0.25f + 0.05f * float(j));
+        h.push_back(0.45f);
+      }
+    for (int i = 0; i <= 10; ++i)
+      for (int k = 0; k <= 10; ++k) {
+        xy.emplace_back(back_x != 0.f ? back_x : -0.25f + 0.05f * float(i), back_y != 0.f ? back_y : -0.25f + 0.05f * float(i));
+        h.push_back(0.5f + 0.045f * float(k));
+      }
+  };
+  Footprint f;
+  f.center = Eigen::Vector2f::Zero();
+  f.yaw = 0.f;
+  f.length = 0.6f;
+  f.width = 0.5f;
+  const Eigen::Vector2f back_at_minus_y(0.f, -0.4f), size(0.6f, 0.5f);
+  std::vector<Eigen::Vector2f> xy;
+  std::vector<float> h;
+  chair(0.25f, 0.f, xy, h);  // back at +y
+  EXPECT_NEAR(TurnToMatchTop(f, true, back_at_minus_y, size, xy, h, 0.95f), float(M_PI), 1e-6f);
+  xy.clear(), h.clear();
+  chair(-0.25f, 0.f, xy, h);  // back at -y: as the model stands
+  EXPECT_EQ(TurnToMatchTop(f, true, back_at_minus_y, size, xy, h, 0.95f), 0.f);
+  // A table's top quarter is central: no turn, wherever its points stand.
+  xy.clear(), h.clear();
+  chair(0.25f, 0.f, xy, h);
+  EXPECT_EQ(TurnToMatchTop(f, true, Eigen::Vector2f(0.02f, 0.01f), size, xy, h, 0.95f), 0.f);
+  // A near-square model (0.55 x 0.5) with its back at +x in the points: a quarter turn.
+  xy.clear(), h.clear();
+  chair(0.f, 0.25f, xy, h);
+  const float q = TurnToMatchTop(f, true, back_at_minus_y, Eigen::Vector2f(0.55f, 0.5f), xy, h, 0.95f);
+  EXPECT_NEAR(q, float(M_PI / 2), 1e-6f);
+  // The model's -y turned by a quarter turn is +x: its back where the points' is.
+  EXPECT_NEAR(std::cos(q) * back_at_minus_y.x() - std::sin(q) * back_at_minus_y.y(), 0.4f, 1e-5f);
+  // A long model (0.9 x 0.5) never turns a quarter: the footprint's length decides its axis.
+  EXPECT_EQ(std::fmod(TurnToMatchTop(f, true, back_at_minus_y, Eigen::Vector2f(0.9f, 0.5f), xy, h, 0.95f), float(M_PI)),
+            0.f);
+}

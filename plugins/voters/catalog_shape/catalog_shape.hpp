@@ -37,6 +37,9 @@ struct Model {
   shape::Profile profile{};
   float open = 0.f;     // share of its inner footprint whose floor a sensor around it sees
   std::vector<shape::Profile> views;  // its top-view profile as each single eye around it sees it
+  // Where its top quarter stands (a chair's or sofa's back): the centroid of its surface above
+  // 3/4 of its height, model frame, over its x and y extents; zero when unknown or central.
+  Eigen::Vector2f top_offset = Eigen::Vector2f::Zero();
 };
 
 struct Options {

@@ -77,6 +77,7 @@ struct MeshShape {
   shape::Profile profile;
   float open = 0.f;
   std::vector<shape::Profile> views;  // the profile each eye around it sees alone
+  Eigen::Vector2f top_offset = Eigen::Vector2f::Zero();  // Model::top_offset
 };
 MeshShape FromMesh(const CatalogModel& m, float cell) {
   double area = 0;
@@ -138,7 +139,15 @@ MeshShape FromMesh(const CatalogModel& m, float cell) {
       }
     }
   });
-  return {prof, cells ? float(open) / float(cells) : 0.f, std::move(views)};
+  // The top quarter's centroid (the mesh's bounding-box bottom centre is the origin).
+  Eigen::Vector2d top = Eigen::Vector2d::Zero();
+  size_t n_top = 0;
+  for (const auto& q : samples)
+    if (q.z() >= 0.75f * size.z()) top += q.head<2>().cast<double>(), ++n_top;
+  Eigen::Vector2f top_offset = Eigen::Vector2f::Zero();
+  if (n_top > 0 && size.x() > 0.f && size.y() > 0.f)
+    top_offset = Eigen::Vector2f(float(top.x() / double(n_top)) / size.x(), float(top.y() / double(n_top)) / size.y());
+  return {prof, cells ? float(open) / float(cells) : 0.f, std::move(views), top_offset};
 }
 
 }  // namespace
@@ -181,7 +190,8 @@ nlohmann::json CatalogShapeVoter::Train(const std::vector<TrainingView>& views, 
                       {"class", first->cls},
                       {"size", {s.x(), s.y(), s.z()}},
                       {"profile", std::vector<float>(prof.begin(), prof.end())},
-                      {"open", ms.open}});
+                      {"open", ms.open},
+                      {"top_offset", {ms.top_offset.x(), ms.top_offset.y()}}});
     if (!ms.views.empty()) {
       nlohmann::json vp = nlohmann::json::array();
       for (const auto& v : ms.views) vp.push_back(std::vector<float>(v.begin(), v.end()));
@@ -213,6 +223,13 @@ void CatalogShapeVoter::Load(const nlohmann::json& m) {
     md.wide = size[0] >= size[1];
     std::copy(prof.begin(), prof.end(), md.profile.begin());
     md.open = j.value("open", 0.f);
+    if (j.contains("top_offset")) {
+      const auto& t = j.at("top_offset");
+      if (!t.is_array() || t.size() != 2 || !t[0].is_number() || !t[1].is_number() ||
+          !std::isfinite(t[0].get<float>()) || !std::isfinite(t[1].get<float>()))
+        throw InputError("catalog_shape model " + md.id + ": bad top_offset");
+      md.top_offset = Eigen::Vector2f(t[0].get<float>(), t[1].get<float>());
+    }
     if (j.contains("view_profiles")) {
       const auto& vs = j.at("view_profiles");
       if (!vs.is_array()) throw InputError("catalog_shape model " + md.id + ": bad view_profiles");

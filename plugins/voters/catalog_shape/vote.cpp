@@ -170,6 +170,9 @@ VoteResult CatalogShapeVoter::Vote(const std::vector<SceneParts>& scenes, const 
     std::vector<std::vector<int>> best_model(C, std::vector<int>(n, -1));
     std::vector<std::vector<std::map<std::string, float>>> evidence(C, std::vector<std::map<std::string, float>>(n));
     std::vector<shape::Footprint> foot(n);
+    // Per class and proposal: the further turn of its best model that puts its back where the
+    // points' is (shape::TurnToMatchTop).
+    std::vector<std::vector<float>> turn(C, std::vector<float>(n, 0.f));
     // Each proposal's footprint, profile and scores are its own: scored in parallel (in
     // order when tracing, so the trace reads as before).
     auto score_one = [&](size_t i) {
@@ -225,6 +228,11 @@ VoteResult CatalogShapeVoter::Vote(const std::vector<SceneParts>& scenes, const 
           }
           if (E < best) best = E, best_model[c][i] = int(m), terms = t;
         }
+        if (best_model[c][i] >= 0) {
+          const Model& md = models_[size_t(best_model[c][i])];
+          const Eigen::Vector2f extent = md.wide ? Eigen::Vector2f(md.length, md.width) : Eigen::Vector2f(md.width, md.length);
+          turn[c][i] = shape::TurnToMatchTop(foot[i], md.wide, md.top_offset, extent, xy, h, T);
+        }
         score[c][i] = std::exp(-best - p.surround / cp.surround - cut * cp.view_edge);
         evidence[c][i] = {{"length_m", L},          {"width_m", W},         {"top_m", T},
                           {"bottom_m", B},          {"surround", p.surround}, {"floor_seen", seen},
@@ -260,7 +268,8 @@ VoteResult CatalogShapeVoter::Vote(const std::vector<SceneParts>& scenes, const 
         if (j == i) continue;
         foot[i] = foot[j];
         for (size_t c = 0; c < C; ++c)
-          score[c][i] = score[c][j], best_model[c][i] = best_model[c][j], evidence[c][i] = evidence[c][j];
+          score[c][i] = score[c][j], best_model[c][i] = best_model[c][j], evidence[c][i] = evidence[c][j],
+          turn[c][i] = turn[c][j];
       }
     }
     // Class competition within each group (the variants of one cluster are one object).
@@ -294,7 +303,7 @@ VoteResult CatalogShapeVoter::Vote(const std::vector<SceneParts>& scenes, const 
       for (size_t i : shape::SuppressOverlaps(std::move(order), score[c], items, o_.nms_iou, o_.nms_whole)) {
         const Model& md = models_[size_t(best_model[c][i])];
         out.hypotheses.push_back(shape::ProposalHypothesis(classes_[c], score[c][i], t, items[i], int(i), int(s),
-                                                           foot[i], md.id, md.wide, scan.pose));
+                                                           foot[i], md.id, md.wide, scan.pose, turn[c][i]));
         out.hypotheses.back().evidence = std::move(evidence[c][i]);
       }
     }
