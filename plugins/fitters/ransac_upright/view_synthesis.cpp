@@ -270,6 +270,12 @@ Comparison ComparePose(const RenderCloud& model, const ModelPlacement& pose, con
   Comparison c;
   if (model.points.empty()) return c;
   const float c0 = std::cos(pose.yaw), s0 = std::sin(pose.yaw);
+  // A model sample where the pose puts it (world frame; ModelPlacement::Apply with the turn's
+  // sine and cosine computed once).
+  auto posed = [&](const Eigen::Vector3f& m) {
+    const float mx = m.x() * pose.sx, my = m.y() * pose.sy;
+    return Eigen::Vector3f(pose.x + c0 * mx - s0 * my, pose.y + s0 * mx + c0 * my, pose.z + m.z() * pose.sz);
+  };
   // The samples' stretched extent: the spacing the pixels must exceed.
   const float stretch = std::max({pose.sx, pose.sy, pose.sz, 1e-3f});
   const float spacing = model.spacing * stretch;
@@ -295,9 +301,7 @@ Comparison ComparePose(const RenderCloud& model, const ModelPlacement& pose, con
     if (keep_front && front.size() < z.size()) front.resize(z.size());
     touched.clear();
     for (size_t k = 0; k < model.points.size(); ++k) {
-      const Eigen::Vector3f& m = model.points[k];
-      const float mx = m.x() * pose.sx, my = m.y() * pose.sy;
-      const Eigen::Vector3f w(pose.x + c0 * mx - s0 * my, pose.y + s0 * mx + c0 * my, pose.z + m.z() * pose.sz);
+      const Eigen::Vector3f w = posed(model.points[k]);
       uint32_t id;
       float d;
       if (!img.Project(R * w + t, lev, &id, &d)) continue;
@@ -311,9 +315,7 @@ Comparison ComparePose(const RenderCloud& model, const ModelPlacement& pose, con
       // Every sample within the depth tolerance of its pixel's front-most one (not hidden by the
       // model itself), where the sensor measured that front surface or through it.
       for (size_t k = 0; k < model.points.size(); ++k) {
-        const Eigen::Vector3f& m = model.points[k];
-        const float mx = m.x() * pose.sx, my = m.y() * pose.sy;
-        const Eigen::Vector3f w(pose.x + c0 * mx - s0 * my, pose.y + s0 * mx + c0 * my, pose.z + m.z() * pose.sz);
+        const Eigen::Vector3f w = posed(model.points[k]);
         uint32_t id;
         float d;
         if (!img.Project(R * w + t, lev, &id, &d)) continue;
@@ -340,9 +342,7 @@ Comparison ComparePose(const RenderCloud& model, const ModelPlacement& pose, con
         if (img.Object(lev, id)) {
           c.seen_object += a;
           if (explained) {
-            const Eigen::Vector3f& m = model.points[front[id]];
-            const float mx = m.x() * pose.sx, my = m.y() * pose.sy;
-            const Eigen::Vector3f w(pose.x + c0 * mx - s0 * my, pose.y + s0 * mx + c0 * my, pose.z + m.z() * pose.sz);
+            const Eigen::Vector3f w = posed(model.points[front[id]]);
             uint32_t key;
             float d;
             if (img.Project(R * w + t, std::min(key_level, img.Levels() - 1), &key, &d)) {
