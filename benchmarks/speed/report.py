@@ -129,8 +129,8 @@ def views_table(views):
     return lines
 
 
-def svg_plot(series, path, title):
-    """series: [(label, colour, [(points, seconds), ...])]; log-log axes."""
+def svg_plot(series, path, title, xlabel="points", ylabel="time [s] (2 threads)"):
+    """series: [(label, colour, [(x, seconds), ...])]; log-log axes."""
     W, H, L, R, T, B = 640, 420, 70, 190, 40, 50
     xs = [x for _, _, pts in series for x, _ in pts]
     ys = [y for _, _, pts in series for _, y in pts if y > 0]
@@ -166,8 +166,8 @@ def svg_plot(series, path, title):
                 o.append(f'<text x="{L - 6}" y="{Y + 4:.1f}" text-anchor="end">{v:g}</text>')
         decade *= 10
     o.append(f'<rect x="{L}" y="{T}" width="{W - L - R}" height="{H - T - B}" fill="none" stroke="black"/>')
-    o.append(f'<text x="{(L + W - R) / 2}" y="{H - 12}" text-anchor="middle">points</text>')
-    o.append(f'<text transform="translate(16 {(T + H - B) / 2}) rotate(-90)" text-anchor="middle">time [s] (2 threads)</text>')
+    o.append(f'<text x="{(L + W - R) / 2}" y="{H - 12}" text-anchor="middle">{xlabel}</text>')
+    o.append(f'<text transform="translate(16 {(T + H - B) / 2}) rotate(-90)" text-anchor="middle">{ylabel}</text>')
     for i, (label, colour, pts) in enumerate(series):
         pts = sorted(p for p in pts if p[1] > 0)
         if not pts:
