@@ -164,8 +164,8 @@ TEST(Calibration, AGraphWithoutACalibrationSaysSoAndOneWithItDecidesByConfidence
   }
   r = furnihost::testing::DetectStubRoom(dir + "/cal", calibrated, "--min-confidence 0.04");
   ASSERT_EQ(r.code, 0) << r.err;
-  for (const auto& d : furnihost::ReadJson(dir + "/cal/out/detections.json")["detections"])
-    EXPECT_EQ(d["verified"], true) << d.dump();
+  const json c = furnihost::ReadJson(dir + "/cal/out/detections.json");
+  for (const auto& d : c["detections"]) EXPECT_EQ(d["verified"], true) << d.dump();
   // A missing calibration file is a one-line error naming the config's key, exit 2.
   calibrated["calibration"]["file"] = "nothere.json";
   r = furnihost::testing::DetectStubRoom(dir + "/cal", calibrated);
