@@ -127,13 +127,18 @@ json OneObjectScene(const std::string& model, double x, double y, double yaw_deg
   return scene;
 }
 
-TEST(Front, AMissingFrontIsEstimatedAndLogged) {
-  const std::string dir = testing::TempDir("front_logged");
+// A catalog in `dir`: a chair without a "front" and a sofa whose front catalog.json gives (+z).
+void WriteChairAndSofaCatalog(const std::string& dir) {
   WriteObjYUp(dir + "/chair.obj", Chair());
   WriteObjYUp(dir + "/sofa.obj", Sofa());
   WriteJson(dir + "/catalog.json", json::parse(R"({"models": [
     {"id": "plain_chair", "class": "chair", "mesh": "chair.obj", "up": "+y", "scale": 1.0},
     {"id": "known_sofa", "class": "sofa", "mesh": "sofa.obj", "up": "+y", "scale": 1.0, "front": "+z"}]})"));
+}
+
+TEST(Front, AMissingFrontIsEstimatedAndLogged) {
+  const std::string dir = testing::TempDir("front_logged");
+  WriteChairAndSofaCatalog(dir);
   WriteJson(dir + "/scene.json", OneObjectScene("plain_chair", 2.0, 1.7, 90.0));
   const auto r = testing::RunFurnihost("simulate --catalog " + dir + "/catalog.json --scene " + dir +
                                        "/scene.json --out " + dir + "/room.pcd");
@@ -160,11 +165,7 @@ TEST(Front, AMissingFrontIsEstimatedAndLogged) {
 // file: -y of the catalog frame).
 TEST(Front, TheCatalogCommandListsAndDrawsEachModelsFront) {
   const std::string dir = testing::TempDir("front_catalog_command");
-  WriteObjYUp(dir + "/chair.obj", Chair());
-  WriteObjYUp(dir + "/sofa.obj", Sofa());
-  WriteJson(dir + "/catalog.json", json::parse(R"({"models": [
-    {"id": "plain_chair", "class": "chair", "mesh": "chair.obj", "up": "+y", "scale": 1.0},
-    {"id": "known_sofa", "class": "sofa", "mesh": "sofa.obj", "up": "+y", "scale": 1.0, "front": "+z"}]})"));
+  WriteChairAndSofaCatalog(dir);
   const auto r = testing::RunFurnihost("catalog " + dir + "/catalog.json --out " + dir + "/out");
   ASSERT_EQ(r.code, 0) << r.err;
   const json j = ReadJson(dir + "/out/fronts.json");

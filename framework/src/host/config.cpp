@@ -51,17 +51,15 @@ void CheckKeys(const nlohmann::json& obj, const std::vector<std::string>& allowe
 // Makes path-valued keys absolute relative to the file that sets them, so a variant that
 // extends a base in another folder keeps the base's paths.
 void AbsolutisePaths(nlohmann::json& j, const fs::path& dir) {
-  for (const char* key : {"catalog", "model_cache"}) {
-    if (j.contains(key) && j[key].is_string()) {
-      fs::path p = j[key].get<std::string>();
-      if (!p.empty() && p.is_relative()) j[key] = (dir / p).lexically_normal().string();
-    }
-  }
-  if (j.contains("calibration") && j["calibration"].is_object() && j["calibration"].contains("file") &&
-      j["calibration"]["file"].is_string()) {
-    fs::path p = j["calibration"]["file"].get<std::string>();
-    if (!p.empty() && p.is_relative()) j["calibration"]["file"] = (dir / p).lexically_normal().string();
-  }
+  auto absolute = [&](nlohmann::json& value) {
+    if (!value.is_string()) return;
+    const fs::path p = value.get<std::string>();
+    if (!p.empty() && p.is_relative()) value = (dir / p).lexically_normal().string();
+  };
+  for (const char* key : {"catalog", "model_cache"})
+    if (j.contains(key)) absolute(j[key]);
+  if (j.contains("calibration") && j["calibration"].is_object() && j["calibration"].contains("file"))
+    absolute(j["calibration"]["file"]);
 }
 
 nlohmann::json LoadRecursive(const std::string& path, std::vector<std::string>& chain) {

@@ -563,18 +563,22 @@ Hypothesis ProposalHypothesis(const std::string& cls, float score, float thresho
 
 float ModelYaw(const Footprint& f, bool model_wide) { return f.yaw + (model_wide ? 0.f : float(M_PI / 2)); }
 
-float TurnToMatchTop(const Footprint& f, bool model_wide, const Eigen::Vector2f& model_top,
-                     const Eigen::Vector2f& model_size_xy, const std::vector<Eigen::Vector2f>& xy,
-                     const std::vector<float>& h, float height) {
-  // Offsets under 0.1 of the extent: no side stands out.
-  constexpr float kCentral = 0.1f;
-  if (model_top.norm() < kCentral || !(model_size_xy.minCoeff() > 0.f)) return 0.f;
+std::optional<Eigen::Vector2f> TopQuarterCentre(const std::vector<Eigen::Vector2f>& xy, const std::vector<float>& h,
+                                                float height) {
   Eigen::Vector2d sum = Eigen::Vector2d::Zero();
   size_t n = 0;
   for (size_t k = 0; k < xy.size() && k < h.size(); ++k)
-    if (h[k] >= 0.75f * height) sum += (xy[k] - f.center).cast<double>(), ++n;
-  if (n < 10) return 0.f;
-  const Eigen::Vector2f mean = (sum / double(n)).cast<float>();
+    if (h[k] >= 0.75f * height) sum += xy[k].cast<double>(), ++n;
+  if (n < 10) return std::nullopt;
+  return (sum / double(n)).cast<float>();
+}
+
+float TurnToMatchTop(const Footprint& f, bool model_wide, const Eigen::Vector2f& model_top,
+                     const Eigen::Vector2f& model_size_xy, const Eigen::Vector2f& top_centre) {
+  // Offsets under 0.1 of the extent: no side stands out.
+  constexpr float kCentral = 0.1f;
+  if (model_top.norm() < kCentral || !(model_size_xy.minCoeff() > 0.f)) return 0.f;
+  const Eigen::Vector2f mean = top_centre - f.center;
   const bool square = model_size_xy.maxCoeff() <= 1.2f * model_size_xy.minCoeff();
   float best_turn = 0.f, best = -INFINITY;
   for (int k = 0; k < 4; ++k) {

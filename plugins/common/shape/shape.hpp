@@ -5,6 +5,7 @@
 #include <array>
 #include <memory>
 #include <string>
+#include <optional>
 #include <vector>
 
 #include "furnihost/types.hpp"
@@ -123,15 +124,18 @@ Hypothesis ProposalHypothesis(const std::string& cls, float score, float thresho
 // footprint's length when `model_wide`, else across it; modulo a half turn.
 float ModelYaw(const Footprint& f, bool model_wide);
 
+// The centre of the points' top quarter (heights `h` above the ground of at least 3/4 of
+// `height`, the proposal's): nullopt when fewer than 10 points stand there.
+std::optional<Eigen::Vector2f> TopQuarterCentre(const std::vector<Eigen::Vector2f>& xy, const std::vector<float>& h,
+                                                float height);
+
 // The further turn [rad] of a model stood at ModelYaw that puts its high part where the points'
-// high part is: `model_top` is where the model's top quarter stands in its frame over its x and
-// y extents (`model_size_xy`), and the points' top quarter (heights `h` above the ground,
-// `height` the proposal's) is measured alike. A half turn is always a candidate, quarter turns
-// when the model's footprint is near square (its sides within 20 %: the footprint's length may
-// be either). A back (a chair's, a sofa's) tells the model's way round; where either top quarter
-// is central (a table, a cabinet), or fewer than 10 points stand there, 0.
+// high part (`top_centre`, TopQuarterCentre) is: `model_top` is where the model's top quarter
+// stands in its frame over its x and y extents (`model_size_xy`). A half turn is always a
+// candidate, quarter turns when the model's footprint is near square (its sides within 20 %: the
+// footprint's length may be either). A back (a chair's, a sofa's) tells the model's way round;
+// where either top quarter is central (a table, a cabinet), 0.
 float TurnToMatchTop(const Footprint& f, bool model_wide, const Eigen::Vector2f& model_top,
-                     const Eigen::Vector2f& model_size_xy, const std::vector<Eigen::Vector2f>& xy,
-                     const std::vector<float>& h, float height);
+                     const Eigen::Vector2f& model_size_xy, const Eigen::Vector2f& top_centre);
 
 }  // namespace furnihost::shape

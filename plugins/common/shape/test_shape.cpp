@@ -390,7 +390,12 @@ TEST(SuppressOverlaps, AWholeSurvivesItsFragmentOnlyWhenAsked) {
 // central) never turns; a near-square armchair may turn a quarter.
 TEST(TopTurn, TheModelsBackGoesWhereThePointsBackIs) {
   using furnihost::shape::Footprint;
-  using furnihost::shape::TurnToMatchTop;
+  // The turn for the points as they stand (their top quarter's centre, TopQuarterCentre).
+  auto TurnToMatchTop = [](const Footprint& f, bool wide, const Eigen::Vector2f& top, const Eigen::Vector2f& size,
+                           const std::vector<Eigen::Vector2f>& xy, const std::vector<float>& h, float height) {
+    const auto centre = furnihost::shape::TopQuarterCentre(xy, h, height);
+    return centre ? furnihost::shape::TurnToMatchTop(f, wide, top, size, *centre) : 0.f;
+  };
   // A 0.5 x 0.5 seat at 0.45 m and a 0.95 m back along one side.
   auto chair = [](float back_y, float back_x, std::vector<Eigen::Vector2f>& xy, std::vector<float>& h) {
     for (int i = 0; i <= 10; ++i)

@@ -190,6 +190,7 @@ VoteResult CatalogShapeVoter::Vote(const std::vector<SceneParts>& scenes, const 
       const float T = std::max(p.box.max().z() - p.ground_z, 0.02f), B = std::max(p.box.min().z() - p.ground_z, 0.f);
       const shape::Profile prof = shape::TopViewProfile(xy, h, T, o_.cell);
       const float seen = o_.floor_term ? floor.SeenUnder(foot[i]) : 0.f;
+      const std::optional<Eigen::Vector2f> top = shape::TopQuarterCentre(xy, h, T);
       // Cut by the view's edge: 3 or more of its points there.
       int edge_points = 0;
       if (!at_edge.empty())
@@ -228,10 +229,10 @@ VoteResult CatalogShapeVoter::Vote(const std::vector<SceneParts>& scenes, const 
           }
           if (E < best) best = E, best_model[c][i] = int(m), terms = t;
         }
-        if (best_model[c][i] >= 0) {
+        if (best_model[c][i] >= 0 && top) {
           const Model& md = models_[size_t(best_model[c][i])];
           const Eigen::Vector2f extent = md.wide ? Eigen::Vector2f(md.length, md.width) : Eigen::Vector2f(md.width, md.length);
-          turn[c][i] = shape::TurnToMatchTop(foot[i], md.wide, md.top_offset, extent, xy, h, T);
+          turn[c][i] = shape::TurnToMatchTop(foot[i], md.wide, md.top_offset, extent, *top);
         }
         score[c][i] = std::exp(-best - p.surround / cp.surround - cut * cp.view_edge);
         evidence[c][i] = {{"length_m", L},          {"width_m", W},         {"top_m", T},
