@@ -24,6 +24,7 @@ import argparse
 import json
 import math
 import os
+import shutil
 import re
 import subprocess
 import sys
@@ -102,6 +103,7 @@ def main():
             scenes.append((gt, dets))
     finally:
         os.remove(sweep)
+        shutil.rmtree(tmp, ignore_errors=True)
 
     def evaluate(th, scenes=scenes):
         tp, fp, ng = defaultdict(int), defaultdict(int), defaultdict(int)
