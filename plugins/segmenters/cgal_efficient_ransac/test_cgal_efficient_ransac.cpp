@@ -2,7 +2,7 @@
 // alternatives is in plugins/segmenters/pcl_region_growing/test_segmenter_comparison.cpp.
 #include <random>
 
-#include "segmentation/cgal_test_scene.hpp"
+#include "labelled_scene.hpp"
 
 namespace furnihost::testing {
 namespace {

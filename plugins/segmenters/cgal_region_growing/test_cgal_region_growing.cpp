@@ -5,7 +5,7 @@
 #include <cstdio>
 #include <numeric>
 
-#include "segmentation/cgal_test_scene.hpp"
+#include "labelled_scene.hpp"
 
 namespace furnihost::testing {
 namespace {
