@@ -61,6 +61,7 @@ struct SimulatedLaserOptions {
   double distance_m = 2.0;       // horizontal distance to the objects' bbox centre
   int views = 16;                // evenly spaced around the up axis
   int fuse = 1;                  // each default view fuses this many casts evenly around the up axis
+  int noise_draws = 1;           // each default view is scanned this many times, each its own noise draw
   // Range noise: sigma(r) = noise_a + noise_b * r^2 [m], along the ray.
   double noise_a = 0.008;
   double noise_b = 0.0005;
@@ -137,6 +138,10 @@ const ParamBinding<SimulatedLaserOptions>& Binding() {
                "default training views: each view is the union of this many casts evenly around the up axis, "
                "starting at the view's own position (its origin and viewing frame), voxelised once: what a "
                "reconstruction from a walk around the object holds (not in the paper; 1 = single views, paper)")
+          .Int("noise_draws", &O::noise_draws, 1, 64, "count",
+               "default training views: each view is scanned this many times from the same pose, each scan "
+               "with its own draw of range noise, dropout and holes, all of them training views: a model "
+               "learns the views' parts rather than one draw's (not in the paper; 1 = one scan a view, paper)")
           .Number("noise_a", &O::noise_a, 0.0, 1.0, "m",
                   "range noise sigma = noise_a + noise_b * r^2: constant part [m] (Hokuyo ~1 cm at 2 m)")
           .Number("noise_b", &O::noise_b, 0.0, 1.0, "1/m",
@@ -378,18 +383,24 @@ class SimulatedLaser : public Sensor {
     buf.points.resize(pat.dirs.size());
     buf.instance.resize(pat.dirs.size());
     if (opt_.flying_pixels > 0.0) buf.range.resize(pat.dirs.size());
+    // Draw d > 0 of a default view takes its noise streams from view index v + d * 2^40, beyond
+    // every view and fused-cast index of draw 0, which keeps the single-draw streams.
+    const int draws = fused.empty() ? 1 : opt_.noise_draws;
     for (size_t v = 0; v < poses.size(); ++v) {
       std::vector<Eigen::Isometry3f> casts{poses[v]};
       if (v < fused.size()) casts.insert(casts.end(), fused[v].begin(), fused[v].end());
-      Scan s = CastView(scene.get(), pat, casts, n_obj, ctx.seed, v, buf);
-      std::ostringstream src;
-      src << "sensors.simulated_laser " << opt_.pattern << " view " << v + 1 << "/" << poses.size();
-      s.source = src.str();
-      s.truth = truth;
-      // Models stand on z = 0 (catalog models' bottom centre is their origin; scene files put
-      // the floor there): the ground is known, not estimated.
-      s.ground = GroundModel::Level(0.f, "known");
-      scans.push_back(std::move(s));
+      for (int d = 0; d < draws; ++d) {
+        Scan s = CastView(scene.get(), pat, casts, n_obj, ctx.seed, v + (uint64_t(d) << 40), buf);
+        std::ostringstream src;
+        src << "sensors.simulated_laser " << opt_.pattern << " view " << v + 1 << "/" << poses.size();
+        if (draws > 1) src << " noise draw " << d + 1 << "/" << draws;
+        s.source = src.str();
+        s.truth = truth;
+        // Models stand on z = 0 (catalog models' bottom centre is their origin; scene files put
+        // the floor there): the ground is known, not estimated.
+        s.ground = GroundModel::Level(0.f, "known");
+        scans.push_back(std::move(s));
+      }
     }
     return scans;
   }
@@ -590,6 +601,6 @@ class SimulatedLaser : public Sensor {
 
 }  // namespace furnihost::sensors
 
-FURNIHOST_PLUGIN(furnihost::sensors::SimulatedLaser, "sensors.simulated_laser", "1.3.0",
+FURNIHOST_PLUGIN(furnihost::sensors::SimulatedLaser, "sensors.simulated_laser", "1.4.0",
                  "simulated pan-tilt laser / depth camera: Embree ray casting of catalog models "
                  "with range noise (paper Sect. IV)")

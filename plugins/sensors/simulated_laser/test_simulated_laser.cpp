@@ -284,6 +284,36 @@ TEST(SimulatedLaser, FusedViewsSeeEverySideFromTheFirstCastsOrigin) {
   }
 }
 
+TEST(SimulatedLaser, NoiseDrawsScanEachViewAgainWithItsOwnNoise) {
+  // noise_draws = 3: each default view three times from its pose; the first draw is the scan of
+  // noise_draws = 1, the others differ from it and from each other only in their noise.
+  static const CatalogModel cube = UnitCube();
+  SensorRequest req;
+  req.objects.push_back({&cube, Pose(3.f, -1.f, 0.f, 0.f)});
+  RunContext ctx;
+  json p = {{"angular_resolution_deg", 1.0}, {"tilt_resolution_deg", 1.0}, {"views", 4}};
+  const auto one = MakeSensor(p)->Acquire(req, ctx);
+  p["noise_draws"] = 3;
+  const auto three = MakeSensor(p)->Acquire(req, ctx);
+  ASSERT_EQ(one.size(), 4u);
+  ASSERT_EQ(three.size(), 12u);
+  for (size_t v = 0; v < 4; ++v) {
+    const Scan& first = three[3 * v];
+    ASSERT_EQ(first.points.size(), one[v].points.size());
+    for (size_t i = 0; i < first.points.size(); ++i) ASSERT_EQ(first.points[i], one[v].points[i]) << v << " " << i;
+    for (size_t d = 1; d < 3; ++d) {
+      const Scan& again = three[3 * v + d];
+      ASSERT_TRUE(again.origin && one[v].origin);
+      EXPECT_LT((*again.origin - *one[v].origin).norm(), 1e-6f);
+      // The same rays hit (no dropout): the same count, other ranges.
+      ASSERT_EQ(again.points.size(), first.points.size());
+      EXPECT_NE(again.points, first.points);
+      EXPECT_NE(again.points, three[3 * v + 3 - d].points);
+      EXPECT_NE(again.source.find("noise draw " + std::to_string(d + 1) + "/3"), std::string::npos) << again.source;
+    }
+  }
+}
+
 TEST(SimulatedLaser, DepthCameraImageGeometryAndRanges) {
   // A 10 m x 10 m wall (extra geometry, no truth) 3 m in front of a level camera.
   SensorRequest req;
