@@ -120,6 +120,23 @@ const ParamBinding<ClustersOptions>& Binding() {
                   "top-view cells the work top's upward-facing points occupy, as a share of those the whole cluster occupies")
           .Number("work_top_above", &O::top_above, 0, 1, "1",
                   "share of the cluster's points that must lie more than 8 cm over the work top")
+          .Bool("low_top_variants", &O::low_top_variants,
+                "a cluster whose top-view cells mostly end at one level between low_top_min_m and low_top_max_m, "
+                "a few reaching higher (a nightstand or dresser with a lamp on it), also gives what is at or under "
+                "that level as a proposal of its own rule, the cluster's rule suffixed '_low' (e.g. all_low), so "
+                "only the classes whose source names it are scored on it; found from the cells' highest points, "
+                "not from normals (a raw depth camera's noise tilts the normals of a small top)")
+          .Number("low_top_min_m", &O::low_top_min, 0, 5, "m", "lowest height of a low top")
+          .Number("low_top_max_m", &O::low_top_max, 0, 5, "m", "highest height of a low top")
+          .Number("low_top_cover", &O::low_top_cover, 0, 1, "1",
+                  "top-view cells (2.5 spacings, >= 5 cm) whose highest point lies at the low top (a 4 cm level), "
+                  "as a share of those the whole cluster occupies")
+          .Number("low_top_above", &O::low_top_above, 0, 1, "1",
+                  "share of the cluster's top-view cells whose highest point lies more than 15 cm over the low top "
+                  "(what stands on it; at least one cell)")
+          .Number("low_top_above_max", &O::low_top_above_max, 0, 1, "1",
+                  "most share of the cluster's top-view cells over the low top (more: a tall object with a shelf, "
+                  "not a low one with a lamp on it)")
           .Bool("support_splits", &O::support_splits,
                 "a cluster holding a large upward-facing level between support_min_m and support_max_m (a table or "
                 "desk top) also gives, as alternatives, each part of real size that remains when the level is taken "
@@ -151,6 +168,9 @@ const ParamBinding<ClustersOptions>& Binding() {
               if (r != "all" && r != "segs" && r != "fronts")
                 return "blocks_rules: '" + r + "' is not a removal rule (all, segs, fronts)";
             return std::string();
+          })
+          .Rule([](const O& o) {
+            return o.low_top_max > o.low_top_min + 0.05f ? "" : "low_top_max_m: must exceed low_top_min_m by more than 5 cm";
           })
           .Rule([](const O& o) { return o.radii.empty() ? "radii: give at least one clustering radius" : ""; })
           .Rule([](const O& o) {
@@ -352,6 +372,23 @@ Proposals ClusterProposer::ProposeAll(const Scan& scan, float* too_dense) const 
         raw.push_back(std::move(r));
       }
   }
+  // Low-top variants: a cluster whose cells mostly end at one low level with a few higher (a
+  // nightstand under a lamp) also gives what is at or under the level, under a rule of its own.
+  if (o_.low_top_variants) {
+    const size_t upto = raw.size();
+    std::vector<std::vector<int>> lows(upto);
+    tbb::parallel_for(size_t(0), upto, [&](size_t i) { lows[i] = LowTop(P, hz, sp, raw[i].idx); });
+    for (size_t i = 0; i < upto; ++i)
+      if (!lows[i].empty()) {
+        Raw r;
+        r.idx = std::move(lows[i]);
+        r.rule = raw[i].rule + "_low";
+        r.how = raw[i].how + "+low";
+        r.parent = raw[i].parent;
+        r.set = raw[i].set;
+        raw.push_back(std::move(r));
+      }
+  }
   // Boxes, then the extend-down variants of every proposal (clusters, splits and work tops).
   // Each wall set's own indexes: the columns under a proposal and its surround.
   std::vector<BoxIndex> column_index, leak_index;
@@ -416,6 +453,6 @@ Proposals ClusterProposer::ProposeAll(const Scan& scan, float* too_dense) const 
 
 }  // namespace furnihost::clusters
 
-FURNIHOST_PLUGIN(furnihost::clusters::ClusterProposer, "proposals.clusters", "1.7.0",
+FURNIHOST_PLUGIN(furnihost::clusters::ClusterProposer, "proposals.clusters", "1.8.0",
                  "object proposals: ground, walls and ceiling removed, Euclidean clusters at radii scaled to the scan's "
                  "point spacing, long clusters split, floating ones extended to the ground")

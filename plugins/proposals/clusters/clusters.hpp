@@ -60,6 +60,10 @@ struct ClustersOptions {
   float top_min = 0.55f, top_max = 0.86f;  // heights a work top may have [m] (desks 0.72-0.8, counters 0.9)
   float top_cover = 0.4f;         // share of the cluster's top-view cells the work top occupies
   float top_above = 0.05f;        // share of the cluster's points more than 8 cm over it
+  bool low_top_variants = false;  // low-top variants of clusters whose top-view cells mostly end at one low level
+  float low_top_min = 0.35f, low_top_max = 0.9f;  // heights a low top may have [m] (nightstands, dressers)
+  float low_top_cover = 0.25f;    // share of the cluster's top-view cells whose top lies at the low top
+  float low_top_above = 0.05f, low_top_above_max = 0.4f;  // least and most share of its cells topping out 15 cm over it
   bool support_splits = false;    // clusters holding a support surface: also its parts without it
   float support_min = 0.35f, support_max = 1.1f;  // heights a support surface may have [m]
   float support_area = 0.22f;     // least top-view area of a support surface [m2]
@@ -171,6 +175,7 @@ class ClusterProposer : public Proposer {
   std::vector<std::vector<int>> SupportSplit(const Points& P, const std::vector<float>& hz, const shape::LocalShape& ls,
                                              float sp, const std::vector<int>& idx, double radius, bool adaptive) const;
 
+  std::vector<int> LowTop(const Points& P, const std::vector<float>& hz, float sp, const std::vector<int>& idx) const;
   std::vector<int> WorkTop(const Points& P, const std::vector<float>& hz, const shape::LocalShape& ls, float sp,
                            const std::vector<int>& idx) const;
 

@@ -129,7 +129,11 @@ std::vector<int> ClusterProposer::WorkTop(const Points& P, const std::vector<flo
   std::sort(level.begin(), level.end());
   size_t best = 0;
   const int k = BusiestLevel(level, nb, &best);
-  if (k < 0 || double(best) < o_.top_cover * double(cells)) return {};
+  if (k < 0 || double(best) < o_.top_cover * double(cells)) {
+    spdlog::trace("worktop: {} pts {} cells, busiest level {:.2f} m {} cells: under work_top_cover", idx.size(), cells,
+                  k < 0 ? 0.f : o_.top_min + float(k + 2) * bin, best);
+    return {};
+  }
   const float level_top = o_.top_min + float(k + 2) * bin;  // the window's upper edge
   std::vector<int> out;
   size_t above = 0;
@@ -140,6 +144,50 @@ std::vector<int> ClusterProposer::WorkTop(const Points& P, const std::vector<flo
   }
   spdlog::trace("worktop: {} pts {} cells, level {:.2f} m {} cells, {} above", idx.size(), cells, level_top, best, above);
   if (double(above) < o_.top_above * double(idx.size()) || out.size() < size_t(o_.min_points)) return {};
+  return out;
+}
+
+// The points of cluster `idx` at or under its low top, or nothing. Each top-view cell (2.5
+// spacings, >= 5 cm) has a top, its highest point above the ground; the low top is the 4 cm level
+// between low_top_min_m and low_top_max_m that the most cell tops lie in. It must hold
+// low_top_cover of the cluster's cells, and low_top_above of them (at least one), but no more than
+// low_top_above_max, must top out more than 15 cm over it: a cabinet's top with a lamp or a vase on
+// it, seen from above, not a tall object with a shelf. The cells'
+// highest points, not normals, find the level: a raw depth camera's noise tilts the normals of a
+// small top at a few metres.
+std::vector<int> ClusterProposer::LowTop(const Points& P, const std::vector<float>& hz, float sp,
+                                         const std::vector<int>& idx) const {
+  constexpr float bin = 0.02f;
+  const int nb = int(std::ceil((o_.low_top_max - o_.low_top_min) / bin));
+  if (nb < 2 || idx.size() < size_t(o_.min_points)) return {};
+  const float cell = std::max(0.05f, 2.5f * sp);
+  std::unordered_map<uint64_t, float> top;  // cell -> its highest point above the ground
+  for (int i : idx) {
+    const Eigen::Vector3f& p = P[size_t(i)];
+    const uint64_t key = (uint64_t(uint32_t(int32_t(std::floor(p.x() / cell)))) << 32) |
+                         uint32_t(int32_t(std::floor(p.y() / cell)));
+    auto [it, fresh] = top.try_emplace(key, hz[size_t(i)]);
+    if (!fresh) it->second = std::max(it->second, hz[size_t(i)]);
+  }
+  std::vector<size_t> count(size_t(nb), 0);
+  for (const auto& [key, h] : top)
+    if (h >= o_.low_top_min && h < o_.low_top_max) ++count[size_t(std::min(nb - 1, int((h - o_.low_top_min) / bin)))];
+  int k = -1;
+  size_t best = 0;
+  for (int b = 0; b + 1 < nb; ++b)
+    if (count[size_t(b)] + count[size_t(b + 1)] > best) best = count[size_t(b)] + count[size_t(b + 1)], k = b;
+  if (k < 0) return {};
+  const float level_top = o_.low_top_min + float(k + 2) * bin;  // the level's upper edge
+  size_t above = 0;
+  for (const auto& [key, h] : top) above += h > level_top + 0.15f;
+  spdlog::trace("lowtop: {} pts {} cells, level {:.2f} m {} cells, {} cells above", idx.size(), top.size(), level_top,
+                best, above);
+  if (double(best) < o_.low_top_cover * double(top.size()) || above == 0 ||
+      double(above) > o_.low_top_above_max * double(top.size()) || double(above) < o_.low_top_above * double(top.size())) return {};
+  std::vector<int> out;
+  for (int i : idx)
+    if (hz[size_t(i)] <= level_top + 0.02f) out.push_back(i);
+  if (out.size() < size_t(o_.min_points)) return {};
   return out;
 }
 

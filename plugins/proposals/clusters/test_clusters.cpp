@@ -296,6 +296,66 @@ TEST(Clusters, WorkTopVariantDropsWhatStandsOnADesk) {
   for (const auto& q : off.items) EXPECT_EQ(q.how.find("+top"), std::string::npos) << q.how;
 }
 
+// A nightstand under a lamp: its cluster reaches the lamp's top, and the low-top variant (rule
+// all_low) gives the nightstand alone. A bare nightstand (nothing over its top), a bookcase (its
+// top above low_top_max_m) and a block whose raised part covers most of its footprint (more than
+// low_top_above_max: a taller object with a low shelf beside it, not a lamp on a top) get none;
+// off by default.
+TEST(Clusters, LowTopVariantDropsALampOffANightstand) {
+  CatalogModel m;
+  m.id = "bedroom";
+  m.cls = "bedroom";
+  const Eigen::Vector3f up(0, 0, kFloor);
+  AddBox(m.mesh, Eigen::Vector3f(-3.f, -3.f, -0.02f) + up, Eigen::Vector3f(3.f, 3.f, 0.f) + up);  // floor
+  const Eigen::AlignedBox3f stand = Box({-1.5f, -1.5f, 0.f}, {-1.0f, -1.05f, 0.6f});
+  AddBox(m.mesh, stand.min(), stand.max());
+  AddBox(m.mesh, Eigen::Vector3f(-1.33f, -1.36f, 0.6f) + up, Eigen::Vector3f(-1.17f, -1.2f, 1.1f) + up);  // the lamp
+  const Eigen::AlignedBox3f bare = Box({1.0f, -1.5f, 0.f}, {1.5f, -1.05f, 0.6f});
+  AddBox(m.mesh, bare.min(), bare.max());
+  const Eigen::AlignedBox3f bookcase = Box({-1.5f, 1.0f, 0.f}, {-0.7f, 1.35f, 1.8f});
+  AddBox(m.mesh, bookcase.min(), bookcase.max());
+  // A 1.0 x 0.5 m block 0.6 m tall with a box 0.4 m taller on 0.6 m of its length: 3/5 of its cells high.
+  const Eigen::AlignedBox3f unit = Box({1.0f, 1.0f, 0.f}, {2.0f, 1.5f, 1.0f});
+  AddBox(m.mesh, unit.min(), Eigen::Vector3f(2.0f, 1.5f, 0.6f) + up);
+  AddBox(m.mesh, Eigen::Vector3f(1.4f, 1.0f, 0.6f) + up, unit.max());
+
+  Scan scan;
+  SensorRequest req;
+  req.objects.push_back({&m, Eigen::Isometry3f::Identity()});
+  for (float a : {0.3f, 1.9f, 3.5f, 5.1f}) {
+    Eigen::Isometry3f s = Eigen::Isometry3f::Identity();
+    s.linear() = Eigen::AngleAxisf(a + 3.14159f, Eigen::Vector3f::UnitZ()).toRotationMatrix();
+    s.translation() = Eigen::Vector3f(2.6f * std::cos(a), 2.6f * std::sin(a), kFloor + 1.6f);
+    req.poses.push_back(s);
+  }
+  RunContext ctx;
+  auto sensor = Make<Sensor>("sensors.simulated_laser", {{"voxel_m", 0.015}});
+  for (auto& v : sensor->Acquire(req, ctx)) scan.points.insert(scan.points.end(), v.points.begin(), v.points.end());
+  scan.ground = EstimateGround(scan.points, GroundOptions{});
+
+  const Proposals p = Make<Proposer>("proposals.clusters", {{"low_top_variants", true}})->Propose(scan, nullptr, ctx);
+  Eigen::AlignedBox3f with_lamp = stand;
+  with_lamp.max().z() = kFloor + 1.1f;
+  EXPECT_GT(BestIou(p, with_lamp, "all"), 0.8f);
+  EXPECT_GT(BestIou(p, stand, "all_low", "+low"), 0.7f);
+  // The variant ends at the nightstand's top (a box cut at the lamp's top is 0.3 IoU above).
+  for (const auto& q : p.items)
+    if (q.source == "all_low" && Iou(q.box, stand) > 0.5f) {
+      EXPECT_LT(q.box.max().z(), kFloor + 0.65f) << q.how;
+    }
+  EXPECT_EQ(BestIou(p, bare, "all_low"), 0.f);
+  EXPECT_EQ(BestIou(p, bookcase, "all_low"), 0.f);
+  EXPECT_EQ(BestIou(p, unit, "all_low"), 0.f);
+  // Allowed to cover all of it, the tall part is cut off the unit too.
+  const Proposals any = Make<Proposer>("proposals.clusters", {{"low_top_variants", true}, {"low_top_above_max", 1.0}})
+                            ->Propose(scan, nullptr, ctx);
+  EXPECT_GT(BestIou(any, Box({1.0f, 1.0f, 0.f}, {2.0f, 1.5f, 0.6f}), "all_low"), 0.7f);
+  // Off (the default): no variant at all.
+  const Proposals off = Make<Proposer>("proposals.clusters")->Propose(scan, nullptr, ctx);
+  for (const auto& q : off.items) EXPECT_EQ(q.how.find("+low"), std::string::npos) << q.how;
+  EXPECT_THROW(Make<Proposer>("proposals.clusters", {{"low_top_min_m", 0.6}, {"low_top_max_m", 0.62}}), std::exception);
+}
+
 // Points on the faces of a box (not its bottom) on a grid of `step` (a reconstruction's mesh
 // vertices, without a sensor's shadows).
 void SampleBox(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, float step, Points& out) {
