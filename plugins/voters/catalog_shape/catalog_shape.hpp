@@ -3,6 +3,7 @@
 //   catalog_shape.cpp  the parameters
 //   model.cpp          the model: each catalog model's size and top-view profiles (Train, Load)
 //   vote.cpp           the proposals' class scores, hypotheses and suppression (Vote)
+//   size_index.hpp     the k-d tree over a class's model sizes that proposes its candidate models
 #pragma once
 
 #include <Eigen/Core>
@@ -15,6 +16,7 @@
 
 #include "furnihost/plugin.hpp"
 #include "shape/shape.hpp"
+#include "size_index.hpp"
 
 namespace furnihost::catalog_shape {
 
@@ -56,6 +58,7 @@ struct Options {
   bool floor_term = true;
   bool view_profiles = false;  // single views (scans with a sensor origin): also the models' one-eye profiles
   float edge_band_deg = 1.5f;  // a point this close to its row's end of the view lies at the view's edge
+  bool model_index = true;  // score a class's candidate models from its size index, not all its models
 
   const ClassParams& Of(const std::string& c) const {
     auto it = per_class.find(c);
@@ -100,6 +103,7 @@ class CatalogShapeVoter : public Voter {
   std::vector<Model> models_;
   std::vector<std::string> classes_;
   std::map<std::string, std::string> source_;
+  std::vector<SizeIndex> index_;  // per class (classes_'s order): its models' size index
 };
 
 }  // namespace furnihost::catalog_shape

@@ -252,6 +252,19 @@ void CatalogShapeVoter::Load(const nlohmann::json& m) {
   classes_.clear();
   for (const auto& md : models_)
     if (std::find(classes_.begin(), classes_.end(), md.cls) == classes_.end()) classes_.push_back(md.cls);
+  // Each class's size index.
+  index_.clear();
+  for (const auto& c : classes_) {
+    std::vector<int> ids;
+    std::vector<std::array<double, 3>> points;
+    for (size_t m = 0; m < models_.size(); ++m)
+      if (models_[m].cls == c) {
+        ids.push_back(int(m));
+        points.push_back({std::log(double(models_[m].length)), std::log(double(models_[m].width)),
+                          std::log(double(models_[m].height))});
+      }
+    index_.emplace_back(std::move(ids), std::move(points));
+  }
   // Which proposals each class is scored on.
   source_.clear();
   for (const auto& c : classes_) {
