@@ -3,7 +3,7 @@
 //   catalog_shape.cpp  the parameters
 //   model.cpp          the model: each catalog model's size and top-view profiles (Train, Load)
 //   vote.cpp           the proposals' class scores, hypotheses and suppression (Vote)
-//   size_index.hpp     the k-d tree over a class's model sizes that proposes its candidate models
+//   size_index.hpp     the k-d tree over a class's models that proposes its candidate models
 #pragma once
 
 #include <Eigen/Core>
@@ -58,7 +58,7 @@ struct Options {
   bool floor_term = true;
   bool view_profiles = false;  // single views (scans with a sensor origin): also the models' one-eye profiles
   float edge_band_deg = 1.5f;  // a point this close to its row's end of the view lies at the view's edge
-  bool model_index = true;  // score a class's candidate models from its size index, not all its models
+  bool model_index = true;  // score a class's candidate models from its index, not all its models
 
   const ClassParams& Of(const std::string& c) const {
     auto it = per_class.find(c);
@@ -71,6 +71,14 @@ const ParamBinding<Options>& Binding();
 
 // Whether rule is one of the comma-separated names of `list` ("all,segs").
 bool RuleListed(const std::string& list, const std::string& rule);
+
+// The sum of a profile's cumulative shares, in double: |S(a) - S(b)| / kProfileBins is at most
+// shape::ProfileDistance(a, b) (the mean of |cumulative difference| over the bins).
+inline double CumulativeSum(const shape::Profile& p) {
+  double c = 0, s = 0;
+  for (float v : p) s += c += double(v);
+  return s;
+}
 
 // Inner footprint cells (10 cm, the rectangle shrunk by 10 cm on every side) of a footprint.
 constexpr float kFloorCell = 0.10f;
@@ -103,7 +111,7 @@ class CatalogShapeVoter : public Voter {
   std::vector<Model> models_;
   std::vector<std::string> classes_;
   std::map<std::string, std::string> source_;
-  std::vector<SizeIndex> index_;  // per class (classes_'s order): its models' size index
+  std::vector<SizeIndex> index_;  // per class (classes_'s order): its models' index
 };
 
 }  // namespace furnihost::catalog_shape

@@ -252,18 +252,26 @@ void CatalogShapeVoter::Load(const nlohmann::json& m) {
   classes_.clear();
   for (const auto& md : models_)
     if (std::find(classes_.begin(), classes_.end(), md.cls) == classes_.end()) classes_.push_back(md.cls);
-  // Each class's size index.
+  // Each class's index: per model its log sizes, open floor and the range of its profiles'
+  // cumulative sums (the fused one, and with view_profiles each eye's too).
   index_.clear();
   for (const auto& c : classes_) {
     std::vector<int> ids;
-    std::vector<std::array<double, 3>> points;
+    std::vector<SizeIndex::Box> boxes;
     for (size_t m = 0; m < models_.size(); ++m)
-      if (models_[m].cls == c) {
+      if (const Model& md = models_[m]; md.cls == c) {
+        double lo = CumulativeSum(md.profile), hi = lo;
+        if (o_.view_profiles)
+          for (const auto& v : md.views) lo = std::min(lo, CumulativeSum(v)), hi = std::max(hi, CumulativeSum(v));
+        const std::array<double, SizeIndex::kDims> at = {std::log(double(md.length)), std::log(double(md.width)),
+                                                         std::log(double(md.height)), double(md.open), lo};
+        SizeIndex::Box b;
+        for (size_t a = 0; a < SizeIndex::kDims; ++a) b[a] = b[a + SizeIndex::kDims] = at[a];
+        b[2 * SizeIndex::kDims - 1] = hi;
         ids.push_back(int(m));
-        points.push_back({std::log(double(models_[m].length)), std::log(double(models_[m].width)),
-                          std::log(double(models_[m].height))});
+        boxes.push_back(b);
       }
-    index_.emplace_back(std::move(ids), std::move(points));
+    index_.emplace_back(std::move(ids), std::move(boxes));
   }
   // Which proposals each class is scored on.
   source_.clear();

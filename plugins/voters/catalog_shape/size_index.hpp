@@ -1,6 +1,6 @@
 // voters.catalog_shape, private to the plugin: the index that proposes a class's candidate models
-// for a proposal (Vote), so the profile distances, most of a model's cost, are computed for the
-// few models whose size can still beat the best energy found.
+// for a proposal (Vote), so that the energy is computed for the few models that can still beat
+// the best energy found.
 #pragma once
 
 #include <algorithm>
@@ -14,28 +14,30 @@
 
 namespace furnihost::catalog_shape {
 
-// A k-d tree over the (ln length, ln width, ln height) of one class's models, each node with the
-// bounding box of its models' points. Search visits the nodes best first by a lower bound of the
-// energy of any model inside a node's box, and stops once that bound exceeds the best energy
-// found: the size terms of the energy alone bound it from below, the other terms being >= 0.
+// A k-d tree over one class's models, each model a box in kDims coordinates (Vote's: ln length,
+// ln width, ln height, open floor share, and the range of its profiles' cumulative sums), each
+// node with the bounding box of its models' boxes. Search visits the nodes best first by a lower
+// bound of the energy of any model inside a node's box, and stops once that bound exceeds the
+// best energy found.
 class SizeIndex {
  public:
-  using Box = std::array<double, 6>;  // lo[3], hi[3] of ln(length, width, height)
+  static constexpr size_t kDims = 5;
+  using Box = std::array<double, 2 * kDims>;  // lo[kDims], hi[kDims]
 
   SizeIndex() = default;
-  // Models `ids` (indices into the voter's models) of ln sizes `points`; leaves hold up to
-  // `leaf` models.
-  SizeIndex(std::vector<int> ids, std::vector<std::array<double, 3>> points, size_t leaf = 8)
-      : order_(std::move(ids)), points_(std::move(points)) {
-    if (!order_.empty() && order_.size() == points_.size()) Build(0, order_.size(), std::max<size_t>(leaf, 1));
+  // Models `ids` (indices into the voter's models) of boxes `boxes`; leaves hold up to `leaf`
+  // models.
+  SizeIndex(std::vector<int> ids, std::vector<Box> boxes, size_t leaf = 8)
+      : order_(std::move(ids)), boxes_(std::move(boxes)) {
+    if (!order_.empty() && order_.size() == boxes_.size()) Build(0, order_.size(), std::max<size_t>(leaf, 1));
   }
 
   size_t size() const { return order_.size(); }
 
-  // Visits candidate models: `bound(box)` is a lower bound of the energy of every model whose log
-  // sizes lie in `box`, `limit()` the best energy so far; `visit(m)` (m: index into the models)
-  // is called for every model of each node whose bound is not above the limit, nodes in
-  // increasing order of bound. A NaN bound counts as 0 (the node is visited).
+  // Visits candidate models: `bound(box)` is a lower bound of the energy of every model whose box
+  // lies in `box`, `limit()` the best energy so far; `visit(m)` (m: index into the models) is
+  // called for every model of each node whose bound is not above the limit, nodes in increasing
+  // order of bound. A NaN bound counts as 0 (the node is visited).
   template <class Bound, class Limit, class Visit>
   void Search(Bound&& bound, Limit&& limit, Visit&& visit) const {
     if (nodes_.empty()) return;
@@ -67,33 +69,33 @@ class SizeIndex {
     int left = -1, right = -1;  // children (-1: a leaf)
   };
 
-  // The node of models [begin, end): split at the median of its box's widest axis.
+  // The node of models [begin, end): split at the median centre along its box's widest axis.
   int Build(size_t begin, size_t end, size_t leaf) {
     const int k = int(nodes_.size());
     nodes_.push_back({});
-    Box box = {INFINITY, INFINITY, INFINITY, -INFINITY, -INFINITY, -INFINITY};
+    Box box;
+    for (size_t a = 0; a < kDims; ++a) box[a] = INFINITY, box[a + kDims] = -INFINITY;
     for (size_t i = begin; i < end; ++i)
-      for (int a = 0; a < 3; ++a)
-        box[size_t(a)] = std::min(box[size_t(a)], points_[i][size_t(a)]),
-        box[size_t(a + 3)] = std::max(box[size_t(a + 3)], points_[i][size_t(a)]);
+      for (size_t a = 0; a < kDims; ++a)
+        box[a] = std::min(box[a], boxes_[i][a]), box[a + kDims] = std::max(box[a + kDims], boxes_[i][a + kDims]);
     nodes_[size_t(k)].box = box;
     nodes_[size_t(k)].begin = begin, nodes_[size_t(k)].end = end;
     if (end - begin <= leaf) return k;
-    int axis = 0;
-    for (int a = 1; a < 3; ++a)
-      if (box[size_t(a + 3)] - box[size_t(a)] > box[size_t(axis + 3)] - box[size_t(axis)]) axis = a;
-    if (!(box[size_t(axis + 3)] > box[size_t(axis)])) return k;  // all at one point: one leaf
-    // Sorts the models' points and indices together by the axis, then halves them.
+    size_t axis = 0;
+    for (size_t a = 1; a < kDims; ++a)
+      if (box[a + kDims] - box[a] > box[axis + kDims] - box[axis]) axis = a;
+    if (!(box[axis + kDims] > box[axis])) return k;  // all at one point: one leaf
+    auto centre = [&](size_t i) { return boxes_[i][axis] + boxes_[i][axis + kDims]; };
     std::vector<size_t> idx(end - begin);
     std::iota(idx.begin(), idx.end(), begin);
     const size_t mid = (end - begin) / 2;
     std::nth_element(idx.begin(), idx.begin() + long(mid), idx.end(), [&](size_t a, size_t b) {
-      return std::make_pair(points_[a][size_t(axis)], order_[a]) < std::make_pair(points_[b][size_t(axis)], order_[b]);
+      return std::make_pair(centre(a), order_[a]) < std::make_pair(centre(b), order_[b]);
     });
-    std::vector<std::array<double, 3>> pts;
+    std::vector<Box> bx;
     std::vector<int> ord;
-    for (size_t i : idx) pts.push_back(points_[i]), ord.push_back(order_[i]);
-    std::copy(pts.begin(), pts.end(), points_.begin() + long(begin));
+    for (size_t i : idx) bx.push_back(boxes_[i]), ord.push_back(order_[i]);
+    std::copy(bx.begin(), bx.end(), boxes_.begin() + long(begin));
     std::copy(ord.begin(), ord.end(), order_.begin() + long(begin));
     const int left = Build(begin, begin + mid, leaf);
     const int right = Build(begin + mid, end, leaf);
@@ -102,8 +104,8 @@ class SizeIndex {
   }
 
   std::vector<Node> nodes_;
-  std::vector<int> order_;                      // model indices, each node's a contiguous range
-  std::vector<std::array<double, 3>> points_;   // their ln sizes, in order_'s order
+  std::vector<int> order_;  // model indices, each node's a contiguous range
+  std::vector<Box> boxes_;  // their boxes, in order_'s order
 };
 
 }  // namespace furnihost::catalog_shape

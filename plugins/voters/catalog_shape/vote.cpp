@@ -243,29 +243,37 @@ VoteResult CatalogShapeVoter::Vote(const std::vector<SceneParts>& scenes, const 
             if (E < best) best = E, best_model[c][i] = int(m), terms = t;
           }
         } else {
-          // The candidates of the class's size index. A model's energy is at least its size and
-          // bottom terms (the profile and floor terms are >= 0, and float sums of terms >= 0
-          // never fall below a partial sum), so a model whose partial sum exceeds the best
-          // energy found is skipped before its profile distances; a node of the tree is skipped
-          // when that bound over its box of log sizes does. Ties go to the earlier model, as in
-          // a scan of all models in order.
+          // The candidates of the class's index. A model's energy is at least the sum of its
+          // size, bottom and floor terms (the profile term is >= 0, and float sums of terms >= 0
+          // never fall below a partial sum), so a model whose partial sum exceeds the best energy
+          // found is skipped before its profile distances. A node of the tree is skipped when a
+          // bound over its box exceeds it: the size, bottom and floor terms over the box, and the
+          // profile term of the gap between the proposal's cumulative sum and the box's
+          // (CumulativeSum). Ties go to the earlier model, as in a scan of all models in order.
           const double lL = std::log(double(L)), lW = std::log(double(W)), lT = std::log(double(T)),
-                       lS = std::log(double(span));
-          // The box's bound is in double from the log sizes, the models' terms in float from
-          // the size ratios: each gap to the box shrinks by 1e-5 (far above the float rounding
-          // of a log, ~1e-6) and the sum by a relative 1e-5, so it never exceeds a model's.
+                       lS = std::log(double(span)), qS = CumulativeSum(prof);
+          // The box's bound is in double, the models' terms in float: each gap to the box shrinks
+          // by 1e-5 (far above the float rounding of a log or a share, ~1e-6), the profile
+          // distance by 1e-4 per unit of profile mass (above the float rounding of its sums), and
+          // the sum by a relative 1e-5, so it never exceeds a model's energy.
           auto pen_box = [](double q, double lo, double hi, float small, float big) {
             constexpr double kSlack = 1e-5;
             const double d = q < lo ? std::min(q - lo + kSlack, 0.0) : q > hi ? std::max(q - hi - kSlack, 0.0) : 0.0;
             const double s = d < 0 ? double(small) : double(big);
             return d * d / (2 * s * s);
           };
+          constexpr size_t K = SizeIndex::kDims;
           auto bound = [&](const SizeIndex::Box& b) {
-            const double sides = pen_box(lL, b[0], b[3], cp.long_small, cp.long_big) +
-                                 pen_box(lW, b[1], b[4], cp.short_small, cp.short_big);
-            double height = pen_box(lT, b[2], b[5], cp.top_small, cp.top_big) + double(bottom);
+            const double sides = pen_box(lL, b[0], b[K], cp.long_small, cp.long_big) +
+                                 pen_box(lW, b[1], b[K + 1], cp.short_small, cp.short_big);
+            const double gap = std::max({b[4] - qS, qS - b[K + 4], 0.0}) / shape::kProfileBins -
+                               1e-4 * (1.0 + qS + b[K + 4]);
+            const double emd = std::max(gap, 0.0);
+            double height = pen_box(lT, b[2], b[K + 2], cp.top_small, cp.top_big) + double(bottom) +
+                            emd * emd / (2 * double(cp.profile) * double(cp.profile)) +
+                            (o_.floor_term ? pen_box(double(seen), b[3], b[K + 3], cp.floor_under, cp.floor_over) : 0.0);
             if (cp.wall_mount > 0.f)
-              height = std::min(height, pen_box(lS, b[2], b[5], cp.top_small, cp.top_big) + double(hung_bottom));
+              height = std::min(height, pen_box(lS, b[2], b[K + 2], cp.top_small, cp.top_big) + double(hung_bottom));
             return (sides + height) * (1.0 - 1e-5);
           };
           int chosen = -1;
@@ -273,7 +281,8 @@ VoteResult CatalogShapeVoter::Vote(const std::vector<SceneParts>& scenes, const 
             const Model& md = models_[m];
             const float t01 = Pen(std::log(L / md.length), cp.long_small, cp.long_big) +
                               Pen(std::log(W / md.width), cp.short_small, cp.short_big);
-            float partial = t01 + Pen(std::log(T / md.height), cp.top_small, cp.top_big) + bottom;
+            float partial = t01 + Pen(std::log(T / md.height), cp.top_small, cp.top_big) + bottom +
+                            (o_.floor_term ? Pen(seen - md.open, cp.floor_under, cp.floor_over) : 0.f);
             if (cp.wall_mount > 0.f)
               partial = std::min(partial, t01 + Pen(std::log(span / md.height), cp.top_small, cp.top_big) + hung_bottom);
             if (partial > best) return;
