@@ -8,6 +8,7 @@
 
 #include <Eigen/Core>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <map>
 #include <string>
@@ -72,12 +73,15 @@ const ParamBinding<Options>& Binding();
 // Whether rule is one of the comma-separated names of `list` ("all,segs").
 bool RuleListed(const std::string& list, const std::string& rule);
 
-// The sum of a profile's cumulative shares, in double: |S(a) - S(b)| / kProfileBins is at most
-// shape::ProfileDistance(a, b) (the mean of |cumulative difference| over the bins).
-inline double CumulativeSum(const shape::Profile& p) {
-  double c = 0, s = 0;
-  for (float v : p) s += c += double(v);
-  return s;
+// A profile's cumulative shares summed over each of kProfileChunks runs of bins, in double: the
+// sum over the runs of |P(a) - P(b)|, over kProfileBins, is at most shape::ProfileDistance(a, b)
+// (the mean of |cumulative difference| over the bins).
+constexpr int kProfileChunks = 1;
+inline std::array<double, kProfileChunks> ChunkSums(const shape::Profile& p) {
+  std::array<double, kProfileChunks> out{};
+  double c = 0;
+  for (int i = 0; i < shape::kProfileBins; ++i) out[size_t(i * kProfileChunks / shape::kProfileBins)] += c += double(p[size_t(i)]);
+  return out;
 }
 
 // Inner footprint cells (10 cm, the rectangle shrunk by 10 cm on every side) of a footprint.

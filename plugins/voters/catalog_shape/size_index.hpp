@@ -15,7 +15,7 @@
 namespace furnihost::catalog_shape {
 
 // A k-d tree over one class's models, each model a box in kDims coordinates (Vote's: ln length,
-// ln width, ln height, open floor share, and the range of its profiles' cumulative sums), each
+// ln width, ln height, open floor share, and the range of its profiles' ChunkSums), each
 // node with the bounding box of its models' boxes. Search visits the nodes best first by a lower
 // bound of the energy of any model inside a node's box, and stops once that bound exceeds the
 // best energy found.
@@ -26,9 +26,10 @@ class SizeIndex {
 
   SizeIndex() = default;
   // Models `ids` (indices into the voter's models) of boxes `boxes`; leaves hold up to `leaf`
-  // models.
-  SizeIndex(std::vector<int> ids, std::vector<Box> boxes, size_t leaf = 8)
-      : order_(std::move(ids)), boxes_(std::move(boxes)) {
+  // models. A node splits across the axis where its box is widest in units of `scale` (per
+  // coordinate: how fast the energy grows along it).
+  SizeIndex(std::vector<int> ids, std::vector<Box> boxes, const std::array<double, kDims>& scale, size_t leaf = 8)
+      : order_(std::move(ids)), boxes_(std::move(boxes)), scale_(scale) {
     if (!order_.empty() && order_.size() == boxes_.size()) Build(0, order_.size(), std::max<size_t>(leaf, 1));
   }
 
@@ -83,7 +84,7 @@ class SizeIndex {
     if (end - begin <= leaf) return k;
     size_t axis = 0;
     for (size_t a = 1; a < kDims; ++a)
-      if (box[a + kDims] - box[a] > box[axis + kDims] - box[axis]) axis = a;
+      if ((box[a + kDims] - box[a]) * scale_[a] > (box[axis + kDims] - box[axis]) * scale_[axis]) axis = a;
     if (!(box[axis + kDims] > box[axis])) return k;  // all at one point: one leaf
     auto centre = [&](size_t i) { return boxes_[i][axis] + boxes_[i][axis + kDims]; };
     std::vector<size_t> idx(end - begin);
@@ -106,6 +107,7 @@ class SizeIndex {
   std::vector<Node> nodes_;
   std::vector<int> order_;  // model indices, each node's a contiguous range
   std::vector<Box> boxes_;  // their boxes, in order_'s order
+  std::array<double, kDims> scale_{};
 };
 
 }  // namespace furnihost::catalog_shape

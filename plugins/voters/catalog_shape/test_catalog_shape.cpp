@@ -481,7 +481,9 @@ TEST(CatalogShapeSizeIndex, FindsTheNearestPointAsAScanOfAll) {
     boxes.push_back(b);
     ids.push_back(i);
   }
-  const Index index(ids, boxes, 4);
+  std::array<double, K> scale;
+  scale.fill(1.0);
+  const Index index(ids, boxes, scale, 4);
   ASSERT_EQ(index.size(), pts.size());
   size_t visited = 0;
   for (int q = 0; q < 200; ++q) {

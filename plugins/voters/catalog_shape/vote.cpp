@@ -248,10 +248,13 @@ VoteResult CatalogShapeVoter::Vote(const std::vector<SceneParts>& scenes, const 
           // never fall below a partial sum), so a model whose partial sum exceeds the best energy
           // found is skipped before its profile distances. A node of the tree is skipped when a
           // bound over its box exceeds it: the size, bottom and floor terms over the box, and the
-          // profile term of the gap between the proposal's cumulative sum and the box's
-          // (CumulativeSum). Ties go to the earlier model, as in a scan of all models in order.
+          // profile term of the gaps between the proposal's ChunkSums and the box's. Ties go to
+          // the earlier model, as in a scan of all models in order.
           const double lL = std::log(double(L)), lW = std::log(double(W)), lT = std::log(double(T)),
-                       lS = std::log(double(span)), qS = CumulativeSum(prof);
+                       lS = std::log(double(span));
+          const std::array<double, kProfileChunks> qP = ChunkSums(prof);
+          double qS = 0;
+          for (double v : qP) qS += v;
           // The box's bound is in double, the models' terms in float: each gap to the box shrinks
           // by 1e-5 (far above the float rounding of a log or a share, ~1e-6), the profile
           // distance by 1e-4 per unit of profile mass (above the float rounding of its sums), and
@@ -266,9 +269,10 @@ VoteResult CatalogShapeVoter::Vote(const std::vector<SceneParts>& scenes, const 
           auto bound = [&](const SizeIndex::Box& b) {
             const double sides = pen_box(lL, b[0], b[K], cp.long_small, cp.long_big) +
                                  pen_box(lW, b[1], b[K + 1], cp.short_small, cp.short_big);
-            const double gap = std::max({b[4] - qS, qS - b[K + 4], 0.0}) / shape::kProfileBins -
-                               1e-4 * (1.0 + qS + b[K + 4]);
-            const double emd = std::max(gap, 0.0);
+            double gap = 0, mass = 1.0 + qS;
+            for (size_t k = 0; k < size_t(kProfileChunks); ++k)
+              gap += std::max({b[4 + k] - qP[k], qP[k] - b[K + 4 + k], 0.0}), mass += b[K + 4 + k];
+            const double emd = std::max(gap / shape::kProfileBins - 1e-4 * mass, 0.0);
             double height = pen_box(lT, b[2], b[K + 2], cp.top_small, cp.top_big) + double(bottom) +
                             emd * emd / (2 * double(cp.profile) * double(cp.profile)) +
                             (o_.floor_term ? pen_box(double(seen), b[3], b[K + 3], cp.floor_under, cp.floor_over) : 0.0);
