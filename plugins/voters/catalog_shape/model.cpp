@@ -274,6 +274,10 @@ void CatalogShapeVoter::Load(const nlohmann::json& m) {
             for (size_t k = 0; k < size_t(kProfileChunks); ++k)
               b[4 + k] = std::min(b[4 + k], sums[k]), b[K + 4 + k] = std::max(b[K + 4 + k], sums[k]);
           }
+        // The profile bound's allowance for float rounding holds for shares >= 0 (histograms, as
+        // training writes them); a model file with other profiles gets no profile bound.
+        if (!std::all_of(md.profile.begin(), md.profile.end(), [](float x) { return std::isfinite(x) && x >= 0.f; }))
+          for (size_t k = 0; k < size_t(kProfileChunks); ++k) b[4 + k] = -1e30, b[K + 4 + k] = 1e30;
         ids.push_back(int(m));
         boxes.push_back(b);
       }
