@@ -273,6 +273,60 @@ TEST(Catalog, HashCoversTheCatalogAndEveryMesh) {
   EXPECT_NE(LoadCatalog(path).hash, h2);
 }
 
+// Entries naming one mesh file (a grown catalog's variants) share its parsing, each normalised
+// by its own "up" and scale: every model is the one a catalog of that entry alone gives, bit for
+// bit; an unparsable shared file skips each entry naming it; the hash follows the shared file.
+TEST(Catalog, EntriesNamingOneMeshFileLoadAsEachAlone) {
+  TempCatalog t("shared_mesh");
+  t.Write("a.obj", ObjBox(1.f, 2.f, 3.f));
+  t.Write("b.obj", ObjBox(4.f, 1.f, 1.f));
+  t.Write("bad.obj", "# no geometry\n");
+  const json entries = json::array(
+      {{{"id", "a1"}, {"class", "chair"}, {"mesh", "a.obj"}, {"up", "+y"}, {"size_m", {0.5, 0.4, 0.8}}},
+       {{"id", "b1"}, {"class", "table"}, {"mesh", "b.obj"}, {"up", "+y"}, {"scale", 0.2}},
+       {{"id", "a2"}, {"class", "chair"}, {"mesh", "./sub/../a.obj"}, {"up", "+z"}, {"height_m", 1.2}},
+       {{"id", "x1"}, {"class", "chair"}, {"mesh", "bad.obj"}, {"up", "+y"}, {"scale", 1.0}},
+       {{"id", "a3"}, {"class", "chair"}, {"mesh", "a.obj"}, {"up", "-x"}, {"scale", 0.3}, {"front", "+z"}},
+       {{"id", "x2"}, {"class", "chair"}, {"mesh", "bad.obj"}, {"up", "+y"}, {"scale", 2.0}},
+       {{"id", "a4"}, {"class", "chair"}, {"mesh", "a.obj"}, {"up", "sideways"}, {"scale", 1.0}}});
+  const std::string path = t.Catalog(entries);
+  const Catalog all = LoadCatalog(path);
+  ASSERT_EQ(all.models.size(), 4u);
+  ASSERT_EQ(all.skipped.size(), 3u);
+  EXPECT_EQ(all.skipped[0].id, "x1");
+  EXPECT_EQ(all.skipped[1].id, "x2");
+  EXPECT_EQ(all.skipped[0].reason.substr(0, 16), "unreadable mesh:");
+  EXPECT_EQ(all.skipped[1].reason.substr(0, 16), "unreadable mesh:");
+  EXPECT_EQ(all.skipped[2].id, "a4");
+  for (const auto& m : all.models) {
+    SCOPED_TRACE(m.id);
+    json one = json::array();
+    for (const auto& e : entries)
+      if (e["id"] == m.id) one.push_back(e);
+    TempCatalog alone("shared_mesh_" + m.id);
+    alone.Write("a.obj", ObjBox(1.f, 2.f, 3.f));
+    alone.Write("b.obj", ObjBox(4.f, 1.f, 1.f));
+    const Catalog c = LoadCatalog(alone.Catalog(one));
+    ASSERT_EQ(c.models.size(), 1u);
+    const CatalogModel& x = c.models[0];
+    EXPECT_EQ(x.size, m.size);
+    ASSERT_EQ(x.mesh.vertices.size(), m.mesh.vertices.size());
+    ASSERT_EQ(x.mesh.triangles.size(), m.mesh.triangles.size());
+    EXPECT_EQ(std::memcmp(x.mesh.vertices.data(), m.mesh.vertices.data(), 12 * x.mesh.vertices.size()), 0);
+    EXPECT_EQ(std::memcmp(x.mesh.triangles.data(), m.mesh.triangles.data(), 12 * x.mesh.triangles.size()), 0);
+    EXPECT_EQ(c.FrontOf(x.id)->front, all.FrontOf(m.id)->front);
+  }
+  EXPECT_NEAR(all.Find("a2")->size.z(), 1.2f, 1e-5f);
+  EXPECT_NEAR(all.Find("a1")->size.z(), 0.8f, 1e-5f);
+  EXPECT_EQ(LoadCatalog(path).hash, all.hash);
+  t.Write("a.obj", ObjBox(1.f, 2.f, 3.5f));  // the shared file changes
+  EXPECT_NE(LoadCatalog(path).hash, all.hash);
+  t.Write("a.obj", ObjBox(1.f, 2.f, 3.f));
+  EXPECT_EQ(LoadCatalog(path).hash, all.hash);
+  t.Write("bad.obj", ObjBox(1.f, 1.f, 1.f));  // a skipped entry's file counts too
+  EXPECT_NE(LoadCatalog(path).hash, all.hash);
+}
+
 // Parsed meshes are cached by content ($FURNIHOST_CACHE_DIR/meshes): a second load reads the
 // cache and gives the same catalog bit for bit; a truncated or forged cache file is ignored and
 // rewritten; a changed mesh gets its own entry.

@@ -14,7 +14,6 @@
 #include <dlfcn.h>
 #include <spdlog/spdlog.h>
 #include <tbb/parallel_for.h>
-#include <tbb/task_group.h>
 
 #include <algorithm>
 #include <cctype>
@@ -26,6 +25,7 @@
 #include <fstream>
 #include <iterator>
 #include <map>
+#include <mutex>
 #include <set>
 #include <sstream>
 #include <optional>
@@ -182,17 +182,17 @@ void WriteMeshCache(const std::string& dir, const std::string& file, uint64_t ke
   }
 }
 
-// LoadMeshFile through the cache.
-Mesh LoadMeshCached(const std::string& path) {
+// LoadMeshFile through the cache; `content` is the file's hash (HashFile from kFnvOffset), none
+// when it cannot be read.
+Mesh LoadMeshCached(const std::string& path, std::optional<uint64_t> content) {
   const std::string dir = CacheFolder("meshes");
   std::string ext = fs::path(path).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
   static const std::set<std::string> kSelfContained{".obj", ".ply", ".off", ".stl", ".glb", ".dae"};
   std::error_code ec;
   if (dir.empty() || !kSelfContained.count(ext) || !fs::is_regular_file(path, ec)) return LoadMeshFile(path);
-  uint64_t key = kFnvOffset;
-  if (!HashFile(key, path)) return LoadMeshFile(path);
-  key = Fnv1a(ext + "|assimp " + FURNIHOST_ASSIMP_VERSION + "|" + std::string(kMeshCacheMagic, 7), key);
+  if (!content) return LoadMeshFile(path);
+  const uint64_t key = Fnv1a(ext + "|assimp " + FURNIHOST_ASSIMP_VERSION + "|" + std::string(kMeshCacheMagic, 7), *content);
   const std::string file = dir + "/" + Hex64(key) + ".fhmesh";
   if (auto cached = ReadMeshCache(file, key)) return std::move(*cached);
   Mesh m = LoadMeshFile(path);
@@ -200,7 +200,64 @@ Mesh LoadMeshCached(const std::string& path) {
   return m;
 }
 
-EntryResult LoadEntry(const nlohmann::json& e, size_t index, const fs::path& dir) {
+// The distinct mesh files a catalog's entries name (a grown catalog names one file from many
+// entries: variants of a model differ in size only): each file is hashed once and parsed once
+// (through the cache), on first use by any thread; each entry naming it takes a copy of the
+// parsed mesh to normalise, the last one the mesh itself.
+class MeshFiles {
+ public:
+  // The normalised path of an entry's "mesh" (relative to the catalog's folder `dir`).
+  static std::string PathOf(const std::string& mesh, const fs::path& dir) {
+    fs::path p(mesh);
+    if (p.is_relative()) p = dir / p;
+    return p.lexically_normal().string();
+  }
+  // Counts one more entry naming `path`.
+  void Add(const std::string& path) { ++files_[path].users; }
+  // The file's hash (HashFile from kFnvOffset); none when it cannot be read.
+  std::optional<uint64_t> Hash(const std::string& path) {
+    File& f = files_.at(path);
+    std::call_once(f.hashed, [&] {
+      uint64_t h = kFnvOffset;
+      if (HashFile(h, path)) f.hash = h;
+    });
+    return f.hash;
+  }
+  // The parsed mesh (file units and axes) for one of the entries counted by Add; the parsing's
+  // InputError for each of them when the file cannot be parsed.
+  Mesh Take(const std::string& path) {
+    File& f = files_.at(path);
+    std::call_once(f.parsed, [&] {
+      try {
+        f.mesh = LoadMeshCached(path, Hash(path));
+      } catch (const InputError& e) {
+        f.error = e.what();
+      }
+    });
+    if (!f.error.empty()) throw InputError(f.error);
+    std::lock_guard<std::mutex> lock(f.taking);
+    return --f.users == 0 ? std::move(f.mesh) : f.mesh;
+  }
+  // Every file's path.
+  std::vector<std::string> Paths() const {
+    std::vector<std::string> out;
+    for (const auto& [p, f] : files_) out.push_back(p);
+    return out;
+  }
+
+ private:
+  struct File {
+    size_t users = 0;
+    std::once_flag hashed, parsed;
+    std::optional<uint64_t> hash;
+    Mesh mesh;
+    std::string error;
+    std::mutex taking;
+  };
+  std::map<std::string, File> files_;  // filled before the entries load; only its values change then
+};
+
+EntryResult LoadEntry(const nlohmann::json& e, size_t index, const fs::path& dir, MeshFiles& files) {
   EntryResult r;
   r.id = "#" + std::to_string(index);
   if (!e.is_object()) {
@@ -279,7 +336,7 @@ EntryResult LoadEntry(const nlohmann::json& e, size_t index, const fs::path& dir
 
   Mesh m;
   try {
-    m = LoadMeshCached(mesh.string());
+    m = files.Take(mesh.string());
   } catch (const InputError& err) {
     return fail(std::string("unreadable mesh: ") + err.what());
   }
@@ -605,27 +662,24 @@ Catalog LoadCatalog(const std::string& path, bool strict) {
   const fs::path dir = fs::path(cat.path).parent_path();
   const auto& entries = j["models"];
 
-  // The catalog's hash (one chain over catalog.json and every mesh file, in order) is computed
-  // beside the entries' loading rather than after it: it reads only files.
-  uint64_t h = kFnvOffsetTruncated;
-  bool catalog_read = false;
-  // Declared after what its task uses: if a load throws, its destructor cancels and waits first.
-  tbb::task_group hashing;
-  hashing.run([&] {
-    catalog_read = HashFile(h, path);
-    if (!catalog_read) return;
-    for (const auto& e : entries)
-      // Every mesh that exists is hashed, valid or not, so fixing a file changes the key.
-      if (e.is_object() && e.contains("mesh") && e["mesh"].is_string()) {
-        fs::path mesh = fs::path(e["mesh"].get<std::string>());
-        if (mesh.is_relative()) mesh = dir / mesh;
-        HashFile(h, mesh.string());
-      }
-  });
+  // Each distinct mesh file, hashed and parsed once, however many entries name it.
+  MeshFiles files;
+  for (const auto& e : entries)
+    if (e.is_object() && e.contains("mesh") && e["mesh"].is_string())
+      files.Add(MeshFiles::PathOf(e["mesh"].get<std::string>(), dir));
   std::vector<EntryResult> results(entries.size());
   tbb::parallel_for(size_t(0), entries.size(),
-                    [&](size_t i) { results[i] = LoadEntry(entries[i], i, dir); });
-  hashing.wait();
+                    [&](size_t i) { results[i] = LoadEntry(entries[i], i, dir, files); });
+  // The files of entries that failed before their mesh: hashed too, so fixing one changes the key.
+  const std::vector<std::string> paths = files.Paths();
+  tbb::parallel_for(size_t(0), paths.size(), [&](size_t k) { files.Hash(paths[k]); });
+  // The catalog's hash: one chain over catalog.json and, per entry in order, the hash of its mesh
+  // file (every mesh that exists, valid or not).
+  uint64_t h = kFnvOffsetTruncated;
+  const bool catalog_read = HashFile(h, path);
+  for (const auto& e : entries)
+    if (e.is_object() && e.contains("mesh") && e["mesh"].is_string())
+      if (const auto fh = files.Hash(MeshFiles::PathOf(e["mesh"].get<std::string>(), dir))) h = Fnv1a(&*fh, sizeof(*fh), h);
   if (!catalog_read) throw InputError(path + ": cannot read the file");
 
   std::map<std::string, size_t> first_index;

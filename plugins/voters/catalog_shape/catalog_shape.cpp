@@ -24,6 +24,11 @@
 //   when the left or right end of a single view cuts the proposal (ViewEdges), else 0,
 // then optionally class competition (score_c * (score_c / best class score of the proposal's
 // group)^compete): one object is one class, whatever variant of its cluster is looked at.
+// The minimum over a class's models is searched in a k-d tree over their log sizes, open floor
+// and profile cumulative sums (size_index.hpp), best first: the size, bottom and floor terms and
+// the profiles' difference in mean bound E_m from below, so the energy is computed only for the
+// models that can still beat the best energy found; the choice and the score are those of
+// scoring every model (model_index false does that).
 // Per class, non-maximum suppression by box IoU; with nms_whole_ratio, a box that holds a better
 // one and is that many times its volume is kept beside it: a fragment (the lower half of a wall
 // cabinet, which fits a smaller catalog model) may score better than its whole.
@@ -192,6 +197,12 @@ const ParamBinding<Options>& Binding() {
                   "angular band at the left and right ends of each 1 deg row of a single view whose points count as "
                   "at the view's edge (view_edge)")
           .DetectionOnly()
+          .Bool("model_index", &O::model_index,
+                "score each class's candidate models only: a k-d tree over the models' log sizes, open floor and "
+                "profile means, searched best first, skips every model whose size, bottom and floor terms and "
+                "profile mean's distance alone exceed the best energy found (the same choice and scores as scoring "
+                "all models, in time sublinear in the catalog); false scores every model")
+          .DetectionOnly()
           , DecisionFields{&O::thresholds, &O::default_threshold, &O::min_score, &O::nms_iou, &O::nms_whole},
           {"in [0, 1]; below the threshold kept as rejected candidates", "", true})
           .Number("profile_cell_m", &O::cell, 0.005, 1, "m", "column size of the top-view height profile")
@@ -204,5 +215,5 @@ const ParamBinding<Options>& Binding() {
 
 }  // namespace furnihost::catalog_shape
 
-FURNIHOST_PLUGIN(furnihost::catalog_shape::CatalogShapeVoter, "voters.catalog_shape", "1.5.0",
+FURNIHOST_PLUGIN(furnihost::catalog_shape::CatalogShapeVoter, "voters.catalog_shape", "1.6.0",
                  "recognises object proposals by the catalog models' metric sizes and top-view height profiles")

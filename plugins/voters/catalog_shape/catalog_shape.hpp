@@ -3,10 +3,12 @@
 //   catalog_shape.cpp  the parameters
 //   model.cpp          the model: each catalog model's size and top-view profiles (Train, Load)
 //   vote.cpp           the proposals' class scores, hypotheses and suppression (Vote)
+//   size_index.hpp     the k-d tree over a class's models that proposes its candidate models
 #pragma once
 
 #include <Eigen/Core>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <map>
 #include <string>
@@ -15,6 +17,7 @@
 
 #include "furnihost/plugin.hpp"
 #include "shape/shape.hpp"
+#include "size_index.hpp"
 
 namespace furnihost::catalog_shape {
 
@@ -56,6 +59,7 @@ struct Options {
   bool floor_term = true;
   bool view_profiles = false;  // single views (scans with a sensor origin): also the models' one-eye profiles
   float edge_band_deg = 1.5f;  // a point this close to its row's end of the view lies at the view's edge
+  bool model_index = true;  // score a class's candidate models from its index, not all its models
 
   const ClassParams& Of(const std::string& c) const {
     auto it = per_class.find(c);
@@ -68,6 +72,17 @@ const ParamBinding<Options>& Binding();
 
 // Whether rule is one of the comma-separated names of `list` ("all,segs").
 bool RuleListed(const std::string& list, const std::string& rule);
+
+// A profile's cumulative shares summed over each of kProfileChunks runs of bins, in double: the
+// sum over the runs of |P(a) - P(b)|, over kProfileBins, is at most shape::ProfileDistance(a, b)
+// (the mean of |cumulative difference| over the bins).
+constexpr int kProfileChunks = 1;
+inline std::array<double, kProfileChunks> ChunkSums(const shape::Profile& p) {
+  std::array<double, kProfileChunks> out{};
+  double c = 0;
+  for (int i = 0; i < shape::kProfileBins; ++i) out[size_t(i * kProfileChunks / shape::kProfileBins)] += c += double(p[size_t(i)]);
+  return out;
+}
 
 // Inner footprint cells (10 cm, the rectangle shrunk by 10 cm on every side) of a footprint.
 constexpr float kFloorCell = 0.10f;
@@ -100,6 +115,7 @@ class CatalogShapeVoter : public Voter {
   std::vector<Model> models_;
   std::vector<std::string> classes_;
   std::map<std::string, std::string> source_;
+  std::vector<SizeIndex> index_;  // per class (classes_'s order): its models' index
 };
 
 }  // namespace furnihost::catalog_shape

@@ -252,6 +252,46 @@ void CatalogShapeVoter::Load(const nlohmann::json& m) {
   classes_.clear();
   for (const auto& md : models_)
     if (std::find(classes_.begin(), classes_.end(), md.cls) == classes_.end()) classes_.push_back(md.cls);
+  // Each class's index: per model its log sizes, open floor and the range of its profiles'
+  // ChunkSums (the fused one's, and with view_profiles each eye's too).
+  static_assert(SizeIndex::kDims == 4 + kProfileChunks, "the index's coordinates");
+  index_.clear();
+  for (const auto& c : classes_) {
+    std::vector<int> ids;
+    std::vector<SizeIndex::Box> boxes;
+    for (size_t m = 0; m < models_.size(); ++m)
+      if (const Model& md = models_[m]; md.cls == c) {
+        constexpr size_t K = SizeIndex::kDims;
+        SizeIndex::Box b;
+        b[0] = std::log(double(md.length)), b[1] = std::log(double(md.width)), b[2] = std::log(double(md.height));
+        b[3] = double(md.open);
+        const auto fused = ChunkSums(md.profile);
+        for (size_t k = 0; k < size_t(kProfileChunks); ++k) b[4 + k] = fused[k];
+        for (size_t a = 0; a < K; ++a) b[a + K] = b[a];
+        if (o_.view_profiles)
+          for (const auto& v : md.views) {
+            const auto sums = ChunkSums(v);
+            for (size_t k = 0; k < size_t(kProfileChunks); ++k)
+              b[4 + k] = std::min(b[4 + k], sums[k]), b[K + 4 + k] = std::max(b[K + 4 + k], sums[k]);
+          }
+        // The profile bound's allowance for float rounding holds for shares >= 0 (histograms, as
+        // training writes them); a model file with other profiles gets no profile bound.
+        if (!std::all_of(md.profile.begin(), md.profile.end(), [](float x) { return std::isfinite(x) && x >= 0.f; }))
+          for (size_t k = 0; k < size_t(kProfileChunks); ++k) b[4 + k] = -1e30, b[K + 4 + k] = 1e30;
+        ids.push_back(int(m));
+        boxes.push_back(b);
+      }
+    // Per coordinate, the energy's growth: 1 / spread (of a log size, of the open floor share),
+    // and 1 / (bins * profile spread) for a run's cumulative sum.
+    const ClassParams& cp = o_.Of(c);
+    std::array<double, SizeIndex::kDims> scale;
+    scale[0] = 1.0 / double(std::min(cp.long_small, cp.long_big));
+    scale[1] = 1.0 / double(std::min(cp.short_small, cp.short_big));
+    scale[2] = 1.0 / double(std::min(cp.top_small, cp.top_big));
+    scale[3] = o_.floor_term ? 1.0 / double(std::min(cp.floor_under, cp.floor_over)) : 0.0;
+    for (size_t k = 0; k < size_t(kProfileChunks); ++k) scale[4 + k] = 1.0 / (shape::kProfileBins * double(cp.profile));
+    index_.emplace_back(std::move(ids), std::move(boxes), scale);
+  }
   // Which proposals each class is scored on.
   source_.clear();
   for (const auto& c : classes_) {

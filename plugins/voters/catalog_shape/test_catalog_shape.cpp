@@ -6,10 +6,13 @@
 
 #include <cmath>
 #include <optional>
+#include <random>
 #include <set>
 
 #include "furnihost/host/ground_estimation.hpp"
 #include "furnihost/stage.hpp"
+#include "shape/shape.hpp"
+#include "size_index.hpp"
 #include "test_stages.hpp"
 
 namespace furnihost {
@@ -454,6 +457,132 @@ TEST(CatalogShape, ViewEdgeCostsProposalsTheViewCuts) {
   EXPECT_GT(measured, 0);
   scan.origin.reset();
   for (const auto& h : with->Vote({parts}, ctx).hypotheses) EXPECT_EQ(h.evidence.count("e_view_edge"), 0u);
+}
+
+
+// SizeIndex alone: a best-first search bounded by the squared distance from a query to a node's
+// box finds the nearest of many points (ties: the lowest index), as a scan of all points does,
+// and visits a small share of them.
+TEST(CatalogShapeSizeIndex, FindsTheNearestPointAsAScanOfAll) {
+  using Index = catalog_shape::SizeIndex;
+  constexpr size_t K = Index::kDims;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-2.0, 2.0);
+  std::vector<std::array<double, K>> pts;
+  std::vector<Index::Box> boxes;
+  std::vector<int> ids;
+  for (int i = 0; i < 2000; ++i) {
+    std::array<double, K> p;
+    for (size_t a = 0; a < K; ++a) p[a] = (a < 2 ? 1.0 : 0.1) * u(rng);
+    // A few exact duplicates, so ties must go to the earlier point.
+    pts.push_back(i % 50 == 49 ? pts[size_t(i - 17)] : p);
+    Index::Box b;
+    for (size_t a = 0; a < K; ++a) b[a] = b[a + K] = pts.back()[a];
+    boxes.push_back(b);
+    ids.push_back(i);
+  }
+  std::array<double, K> scale;
+  scale.fill(1.0);
+  const Index index(ids, boxes, scale, 4);
+  ASSERT_EQ(index.size(), pts.size());
+  size_t visited = 0;
+  for (int q = 0; q < 200; ++q) {
+    std::array<double, K> x = pts[size_t(q * 7)];
+    if (q % 4 != 0)
+      for (auto& v : x) v = u(rng);
+    auto d2 = [&](const std::array<double, K>& p) {
+      double s = 0;
+      for (size_t a = 0; a < K; ++a) s += (p[a] - x[a]) * (p[a] - x[a]);
+      return s;
+    };
+    int want = -1;
+    double want_d = INFINITY;
+    for (size_t i = 0; i < pts.size(); ++i)
+      if (d2(pts[i]) < want_d) want_d = d2(pts[i]), want = int(i);
+    int got = -1;
+    double got_d = INFINITY;
+    index.Search(
+        [&](const Index::Box& b) {
+          double s = 0;
+          for (size_t a = 0; a < K; ++a) {
+            const double g = std::max({b[a] - x[a], x[a] - b[a + K], 0.0});
+            s += g * g;
+          }
+          return s;
+        },
+        [&] { return got_d; },
+        [&](size_t m) {
+          ++visited;
+          const double d = d2(pts[m]);
+          if (d < got_d || (d == got_d && int(m) < got)) got_d = d, got = int(m);
+        });
+    EXPECT_EQ(got, want) << "query " << q;
+    EXPECT_EQ(got_d, want_d) << "query " << q;
+  }
+  EXPECT_LT(visited, 200u * pts.size() / 10);  // on average under 10 % of the points per query
+}
+
+// A catalog of many models of varied sizes (profiles and open floor drawn at random, a few
+// profiles with a negative share, exact copies of half of them, one class hanging on walls too): the size index gives every proposal
+// the model, score and evidence that scoring every model gives, hypothesis for hypothesis.
+TEST(CatalogShape, ModelIndexChoosesAsScoringEveryModel) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(0.f, 1.f);
+  json models = json::array();
+  for (int i = 0; i < 600; ++i) {
+    const std::string cls = i % 3 == 0 ? "table" : i % 3 == 1 ? "cabinet" : "chair";
+    std::vector<float> prof(size_t(shape::kProfileBins));
+    float sum = 0.f;
+    for (auto& p : prof) sum += p = std::pow(u(rng), 3.f);
+    for (auto& p : prof) p /= sum;
+    if (i % 97 == 0) prof[0] -= 0.3f, prof[5] += 0.3f;  // a hand-made profile, not a histogram
+    const float x = 0.3f * std::exp(2.f * u(rng)), y = 0.3f * std::exp(1.5f * u(rng)), z = 0.4f * std::exp(1.3f * u(rng));
+    models.push_back({{"id", "m" + std::to_string(i)}, {"class", cls}, {"size", {x, y, z}}, {"profile", prof},
+                      {"open", u(rng)}, {"top_offset", {0.f, 0.f}}});
+  }
+  // An exact copy of every other model after them all: equal energies, the earlier model wins.
+  for (size_t i = 0; i < 600; i += 2) {
+    json dup = models[i];
+    dup["id"] = "copy_of_m" + std::to_string(i);
+    models.push_back(dup);
+  }
+  const json model = {{"format", "catalog_shape/1"}, {"profile_cell_m", 0.05}, {"models", models}};
+
+  RunContext ctx;
+  const CatalogModel table = Table(), cabinet = Cabinet();
+  Eigen::Isometry3f tp = Eigen::Isometry3f::Identity(), cp = Eigen::Isometry3f::Identity(),
+                    hp = Eigen::Isometry3f::Identity();
+  cp.translation() = Eigen::Vector3f(2.0f, 0.3f, 0.f);
+  cp.linear() = Eigen::AngleAxisf(0.6f, Eigen::Vector3f::UnitZ()).toRotationMatrix();
+  hp.translation() = Eigen::Vector3f(0.5f, -1.6f, 1.3f);  // a cabinet hung on a wall
+  const Scan scan = ScanRoom({{&table, tp}, {&cabinet, cp}, {&cabinet, hp}}, 0.f, ctx);
+  const Proposals props = Make<Proposer>("proposals.clusters")->Propose(scan, nullptr, ctx);
+  ASSERT_GT(props.items.size(), 3u);
+  SceneParts parts;
+  parts.scan = &scan;
+  parts.proposals = &props;
+  auto vote = [&](bool index) {
+    auto voter = Make<Voter>("voters.catalog_shape",
+                             {{"model_index", index}, {"min_score", 1e-30}, {"nms_iou", 1.0},
+                              {"class_params", {{"cabinet", {{"wall_mount", 1.0}, {"wall_mount_bottom_m", 1.0}, {"source", "any"}}},
+                                                {"table", {{"source", "any"}}}, {"chair", {{"source", "any"}}}}}});
+    voter->Load(model);
+    return voter->Vote({parts}, ctx).hypotheses;
+  };
+  const auto all = vote(false), indexed = vote(true);
+  ASSERT_EQ(indexed.size(), all.size());
+  ASSERT_GE(all.size(), 3 * props.items.size() / 2);
+  std::set<std::string> chosen;
+  for (size_t k = 0; k < all.size(); ++k) {
+    EXPECT_EQ(indexed[k].cls, all[k].cls);
+    EXPECT_EQ(indexed[k].proposal, all[k].proposal);
+    EXPECT_EQ(indexed[k].model, all[k].model) << all[k].cls << " proposal " << all[k].proposal;
+    EXPECT_EQ(indexed[k].score, all[k].score);
+    EXPECT_EQ(indexed[k].evidence, all[k].evidence);
+    chosen.insert(all[k].model);
+  }
+  EXPECT_GT(chosen.size(), 5u);  // many models chosen, not one per class
+  for (const auto& m : chosen) EXPECT_EQ(m.rfind("copy_of_", 0), std::string::npos) << m;
 }
 
 }  // namespace

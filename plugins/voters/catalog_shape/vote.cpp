@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <map>
 #include <set>
@@ -173,6 +174,8 @@ VoteResult CatalogShapeVoter::Vote(const std::vector<SceneParts>& scenes, const 
     // Per class and proposal: the further turn of its best model that puts its back where the
     // points' is (shape::TurnToMatchTop).
     std::vector<std::vector<float>> turn(C, std::vector<float>(n, 0.f));
+    // The models whose energy is computed, over the proposals and classes scored (a debug line).
+    std::atomic<size_t> energies{0}, candidates{0};
     // Each proposal's footprint, profile and scores are its own: scored in parallel (in
     // order when tracing, so the trace reads as before).
     auto score_one = [&](size_t i) {
@@ -198,18 +201,20 @@ VoteResult CatalogShapeVoter::Vote(const std::vector<SceneParts>& scenes, const 
       const float cut = edge_points >= 3 ? 1.f : 0.f;
       for (size_t c = 0; c < C; ++c) {
         const ClassParams& cp = o_.Of(classes_[c]);
-        float best = INFINITY;
-        std::array<float, 6> terms{};  // of the best model: length, width, top, bottom, profile, floor
-        for (size_t m = 0; m < models_.size(); ++m) {
-          const Model& md = models_[m];
-          if (md.cls != classes_[c]) continue;
+        candidates.fetch_add(index_[c].size(), std::memory_order_relaxed);
+        // Model md's energy and its terms: length, width, top, bottom, profile, floor.
+        const float bottom = 0.5f * (B / cp.bottom) * (B / cp.bottom);
+        const float hung_bottom = cp.wall_mount + Hung(B, cp);
+        const float span = std::max(T - B, 0.02f);
+        auto energy = [&](const Model& md, std::array<float, 6>& t) {
+          energies.fetch_add(1, std::memory_order_relaxed);
           const float emd = shape::ProfileDistance(prof, md.profile);
-          std::array<float, 6> t = {Pen(std::log(L / md.length), cp.long_small, cp.long_big),
-                                    Pen(std::log(W / md.width), cp.short_small, cp.short_big),
-                                    Pen(std::log(T / md.height), cp.top_small, cp.top_big),
-                                    0.5f * (B / cp.bottom) * (B / cp.bottom),
-                                    emd * emd / (2 * cp.profile * cp.profile),
-                                    o_.floor_term ? Pen(seen - md.open, cp.floor_under, cp.floor_over) : 0.f};
+          t = {Pen(std::log(L / md.length), cp.long_small, cp.long_big),
+               Pen(std::log(W / md.width), cp.short_small, cp.short_big),
+               Pen(std::log(T / md.height), cp.top_small, cp.top_big),
+               bottom,
+               emd * emd / (2 * cp.profile * cp.profile),
+               o_.floor_term ? Pen(seen - md.open, cp.floor_under, cp.floor_over) : 0.f};
           // A single view: the profile of the model as the one eye around it that explains the
           // proposal's best, if closer than all eyes fused.
           if (views)
@@ -221,13 +226,75 @@ VoteResult CatalogShapeVoter::Vote(const std::vector<SceneParts>& scenes, const 
           if (cp.wall_mount > 0.f) {
             // Hanging: the model spans the proposal's height extent; no bottom gap, floor or top-view
             // evidence (a sensor below a wall cabinet rarely sees its top).
-            const std::array<float, 6> tl = {t[0], t[1],
-                                             Pen(std::log(std::max(T - B, 0.02f) / md.height), cp.top_small, cp.top_big),
-                                             cp.wall_mount + Hung(B, cp), 0.f, 0.f};
+            const std::array<float, 6> tl = {t[0], t[1], Pen(std::log(span / md.height), cp.top_small, cp.top_big),
+                                             hung_bottom, 0.f, 0.f};
             const float El = tl[0] + tl[1] + tl[2] + tl[3] + tl[4] + tl[5];
             if (El < E) E = El, t = tl;
           }
-          if (E < best) best = E, best_model[c][i] = int(m), terms = t;
+          return E;
+        };
+        float best = INFINITY;
+        std::array<float, 6> terms{};  // of the best model
+        if (!o_.model_index) {
+          for (size_t m = 0; m < models_.size(); ++m) {
+            if (models_[m].cls != classes_[c]) continue;
+            std::array<float, 6> t;
+            const float E = energy(models_[m], t);
+            if (E < best) best = E, best_model[c][i] = int(m), terms = t;
+          }
+        } else {
+          // The candidates of the class's index. A model's energy is at least the sum of its
+          // size, bottom and floor terms (the profile term is >= 0, and float sums of terms >= 0
+          // never fall below a partial sum), so a model whose partial sum exceeds the best energy
+          // found is skipped before its profile distances. A node of the tree is skipped when a
+          // bound over its box exceeds it: the size, bottom and floor terms over the box, and the
+          // profile term of the gaps between the proposal's ChunkSums and the box's. Ties go to
+          // the earlier model, as in a scan of all models in order.
+          const double lL = std::log(double(L)), lW = std::log(double(W)), lT = std::log(double(T)),
+                       lS = std::log(double(span));
+          const std::array<double, kProfileChunks> qP = ChunkSums(prof);
+          double qS = 0;
+          for (double v : qP) qS += v;
+          // The box's bound is in double, the models' terms in float: each gap to the box shrinks
+          // by 1e-5 (far above the float rounding of a log or a share, ~1e-6), the profile
+          // distance by 1e-4 per unit of profile mass (above the float rounding of its sums), and
+          // the sum by a relative 1e-5, so it never exceeds a model's energy.
+          auto pen_box = [](double q, double lo, double hi, float small, float big) {
+            constexpr double kSlack = 1e-5;
+            const double d = q < lo ? std::min(q - lo + kSlack, 0.0) : q > hi ? std::max(q - hi - kSlack, 0.0) : 0.0;
+            const double s = d < 0 ? double(small) : double(big);
+            return d * d / (2 * s * s);
+          };
+          constexpr size_t K = SizeIndex::kDims;
+          auto bound = [&](const SizeIndex::Box& b) {
+            const double sides = pen_box(lL, b[0], b[K], cp.long_small, cp.long_big) +
+                                 pen_box(lW, b[1], b[K + 1], cp.short_small, cp.short_big);
+            double gap = 0, mass = 1.0 + qS;
+            for (size_t k = 0; k < size_t(kProfileChunks); ++k)
+              gap += std::max({b[4 + k] - qP[k], qP[k] - b[K + 4 + k], 0.0}), mass += b[K + 4 + k];
+            const double emd = std::max(gap / shape::kProfileBins - 1e-4 * mass, 0.0);
+            double height = pen_box(lT, b[2], b[K + 2], cp.top_small, cp.top_big) + double(bottom) +
+                            emd * emd / (2 * double(cp.profile) * double(cp.profile)) +
+                            (o_.floor_term ? pen_box(double(seen), b[3], b[K + 3], cp.floor_under, cp.floor_over) : 0.0);
+            if (cp.wall_mount > 0.f)
+              height = std::min(height, pen_box(lS, b[2], b[K + 2], cp.top_small, cp.top_big) + double(hung_bottom));
+            return (sides + height) * (1.0 - 1e-5);
+          };
+          int chosen = -1;
+          index_[c].Search(bound, [&] { return best; }, [&](size_t m) {
+            const Model& md = models_[m];
+            const float t01 = Pen(std::log(L / md.length), cp.long_small, cp.long_big) +
+                              Pen(std::log(W / md.width), cp.short_small, cp.short_big);
+            float partial = t01 + Pen(std::log(T / md.height), cp.top_small, cp.top_big) + bottom +
+                            (o_.floor_term ? Pen(seen - md.open, cp.floor_under, cp.floor_over) : 0.f);
+            if (cp.wall_mount > 0.f)
+              partial = std::min(partial, t01 + Pen(std::log(span / md.height), cp.top_small, cp.top_big) + hung_bottom);
+            if (partial > best) return;
+            std::array<float, 6> t;
+            const float E = energy(md, t);
+            if (E < best || (E == best && chosen >= 0 && int(m) < chosen)) best = E, chosen = int(m), terms = t;
+          });
+          best_model[c][i] = chosen;
         }
         if (best_model[c][i] >= 0 && top) {
           const Model& md = models_[size_t(best_model[c][i])];
@@ -273,6 +340,8 @@ VoteResult CatalogShapeVoter::Vote(const std::vector<SceneParts>& scenes, const 
           turn[c][i] = turn[c][j];
       }
     }
+    spdlog::debug("catalog_shape: {} of {} model energies computed ({})", energies.load(), candidates.load(),
+                  o_.model_index ? "size index" : "every model");
     // Class competition within each group (the variants of one cluster are one object).
     std::map<int, float> group_best;
     std::vector<float> best_of(n, 0.f);
