@@ -13,6 +13,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 
@@ -36,6 +37,11 @@ extern "C" {
 // Opens the world; rank, size and this host's name. 0 on success, else an MPI error code and
 // its text in err.
 FURNIHOST_MPI_EXPORT int furnihost_mpi_init(int* rank, int* size, char* host, size_t host_len, char* err, size_t err_len) {
+  // Open MPI's default point-to-point layer probes UCX at start-up, ~0.2 s of every rank on a
+  // workstation; furnihost's messages are few and small (a job index, a result), which the ob1
+  // layer (shared memory on a node, TCP between nodes) carries as fast. A pml the user chose
+  // (OMPI_MCA_pml, mpirun --mca pml ...) stays; other MPI libraries ignore the variable.
+  setenv("OMPI_MCA_pml", "ob1", 0);
   int provided = 0;
   int rc = MPI_Init_thread(nullptr, nullptr, MPI_THREAD_SERIALIZED, &provided);
   if (rc != MPI_SUCCESS) return ErrorText(rc, err, err_len), rc;
