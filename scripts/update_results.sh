@@ -52,15 +52,20 @@ ROWS=(
 )
 
 [ "$EVAL" = 1 ] && FURNIHOST="$FURNIHOST" scripts/make_synthetic_views.sh
-for entry in "${SETS[@]}"; do
-  IFS='|' read -r set dataset graphs <<<"$entry"
-  if [ "$EVAL" = 1 ]; then
+# Every eval runs before anything is copied into docs/: each records the checkout's git state,
+# which the copies would otherwise make "uncommitted changes" for the sets after the first.
+if [ "$EVAL" = 1 ]; then
+  for entry in "${SETS[@]}"; do
+    IFS='|' read -r set dataset graphs <<<"$entry"
     args=()
     for g in $graphs; do
       case "$g" in */*) args+=(--graph "$g.json") ;; *) args+=(--graph "configs/$g.json") ;; esac
     done
     "$FURNIHOST" eval "${args[@]}" --dataset "$dataset" --out "$OUT/$set" -q
-  fi
+  done
+fi
+for entry in "${SETS[@]}"; do
+  IFS='|' read -r set dataset graphs <<<"$entry"
   [ -f "$OUT/$set/summary.json" ] || { echo "update_results: no $OUT/$set/summary.json (run without --no-eval)" >&2; exit 2; }
   mkdir -p "docs/results/$set"
   rm -f "docs/results/$set"/pr_*.png "docs/results/$set"/pr25_*.png
