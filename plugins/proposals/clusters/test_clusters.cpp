@@ -229,6 +229,25 @@ TEST(Clusters, BothWallSetsGiveEachSetsProposalsUnderTheirOwnRules) {
   EXPECT_THROW(Make<Proposer>("proposals.clusters", {{"blocks_rules", "segs, walls"}}), std::exception);
 }
 
+// The scene `m` scanned by four laser scanners 2.6 m around its centre, 1.6 m above the floor,
+// fused, voxelised to 1.5 cm, its ground estimated.
+Scan ScanAround(const CatalogModel& m) {
+  Scan scan;
+  SensorRequest req;
+  req.objects.push_back({&m, Eigen::Isometry3f::Identity()});
+  for (float a : {0.3f, 1.9f, 3.5f, 5.1f}) {
+    Eigen::Isometry3f s = Eigen::Isometry3f::Identity();
+    s.linear() = Eigen::AngleAxisf(a + 3.14159f, Eigen::Vector3f::UnitZ()).toRotationMatrix();
+    s.translation() = Eigen::Vector3f(2.6f * std::cos(a), 2.6f * std::sin(a), kFloor + 1.6f);
+    req.poses.push_back(s);
+  }
+  RunContext ctx;
+  auto sensor = Make<Sensor>("sensors.simulated_laser", {{"voxel_m", 0.015}});
+  for (auto& v : sensor->Acquire(req, ctx)) scan.points.insert(scan.points.end(), v.points.begin(), v.points.end());
+  scan.ground = EstimateGround(scan.points, GroundOptions{});
+  return scan;
+}
+
 // A desk under a monitor: its cluster reaches the monitor's top, and a work-top variant gives the
 // desk alone (its top and what is under it). A bare table (nothing over its top) and a counter at
 // kitchen height (0.9 m, above work_top_max_m) get no such variant.
@@ -256,19 +275,8 @@ TEST(Clusters, WorkTopVariantDropsWhatStandsOnADesk) {
   AddBox(m.mesh, counter.min(), counter.max());
   AddBox(m.mesh, Eigen::Vector3f(-1.2f, 1.1f, 0.9f) + up, Eigen::Vector3f(-0.7f, 1.5f, 1.2f) + up);  // a microwave on it
 
-  Scan scan;
-  SensorRequest req;
-  req.objects.push_back({&m, Eigen::Isometry3f::Identity()});
-  for (float a : {0.3f, 1.9f, 3.5f, 5.1f}) {
-    Eigen::Isometry3f s = Eigen::Isometry3f::Identity();
-    s.linear() = Eigen::AngleAxisf(a + 3.14159f, Eigen::Vector3f::UnitZ()).toRotationMatrix();
-    s.translation() = Eigen::Vector3f(2.6f * std::cos(a), 2.6f * std::sin(a), kFloor + 1.6f);
-    req.poses.push_back(s);
-  }
+  const Scan scan = ScanAround(m);
   RunContext ctx;
-  auto sensor = Make<Sensor>("sensors.simulated_laser", {{"voxel_m", 0.015}});
-  for (auto& v : sensor->Acquire(req, ctx)) scan.points.insert(scan.points.end(), v.points.begin(), v.points.end());
-  scan.ground = EstimateGround(scan.points, GroundOptions{});
 
   const Proposals p = Make<Proposer>("proposals.clusters")->Propose(scan, nullptr, ctx);
   // The whole cluster is 1.2 m tall: its box is not the desk's.
@@ -319,19 +327,8 @@ TEST(Clusters, LowTopVariantDropsALampOffANightstand) {
   AddBox(m.mesh, unit.min(), Eigen::Vector3f(2.0f, 1.5f, 0.6f) + up);
   AddBox(m.mesh, Eigen::Vector3f(1.4f, 1.0f, 0.6f) + up, unit.max());
 
-  Scan scan;
-  SensorRequest req;
-  req.objects.push_back({&m, Eigen::Isometry3f::Identity()});
-  for (float a : {0.3f, 1.9f, 3.5f, 5.1f}) {
-    Eigen::Isometry3f s = Eigen::Isometry3f::Identity();
-    s.linear() = Eigen::AngleAxisf(a + 3.14159f, Eigen::Vector3f::UnitZ()).toRotationMatrix();
-    s.translation() = Eigen::Vector3f(2.6f * std::cos(a), 2.6f * std::sin(a), kFloor + 1.6f);
-    req.poses.push_back(s);
-  }
+  const Scan scan = ScanAround(m);
   RunContext ctx;
-  auto sensor = Make<Sensor>("sensors.simulated_laser", {{"voxel_m", 0.015}});
-  for (auto& v : sensor->Acquire(req, ctx)) scan.points.insert(scan.points.end(), v.points.begin(), v.points.end());
-  scan.ground = EstimateGround(scan.points, GroundOptions{});
 
   const Proposals p = Make<Proposer>("proposals.clusters", {{"low_top_variants", true}})->Propose(scan, nullptr, ctx);
   Eigen::AlignedBox3f with_lamp = stand;
