@@ -26,6 +26,13 @@
 
 namespace furnihost::clusters {
 
+namespace {
+// The top-view cell of edge `cell` holding p, as one key.
+uint64_t TopViewCell(const Eigen::Vector3f& p, float cell) {
+  return (uint64_t(uint32_t(int32_t(std::floor(p.x() / cell)))) << 32) | uint32_t(int32_t(std::floor(p.y() / cell)));
+}
+}  // namespace
+
 // Of (top-view cell, height bin) pairs sorted by cell (`nb` bins), the window of two adjacent
 // bins that the most cells reach, each cell counted once per window; its lower bin (-1 when no
 // cell reaches any), and in *cells how many cells reach it.
@@ -59,9 +66,7 @@ std::vector<std::vector<int>> ClusterProposer::SupportSplit(const Points& P, con
   const int nb = int(std::ceil((o_.support_max - o_.support_min) / bin));
   if (nb < 2 || idx.size() < size_t(2 * o_.min_points)) return {};
   const float cell = std::max(0.05f, 2.5f * sp);
-  auto key = [&](const Eigen::Vector3f& p) {
-    return (uint64_t(uint32_t(int32_t(std::floor(p.x() / cell)))) << 32) | uint32_t(int32_t(std::floor(p.y() / cell)));
-  };
+  auto key = [&](const Eigen::Vector3f& p) { return TopViewCell(p, cell); };
   std::vector<std::pair<uint64_t, int>> level;
   for (int i : idx) {
     const float h = hz[size_t(i)];
@@ -111,9 +116,7 @@ std::vector<int> ClusterProposer::WorkTop(const Points& P, const std::vector<flo
   const int nb = int(std::ceil((o_.top_max - o_.top_min) / bin));
   if (nb < 2 || idx.size() < size_t(o_.min_points)) return {};
   const float cell = std::max(0.05f, 2.5f * sp);
-  auto key = [&](const Eigen::Vector3f& p) {
-    return (uint64_t(uint32_t(int32_t(std::floor(p.x() / cell)))) << 32) | uint32_t(int32_t(std::floor(p.y() / cell)));
-  };
+  auto key = [&](const Eigen::Vector3f& p) { return TopViewCell(p, cell); };
   std::vector<uint64_t> all;
   std::vector<std::pair<uint64_t, int>> level;  // (cell, bin) of the upward-facing points in range
   all.reserve(idx.size());
@@ -163,19 +166,16 @@ std::vector<int> ClusterProposer::LowTop(const Points& P, const std::vector<floa
   const float cell = std::max(0.05f, 2.5f * sp);
   std::unordered_map<uint64_t, float> top;  // cell -> its highest point above the ground
   for (int i : idx) {
-    const Eigen::Vector3f& p = P[size_t(i)];
-    const uint64_t key = (uint64_t(uint32_t(int32_t(std::floor(p.x() / cell)))) << 32) |
-                         uint32_t(int32_t(std::floor(p.y() / cell)));
-    auto [it, fresh] = top.try_emplace(key, hz[size_t(i)]);
+    auto [it, fresh] = top.try_emplace(TopViewCell(P[size_t(i)], cell), hz[size_t(i)]);
     if (!fresh) it->second = std::max(it->second, hz[size_t(i)]);
   }
-  std::vector<size_t> count(size_t(nb), 0);
-  for (const auto& [key, h] : top)
-    if (h >= o_.low_top_min && h < o_.low_top_max) ++count[size_t(std::min(nb - 1, int((h - o_.low_top_min) / bin)))];
-  int k = -1;
+  // Each cell's top in its height bin: the busiest window of two bins is the low top.
+  std::vector<std::pair<uint64_t, int>> level;
+  for (const auto& [c, h] : top)
+    if (h >= o_.low_top_min && h < o_.low_top_max) level.emplace_back(c, std::min(nb - 1, int((h - o_.low_top_min) / bin)));
+  std::sort(level.begin(), level.end());
   size_t best = 0;
-  for (int b = 0; b + 1 < nb; ++b)
-    if (count[size_t(b)] + count[size_t(b + 1)] > best) best = count[size_t(b)] + count[size_t(b + 1)], k = b;
+  const int k = BusiestLevel(level, nb, &best);
   if (k < 0) return {};
   const float level_top = o_.low_top_min + float(k + 2) * bin;  // the level's upper edge
   size_t above = 0;
