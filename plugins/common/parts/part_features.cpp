@@ -35,19 +35,6 @@ struct Dir {
   float key, a, b;
 };
 
-// The 45 deg sector of direction (a, b), by comparisons only; sector k is pseudo-angle keys
-// [k / 2, (k + 1) / 2). Without branches (they were a fifth of the boundary ratio's time on
-// dense parts, mispredicted half the time): quadrant q (0: a >= 0, b >= 0; 1: a < 0 <= b;
-// 2: a, b < 0; 3: b < 0 <= a), then its upper half where |b| >= |a| (q even) or |b| <= |a|
-// (q odd). Finite a, b.
-inline int Octant(float a, float b) {
-  const int bn = b < 0, an = a < 0;
-  const int q = 2 * bn + (an ^ bn);
-  const float fa = std::fabs(a), fb = std::fabs(b);
-  const int upper = (q & 1) ? int(fb <= fa) : int(fb >= fa);
-  return 2 * q + upper;
-}
-
 // True when the counter-clockwise angle from p to q exceeds the threshold whose cosine is
 // cos_t (threshold < 180 deg): when it is reflex (cross < 0, or cross == 0 with opposite
 // directions) or cos(angle) < cos_t, compared without square roots.
@@ -60,7 +47,8 @@ inline bool WideGap(float pa, float pb, float qa, float qb, float cos_t) {
   return cos_t >= 0 ? (dot < 0 || dot * dot < c2 * l2) : (dot < 0 && dot * dot > c2 * l2);
 }
 
-// For thresholds >= 90 deg: a gap wider than 90 deg contains a whole empty sector, so only the
+// For thresholds >= 90 deg: a gap wider than 90 deg contains a whole empty sector (the 45 deg
+// sectors of simd::Octant; sector k is pseudo-angle keys [k / 2, (k + 1) / 2)), so only the
 // gaps around the empty sectors need checking: the gap around sector k runs from the last
 // direction before it to the first one after it. No sort.
 bool GapAtEmptySectors(const float* a, const float* b, int m, unsigned sectors, float cos_t,
@@ -198,7 +186,7 @@ float BoundaryRatio(const Points& q, const Points& normals, const Eigen::Vector3
             for (int j0 = run_b[k]; j0 < run_e[k] && sectors != 0xffu; j0 += kChunk) {
               const int first = cnt;
               project(j0, std::min(run_e[k], j0 + kChunk));
-              for (int j = first; j < cnt; ++j) sectors |= 1u << Octant(pa[j], pb[j]);
+              sectors |= simd::SectorBits(avx2, pa.data(), pb.data(), first, cnt);
             }
           last = sectors != 0xffu && GapAtEmptySectors(pa.data(), pb.data(), cnt, sectors, cos_t, keys);
         } else {

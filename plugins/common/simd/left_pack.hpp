@@ -162,8 +162,57 @@ struct Offsets8 {
   }
   return cnt;
 }
+// The OR of 1 << Octant(a[j], b[j]) over j in [first, last), 8 directions at a time.
+[[gnu::target("avx2")]] inline unsigned SectorBitsAvx2(const float* a, const float* b, int first, int last) {
+  const __m256 sign = _mm256_set1_ps(-0.f), zero = _mm256_setzero_ps();
+  const __m256i one = _mm256_set1_epi32(1);
+  __m256i bits = _mm256_setzero_si256();
+  for (int j = first; j < last; j += 8) {
+    const int left = last - j;
+    const __m256 va = Load8(a + j, left), vb = Load8(b + j, left);
+    const __m256i bn = _mm256_srli_epi32(_mm256_castps_si256(_mm256_cmp_ps(vb, zero, _CMP_LT_OQ)), 31);
+    const __m256i an = _mm256_srli_epi32(_mm256_castps_si256(_mm256_cmp_ps(va, zero, _CMP_LT_OQ)), 31);
+    const __m256i q = _mm256_add_epi32(_mm256_slli_epi32(bn, 1), _mm256_xor_si256(an, bn));
+    const __m256 fa = _mm256_andnot_ps(sign, va), fb = _mm256_andnot_ps(sign, vb);
+    // q odd: fb <= fa; q even: fb >= fa (as all-ones lanes, shifted down to 0 / 1).
+    const __m256 odd = _mm256_castsi256_ps(_mm256_cmpeq_epi32(_mm256_and_si256(q, one), one));
+    const __m256 upper = _mm256_blendv_ps(_mm256_cmp_ps(fb, fa, _CMP_GE_OQ), _mm256_cmp_ps(fb, fa, _CMP_LE_OQ), odd);
+    const __m256i octant = _mm256_add_epi32(_mm256_slli_epi32(q, 1), _mm256_srli_epi32(_mm256_castps_si256(upper), 31));
+    const __m256i bit = _mm256_and_si256(_mm256_sllv_epi32(one, octant), TailMask(left));
+    bits = _mm256_or_si256(bits, bit);
+  }
+  alignas(32) uint32_t lanes[8];
+  _mm256_store_si256(reinterpret_cast<__m256i*>(lanes), bits);
+  return lanes[0] | lanes[1] | lanes[2] | lanes[3] | lanes[4] | lanes[5] | lanes[6] | lanes[7];
+}
 }  // namespace internal
 #endif
+
+// The 45 deg sector of direction (a, b), by comparisons only: quadrant q (0: a >= 0, b >= 0;
+// 1: a < 0 <= b; 2: a, b < 0; 3: b < 0 <= a), then its upper half where |b| >= |a| (q even)
+// or |b| <= |a| (q odd). Sector k holds the directions of angle [k, k + 1) * 45 deg up to
+// ties on the diagonals. Without branches (a sorted-by-angle test mispredicts half the time).
+// Finite a, b.
+inline int Octant(float a, float b) {
+  const int bn = b < 0, an = a < 0;
+  const int q = 2 * bn + (an ^ bn);
+  const float fa = __builtin_fabsf(a), fb = __builtin_fabsf(b);
+  const int upper = (q & 1) ? int(fb <= fa) : int(fb >= fa);
+  return 2 * q + upper;
+}
+
+// The sectors (Octant) holding the directions (a[j], b[j]), j in [first, last), as bits
+// 1 << sector: the same bits on both paths (an OR does not depend on the order).
+inline unsigned SectorBits(bool avx2, const float* a, const float* b, int first, int last) {
+#if FURNIHOST_SIMD_X86
+  if (avx2) return internal::SectorBitsAvx2(a, b, first, last);
+#else
+  (void)avx2;
+#endif
+  unsigned bits = 0;
+  for (int j = first; j < last; ++j) bits |= 1u << Octant(a[j], b[j]);
+  return bits;
+}
 
 // Offsets d = (q - p) * inv_r of the slots j in [b, e) with |d|^2 < 1, appended to ox, oy, oz
 // with |d|^2 to od from position cnt; returns the new count. (The normals' neighbourhoods.)

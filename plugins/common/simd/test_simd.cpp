@@ -8,6 +8,7 @@
 #include <string>
 #include <limits>
 #include <random>
+#include <set>
 #include <vector>
 
 #include "simd/left_pack.hpp"
@@ -114,6 +115,35 @@ TEST_F(LeftPack, TangentCoordinatesAreTheScalarLoops) {
       kept += ns;
     }
   EXPECT_GT(kept, 500);
+}
+
+// Directions on the axes, the diagonals, signed zeros and at random: each range's sectors are
+// the scalar loop's on both paths, and a direction's sector is the 45 deg slice of its angle.
+TEST_F(LeftPack, SectorBitsAreTheScalarLoops) {
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  const float special[] = {0.f, -0.f, 1.f, -1.f, 0.5f, -0.5f, 1e-30f, -1e-30f};
+  std::vector<float> a, b;
+  for (float x : special)
+    for (float y : special) a.push_back(x), b.push_back(y);
+  for (int i = 0; i < 200; ++i) a.push_back(u(rng)), b.push_back(u(rng));
+  for (size_t j = 64; j < a.size(); ++j) {
+    const double deg = std::atan2(double(b[j]), double(a[j])) * 180.0 / M_PI;
+    const int k = int(std::floor((deg < 0 ? deg + 360.0 : deg) / 45.0));
+    if (std::fabs(deg - 45.0 * std::round(deg / 45.0)) > 1e-3) {
+      ASSERT_EQ(simd::Octant(a[j], b[j]), k) << a[j] << " " << b[j];
+    }
+  }
+  std::set<unsigned> seen;
+  for (int first = 0; first < 80; first += 5)
+    for (int last = first; last <= first + 19; ++last) {
+      unsigned scalar = 0;
+      for (int j = first; j < last; ++j) scalar |= 1u << simd::Octant(a[size_t(j)], b[size_t(j)]);
+      ASSERT_EQ(simd::SectorBits(false, a.data(), b.data(), first, last), scalar) << first << " " << last;
+      ASSERT_EQ(simd::SectorBits(fast, a.data(), b.data(), first, last), scalar) << first << " " << last;
+      seen.insert(scalar);
+    }
+  EXPECT_GT(seen.size(), 20u);  // the ranges give many different sector sets
 }
 
 TEST_F(LeftPack, SwitchedOffMeansScalar) {
