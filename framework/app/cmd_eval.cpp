@@ -14,6 +14,7 @@
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
+#include <future>
 #include <fstream>
 #include <iostream>
 #include <thread>
@@ -440,34 +441,46 @@ int RunEval(const std::vector<std::string>& args) {
   }
 
   if (!world.Root()) return 0;
-  std::vector<std::string> plots = WritePlots(out, summaries, dataset.classes.classes);
-  for (auto& f : WriteReliabilityPlots(out, summaries, dataset.classes.classes)) plots.push_back(std::move(f));
-  ReportInfo info;
-  info.dataset = dataset_path;
-  info.dataset_hash = hash;
-  info.scenes = static_cast<int>(dataset.scenes.size());
-  info.width = width;
-  info.plots = plots;
-  info.notes = IgnoredNotes(summaries);
-  if (jitter > 0)
-    info.notes.push_back("scans jittered: Gaussian noise of " + Mm(jitter) +
-                         " on every coordinate, drawn anew for each seed (--jitter)");
-  info.notes.push_back("git " + git["revision"].get<std::string>() + (git["dirty"] == true ? " (uncommitted changes)" : "") +
-                       (reproducible ? std::string()
-                                     : "; machine: " + machine.value("cpu", std::string("?")) + ", " +
-                                           std::to_string(machine["nproc"].get<unsigned>()) + " threads"));
-  info.measurements = !reproducible;
-  const std::string report = RenderReport(summaries, info);
-  json summary_json = EvalSummaryJson(dataset, hash, width, summaries);
-  for (size_t c = 0; c < summaries.size(); ++c)
-    summary_json["configs"][c]["run_record"] = "run_" + config_files[c] + ".json";
-  summary_json["git"] = git;
-  summary_json["machine"] = machine;
-  if (reproducible) Unmeasured(summary_json);
-  WriteJson((fs::path(out) / "summary.json").string(), summary_json);
-  AtomicWriteText((fs::path(out) / "report.md").string(), report);
-  std::cout << report;
-  std::cout << "-> " << (fs::path(out) / "report.md").string() << ", summary.json, pr_<class>.svg/.png, reliability_<class>.svg/.png (calibrated graphs), run_<name>.json\n";
+  auto write_report = [&] {
+    std::vector<std::string> plots = WritePlots(out, summaries, dataset.classes.classes);
+    for (auto& f : WriteReliabilityPlots(out, summaries, dataset.classes.classes)) plots.push_back(std::move(f));
+    ReportInfo info;
+    info.dataset = dataset_path;
+    info.dataset_hash = hash;
+    info.scenes = static_cast<int>(dataset.scenes.size());
+    info.width = width;
+    info.plots = plots;
+    info.notes = IgnoredNotes(summaries);
+    if (jitter > 0)
+      info.notes.push_back("scans jittered: Gaussian noise of " + Mm(jitter) +
+                           " on every coordinate, drawn anew for each seed (--jitter)");
+    info.notes.push_back("git " + git["revision"].get<std::string>() + (git["dirty"] == true ? " (uncommitted changes)" : "") +
+                         (reproducible ? std::string()
+                                       : "; machine: " + machine.value("cpu", std::string("?")) + ", " +
+                                             std::to_string(machine["nproc"].get<unsigned>()) + " threads"));
+    info.measurements = !reproducible;
+    const std::string report = RenderReport(summaries, info);
+    json summary_json = EvalSummaryJson(dataset, hash, width, summaries);
+    for (size_t c = 0; c < summaries.size(); ++c)
+      summary_json["configs"][c]["run_record"] = "run_" + config_files[c] + ".json";
+    summary_json["git"] = git;
+    summary_json["machine"] = machine;
+    if (reproducible) Unmeasured(summary_json);
+    WriteJson((fs::path(out) / "summary.json").string(), summary_json);
+    AtomicWriteText((fs::path(out) / "report.md").string(), report);
+    std::cout << report;
+    std::cout << "-> " << (fs::path(out) / "report.md").string() << ", summary.json, pr_<class>.svg/.png, reliability_<class>.svg/.png (calibrated graphs), run_<name>.json\n";
+  };
+  if (!world.Shared()) {
+    write_report();
+    return 0;
+  }
+  // Under mpirun no more messages pass between the ranks: MPI's finalize (the ranks' last fence
+  // and Open MPI's teardown) runs on this thread, which opened MPI and must close it, while
+  // another writes the report.
+  auto report = std::async(std::launch::async, write_report);
+  World::Close();
+  report.get();
   return 0;
 }
 
