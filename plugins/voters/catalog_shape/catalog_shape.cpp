@@ -21,7 +21,9 @@
 //   lifted to the proposal's bottom, without the bottom, profile and floor terms, plus
 //   (max(0, wall_mount_bottom_m - B) / sig_bottom)^2 / 2 (wall units hang high); E_m = min(E_m, E_m');
 //   score_c = exp(-min over the class's models m of E_m - s / sig_surround - cut * view_edge), cut = 1
-//   when the left or right end of a single view cuts the proposal (ViewEdges), else 0,
+//   when the left or right end of a single view cuts the proposal (ViewEdges), else 0; 0 when the
+//   proposal's top stands higher than the class's max_top_m (a bound on where the class's objects
+//   end, not on its catalog: a table's top does not stand 1.5 m up, whatever models its catalog has),
 // then optionally class competition (score_c * (score_c / best class score of the proposal's
 // group)^compete): one object is one class, whatever variant of its cluster is looked at.
 // The minimum over a class's models is searched in a k-d tree over their log sizes, open floor
@@ -70,7 +72,7 @@ const std::vector<std::pair<std::string, float ClassParams::*>>& Fields() {
       {"sig_surround", &ClassParams::surround},      {"sig_floor_less", &ClassParams::floor_under},
       {"sig_floor_more", &ClassParams::floor_over},  {"compete", &ClassParams::compete},
       {"wall_mount", &ClassParams::wall_mount},       {"wall_mount_bottom_m", &ClassParams::mount_bottom},
-      {"view_edge", &ClassParams::view_edge}};
+      {"view_edge", &ClassParams::view_edge},         {"max_top_m", &ClassParams::max_top}};
   return f;
 }
 
@@ -193,6 +195,10 @@ const ParamBinding<Options>& Binding() {
                   "their row of the view): what the camera saw of it may be part of a larger object, e.g. a sofa's "
                   "end looking like an armchair (0 = off)")
           .DetectionOnly()
+          .Number("max_top_m", base(&ClassParams::max_top), 0, 100, "m",
+                  "the highest a proposal's top may stand above the ground for the class to be scored on it (a "
+                  "table's top is not 1.5 m up, even where a catalog holds a desk with a hutch; 0 = any height)")
+          .DetectionOnly()
           .Number("edge_band_deg", &O::edge_band_deg, 0.01, 20, "deg",
                   "angular band at the left and right ends of each 1 deg row of a single view whose points count as "
                   "at the view's edge (view_edge)")
@@ -215,5 +221,5 @@ const ParamBinding<Options>& Binding() {
 
 }  // namespace furnihost::catalog_shape
 
-FURNIHOST_PLUGIN(furnihost::catalog_shape::CatalogShapeVoter, "voters.catalog_shape", "1.6.0",
+FURNIHOST_PLUGIN(furnihost::catalog_shape::CatalogShapeVoter, "voters.catalog_shape", "1.7.0",
                  "recognises object proposals by the catalog models' metric sizes and top-view height profiles")

@@ -30,6 +30,7 @@ struct ClassParams {
   float wall_mount = 0.f;  // 0: models stand on the floor; > 0: they may also hang above it, at this extra cost
   float mount_bottom = 0.f;  // lowest bottom of a hanging model above the ground (m); lower costs as the bottom term
   float view_edge = 0.f;   // cost of a proposal the left or right edge of a single view cuts (0 = off)
+  float max_top = 0.f;     // highest top of a proposal the class is scored on, above the ground (m; 0 = any)
   std::string source = "catalog";  // proposals scored: "catalog" (from the class's model heights), "any", or a rule name
 };
 

@@ -68,6 +68,39 @@ Scan ScanOneView(SensorRequest req, const Eigen::Isometry3f& pose, const json& s
   return scan;
 }
 
+// max_top_m bounds where a class's objects end: the 0.75 m table is a table under a bound of
+// 1.0 m, and no table at all (at any score) under a bound of 0.6 m, while the cabinet beside it
+// keeps its score whatever the table's bound.
+TEST(CatalogShape, MaxTopKeepsAClassOffProposalsWhoseTopStandsHigher) {
+  const CatalogModel table = Table(), cabinet = Cabinet();
+  RunContext ctx;
+  const json model = Make<Voter>("voters.catalog_shape")->Train(Views({&table, &cabinet}), ctx);
+  Eigen::Isometry3f tp = Eigen::Isometry3f::Identity(), cp = Eigen::Isometry3f::Identity();
+  cp.translation() = Eigen::Vector3f(2.0f, 0.3f, 0.f);
+  const Scan scan = ScanRoom({{&table, tp}, {&cabinet, cp}}, 0.f, ctx);
+  const Proposals props = Make<Proposer>("proposals.clusters")->Propose(scan, nullptr, ctx);
+  SceneParts parts;
+  parts.scan = &scan;
+  parts.proposals = &props;
+  auto best = [&](double max_top, const std::string& cls) {
+    auto voter = Make<Voter>("voters.catalog_shape",
+                             {{"min_score", 1e-9}, {"class_params", {{"table", {{"max_top_m", max_top}}}}}});
+    voter->Load(model);
+    std::optional<Hypothesis> b;
+    for (const auto& h : voter->Vote({parts}, ctx).hypotheses)
+      if (h.cls == cls && (!b || h.score > b->score)) b = h;
+    return b;
+  };
+  const auto kept = best(1.0, "table");
+  ASSERT_TRUE(kept.has_value());
+  EXPECT_LT(kept->center.head<2>().norm(), 0.1f);
+  EXPECT_FALSE(best(0.6, "table").has_value());
+  const auto c_low = best(0.6, "cabinet"), c_high = best(1.0, "cabinet");
+  ASSERT_TRUE(c_low && c_high);
+  EXPECT_FLOAT_EQ(c_low->score, c_high->score);
+  EXPECT_THROW(Make<Voter>("voters.catalog_shape", {{"class_params", {{"table", {{"max_top_m", -1}}}}}}), std::exception);
+}
+
 TEST(CatalogShape, TrainsSizesProfilesAndOpenFloor) {
   const CatalogModel table = Table(), cabinet = Cabinet();
   auto voter = Make<Voter>("voters.catalog_shape");

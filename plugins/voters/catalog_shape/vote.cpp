@@ -201,6 +201,7 @@ VoteResult CatalogShapeVoter::Vote(const std::vector<SceneParts>& scenes, const 
       const float cut = edge_points >= 3 ? 1.f : 0.f;
       for (size_t c = 0; c < C; ++c) {
         const ClassParams& cp = o_.Of(classes_[c]);
+        if (cp.max_top > 0.f && T > cp.max_top) continue;  // score 0: no hypothesis of the class here
         candidates.fetch_add(index_[c].size(), std::memory_order_relaxed);
         // Model md's energy and its terms: length, width, top, bottom, profile, floor.
         const float bottom = 0.5f * (B / cp.bottom) * (B / cp.bottom);
