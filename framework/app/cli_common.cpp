@@ -19,7 +19,7 @@ void CommonOptions::Add(CLI::App& app, bool with_run_options) {
                  "override a stage parameter: TAG.PARAM=VALUE (JSON value; repeatable), e.g. --set "
                  "vote.height_tolerance_m=0.2; ground.kind=plane sets the ground; recorded in the run record")
       ->allow_extra_args(false);
-  app.add_flag("-v,--verbose", verbose, "more log output (-vv for debug, -vvv for trace)");
+  app.add_flag("-v,--verbose", verbose, "more log output: -v debug, -vv trace");
   app.add_flag("-q,--quiet", quiet, "only warnings and errors");
   if (with_run_options) {
     app.add_option("--threads", threads, "worker threads (0 = all cores)")->check(CLI::Range(0, 1024));
