@@ -1,7 +1,8 @@
 #pragma once
 // furnihost::simd — the points of a slot range that lie within a radius of a query, appended
-// ("left-packed") to output arrays without branches: 8 candidates at a time on CPUs with AVX2,
-// chosen at run time (the build stays without -march), one at a time elsewhere.
+// ("left-packed") to output arrays without branches, and the 45 deg sectors a set of directions
+// falls in: 8 candidates at a time on CPUs with AVX2, chosen at run time (the build stays without
+// -march), one at a time elsewhere.
 //
 // Both paths compute every value by the same IEEE operations in the same order (the AVX2
 // functions are compiled for "avx2" alone, which has no fused multiply-add to contract into),
@@ -191,8 +192,8 @@ struct Offsets8 {
 // The 45 deg sector of direction (a, b), by comparisons only: quadrant q (0: a >= 0, b >= 0;
 // 1: a < 0 <= b; 2: a, b < 0; 3: b < 0 <= a), then its upper half where |b| >= |a| (q even)
 // or |b| <= |a| (q odd). Sector k holds the directions of angle [k, k + 1) * 45 deg up to
-// ties on the diagonals. Without branches (a sorted-by-angle test mispredicts half the time).
-// Finite a, b.
+// ties on the diagonals. Without branches: on dense parts a branch here mispredicts half the
+// time. Finite a, b.
 inline int Octant(float a, float b) {
   const int bn = b < 0, an = a < 0;
   const int q = 2 * bn + (an ^ bn);
