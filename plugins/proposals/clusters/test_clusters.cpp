@@ -10,6 +10,7 @@
 #include <map>
 #include <random>
 #include <set>
+#include <string>
 #include <tuple>
 
 #include "furnihost/host/ground_estimation.hpp"
@@ -229,6 +230,16 @@ TEST(Clusters, BothWallSetsGiveEachSetsProposalsUnderTheirOwnRules) {
   EXPECT_THROW(Make<Proposer>("proposals.clusters", {{"blocks_rules", "segs, walls"}}), std::exception);
 }
 
+// A scene named `id` holding a 6 x 6 m floor at kFloor, for the objects a test adds.
+CatalogModel FloorScene(const std::string& id) {
+  CatalogModel m;
+  m.id = id;
+  m.cls = id;
+  const Eigen::Vector3f up(0, 0, kFloor);
+  AddBox(m.mesh, Eigen::Vector3f(-3.f, -3.f, -0.02f) + up, Eigen::Vector3f(3.f, 3.f, 0.f) + up);
+  return m;
+}
+
 // The scene `m` scanned by four laser scanners 2.6 m around its centre, 1.6 m above the floor,
 // fused, voxelised to 1.5 cm, its ground estimated.
 Scan ScanAround(const CatalogModel& m) {
@@ -252,11 +263,8 @@ Scan ScanAround(const CatalogModel& m) {
 // desk alone (its top and what is under it). A bare table (nothing over its top) and a counter at
 // kitchen height (0.9 m, above work_top_max_m) get no such variant.
 TEST(Clusters, WorkTopVariantDropsWhatStandsOnADesk) {
-  CatalogModel m;
-  m.id = "office";
-  m.cls = "office";
+  CatalogModel m = FloorScene("office");
   const Eigen::Vector3f up(0, 0, kFloor);
-  AddBox(m.mesh, Eigen::Vector3f(-3.f, -3.f, -0.02f) + up, Eigen::Vector3f(3.f, 3.f, 0.f) + up);  // floor
   auto table = [&](float x0, float y0, float len, float dep, float h) {
     AddBox(m.mesh, Eigen::Vector3f(x0, y0, h - 0.04f) + up, Eigen::Vector3f(x0 + len, y0 + dep, h) + up);
     for (float x : {x0 + 0.02f, x0 + len - 0.07f})
@@ -310,11 +318,8 @@ TEST(Clusters, WorkTopVariantDropsWhatStandsOnADesk) {
 // low_top_above_max: a taller object with a low shelf beside it, not a lamp on a top) get none;
 // off by default.
 TEST(Clusters, LowTopVariantDropsALampOffANightstand) {
-  CatalogModel m;
-  m.id = "bedroom";
-  m.cls = "bedroom";
+  CatalogModel m = FloorScene("bedroom");
   const Eigen::Vector3f up(0, 0, kFloor);
-  AddBox(m.mesh, Eigen::Vector3f(-3.f, -3.f, -0.02f) + up, Eigen::Vector3f(3.f, 3.f, 0.f) + up);  // floor
   const Eigen::AlignedBox3f stand = Box({-1.5f, -1.5f, 0.f}, {-1.0f, -1.05f, 0.6f});
   AddBox(m.mesh, stand.min(), stand.max());
   AddBox(m.mesh, Eigen::Vector3f(-1.33f, -1.36f, 0.6f) + up, Eigen::Vector3f(-1.17f, -1.2f, 1.1f) + up);  // the lamp
