@@ -195,7 +195,7 @@ Eigen::Isometry3f ParsePose(const std::vector<std::string>& poses, size_t i) {
 }  // namespace
 
 int RunTrain(const std::vector<std::string>& args) {
-  CLI::App app{"Train the model of a graph from its catalog (simulate views, segment, features, vocabulary).", "train"};
+  CLI::App app{"Train the model of a graph from its catalog (simulate views, segment, features, vocabulary; a voter that learns from meshes, as voters.catalog_shape, reads the models' meshes instead of views).", "train"};
   CommonOptions common;
   std::string graph, out;
   bool strict = false;

@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "furnihost/host/io.hpp"
+#include "furnihost/host/model_file.hpp"
 #include "furnihost/scan_reader.hpp"
 #include "test_support.hpp"
 
@@ -443,4 +444,25 @@ TEST(Cli, GapPutsTheMatchingTrainingViewsNearest) {
   const auto nocat = Furnihost("gap -q --graph " + dir + "/nocat.json --dataset " + dir + "/data.json --out " + dir + "/o3");
   EXPECT_EQ(nocat.code, 2);
   EXPECT_NE(nocat.err.find("nocat.json:/catalog: missing"), std::string::npos) << nocat.err;
+}
+
+// A graph whose one voter learns from meshes (configs/room.json: voters.catalog_shape, the
+// bundled catalog of 6 meshes): training scans no model. The model file counts each model as
+// learned from its mesh and no view, and the training sensor spent no time.
+TEST(Cli, TrainingARecogniserOfMeshesScansNoModel) {
+  const std::string dir = furnihost::testing::TempDir("cli_train_meshes");
+  const auto r = Furnihost("train --graph " + furnihost::testing::SourceDir() + "/configs/room.json --out " + dir +
+                           "/m.fhm");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto m = furnihost::LoadModel(dir + "/m.fhm");
+  const nlohmann::json& v = m.summary.at("voters").at("recognise");
+  EXPECT_EQ(v.at("views"), 0) << m.summary.dump();
+  EXPECT_EQ(v.value("meshes", 0), m.summary.at("models").get<int>()) << m.summary.dump();
+  EXPECT_GE(m.summary.at("models").get<int>(), 6);
+  const size_t at = r.out.find("time per step [ms] ");
+  ASSERT_NE(at, std::string::npos) << r.out;
+  const nlohmann::json times = nlohmann::json::parse(r.out.substr(at + 19));
+  EXPECT_TRUE(times.contains("recognise")) << times.dump();
+  EXPECT_FALSE(times.contains("simulate")) << "the training sensor ran: " << times.dump();
+  fs::remove_all(dir);
 }

@@ -30,6 +30,12 @@ struct StageNeeds {
   // which the host finds with the scan's working frame when it can (ScanNeighbours says
   // when); a stage still checks ScanNeighbours::Describes and searches its own otherwise.
   int neighbours = 0;
+  // Voters: false when Train learns every catalog model that has a mesh from the mesh alone
+  // (TrainingView::model), not from what the training sensor saw of it. When every voter a
+  // training feeds says so, the host scans only the models without a mesh and gives Train one
+  // view of each other model with no points (view -1, scan empty): training then costs what
+  // the voters' own work on the meshes costs.
+  bool training_scans = true;
 };
 
 class FURNIHOST_API Stage {

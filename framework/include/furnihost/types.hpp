@@ -201,7 +201,7 @@ struct SceneParts {
 struct TrainingView {
   std::string cls;
   std::string model_id;
-  int view = 0;
+  int view = 0;  // -1: no scan, the model's mesh alone (StageNeeds::training_scans)
   Eigen::Vector3f object_centroid = Eigen::Vector3f::Zero();  // centre of mass of the view's points
   Eigen::Vector3f object_size = Eigen::Vector3f::Zero();      // catalog model extents [m]
   const CatalogModel* model = nullptr;  // the catalog model scanned (lives as long as training)

@@ -106,6 +106,13 @@ class CatalogShapeVoter : public Voter {
   explicit CatalogShapeVoter(const nlohmann::json& p) : o_(Binding().Parse(p)) {}
 
   nlohmann::json Train(const std::vector<TrainingView>& views, const RunContext&) override;
+  // A model with a mesh is learned from the mesh (its size, top-view profile, open floor and
+  // one-eye profiles): training need not scan it.
+  StageNeeds Needs() const override {
+    StageNeeds n;
+    n.training_scans = false;
+    return n;
+  }
 
   void Load(const nlohmann::json& m) override;
 

@@ -161,11 +161,13 @@ nlohmann::json CatalogShapeVoter::Train(const std::vector<TrainingView>& views, 
     if (fresh) order.push_back(v.model_id);
     it->second.second.push_back(&v);
   }
-  nlohmann::json models = nlohmann::json::array();
-  for (const auto& id : order) {
-    const auto& [first, vs] = by_model.at(id);
+  // Each model's shape on its own (in parallel: a catalog of thousands of meshes), then the
+  // model file in the views' order.
+  std::vector<MeshShape> shapes(order.size());
+  tbb::parallel_for(size_t(0), order.size(), [&](size_t k) {
+    const auto& [first, vs] = by_model.at(order[k]);
     const Eigen::Vector3f s = first->object_size;
-    MeshShape ms;
+    MeshShape& ms = shapes[k];
     if (first->model && !first->model->mesh.triangles.empty()) {
       ms = FromMesh(*first->model, o_.cell);
     } else {  // views without their mesh: what the views saw, fused and one by one
@@ -185,6 +187,13 @@ nlohmann::json CatalogShapeVoter::Train(const std::vector<TrainingView>& views, 
       ms.profile = shape::TopViewProfile(xy, h, s.z(), o_.cell);
       ms.open = OpenFloor(vs, s);
     }
+  });
+  nlohmann::json models = nlohmann::json::array();
+  for (size_t k = 0; k < order.size(); ++k) {
+    const std::string& id = order[k];
+    const TrainingView* first = by_model.at(id).first;
+    const Eigen::Vector3f s = first->object_size;
+    const MeshShape& ms = shapes[k];
     const shape::Profile& prof = ms.profile;
     models.push_back({{"id", id},
                       {"class", first->cls},

@@ -119,6 +119,37 @@ TEST(CatalogShape, TrainsSizesProfilesAndOpenFloor) {
   EXPECT_NO_THROW(voter->Load(model));
 }
 
+// The voter says that it learns a model with a mesh from the mesh alone (StageNeeds), and so
+// it does: one view of no points per model gives the model its simulated views give. Without
+// the mesh the same views are learned from their points, and the model differs.
+TEST(CatalogShape, LearnsAModelWithAMeshFromTheMeshAlone) {
+  const CatalogModel table = Table(), cabinet = Cabinet();
+  auto voter = Make<Voter>("voters.catalog_shape");
+  EXPECT_FALSE(voter->Needs().training_scans);
+  RunContext ctx;
+  std::vector<TrainingView> scanned = Views({&table, &cabinet});  // as the host gives them: with their model
+  for (TrainingView& tv : scanned) tv.model = tv.model_id == table.id ? &table : &cabinet;
+  std::vector<TrainingView> meshes;
+  for (const CatalogModel* m : {&table, &cabinet}) {
+    TrainingView tv;
+    tv.cls = m->cls;
+    tv.model_id = m->id;
+    tv.view = -1;
+    tv.object_size = m->size;
+    tv.model = m;
+    meshes.push_back(tv);
+  }
+  const json from_scans = voter->Train(scanned, ctx);
+  EXPECT_EQ(voter->Train(meshes, ctx), from_scans);
+
+  CatalogModel bare_table = table, bare_cabinet = cabinet;
+  bare_table.mesh.triangles.clear();
+  bare_cabinet.mesh.triangles.clear();
+  std::vector<TrainingView> bare = scanned;
+  for (TrainingView& tv : bare) tv.model = tv.model_id == table.id ? &bare_table : &bare_cabinet;
+  EXPECT_NE(voter->Train(bare, ctx), from_scans) << "vacuous: the views' points give the mesh's model";
+}
+
 // The room: both objects on a floor 1.2 m below the origin (a camera's frame), scanned from
 // four sides. Proposals and recognition find the table as a table and the cabinet as a cabinet,
 // each with its box, and neither as the other class first.

@@ -30,7 +30,7 @@ struct TrainedModel {
   // Each trained stage's model by stage tag. A version 1 file of one voter holds it under ""
   // (its tag was not written): it is the model of the graph's one voter.
   std::map<std::string, TrainedVoter> voters;
-  nlohmann::json summary;  // models, and per voter views, parts per class
+  nlohmann::json summary;  // models, and per voter views, parts and meshes (models learned from the mesh alone) per class
   // Time per stage [ms] of the training that made it, by stage tag; not saved in the model file
   // (the same inputs give the same file), so empty for a loaded model.
   nlohmann::json timings_ms;

@@ -11,7 +11,10 @@ struct Learner {
   const StageConfig* features;   // the stage whose features its views carry, or null
   const StageConfig* segmenter;  // the stage whose parts its views carry, or null
   std::vector<TrainingView> views;
-  std::map<std::string, std::pair<int, int>> per_class;  // class -> (views, parts)
+  struct Count {
+    int views = 0, parts = 0, meshes = 0;  // meshes: models learned from their mesh alone (view -1)
+  };
+  std::map<std::string, Count> per_class;
 };
 
 TrainingView View(const CatalogModel& model, int view, Scan scan) {
@@ -40,6 +43,15 @@ std::vector<Learner> Learners(const GraphConfig& g) {
   return learners;
 }
 
+// Whether every trained stage learns `model` from its mesh alone (StageNeeds::training_scans):
+// then the model is not scanned.
+bool FromMeshAlone(const GraphConfig& g, StageInstances& stages, const CatalogModel& model) {
+  if (model.mesh.triangles.empty()) return false;
+  for (const StageConfig* t : g.Trained())
+    if (stages.at(t->tag).As<Voter>(*t).Needs().training_scans) return false;
+  return true;
+}
+
 const StageConfig& CheckTraining(const GraphConfig& g, const Catalog& catalog) {
   const StageConfig* sensor_cfg = g.training_sensor.empty() ? nullptr : g.Find(g.training_sensor);
   if (!sensor_cfg) throw InputError(g.path + ":/training/sensor: the graph names no training sensor");
@@ -61,6 +73,20 @@ ModelViews ScanModel(const GraphConfig& g, StageInstances& stages, const Catalog
   const std::vector<Learner> learners = Learners(g);
   ModelViews out;
   out.branches.resize(learners.size());
+  if (FromMeshAlone(g, stages, model)) {
+    // One view of no points: the learners read the mesh (TrainingView::model).
+    for (auto& branch : out.branches) {
+      TrainingView tv;
+      tv.cls = model.cls;
+      tv.model_id = model.id;
+      tv.view = -1;
+      tv.object_size = model.size;
+      tv.model = &model;
+      tv.object_centroid = model.mesh.Bounds().center();
+      branch.push_back(std::move(tv));
+    }
+    return out;
+  }
   SensorRequest req;
   req.objects.push_back({&model, Eigen::Isometry3f::Identity()});
   Stopwatch sw;
@@ -103,8 +129,9 @@ TrainedModel TrainFromViews(const GraphConfig& g, StageInstances& stages, const 
       Learner& l = learners[b];
       for (TrainingView& tv : mv.branches[b]) {
         tv.model = &catalog.models[i];  // the views of another process point at this catalog
-        l.per_class[tv.cls].first++;
-        l.per_class[tv.cls].second += static_cast<int>(tv.segmentation.parts.size());
+        Learner::Count& count = l.per_class[tv.cls];
+        (tv.view < 0 ? count.meshes : count.views)++;
+        count.parts += static_cast<int>(tv.segmentation.parts.size());
         l.views.push_back(std::move(tv));
       }
     }
@@ -134,13 +161,16 @@ TrainedModel TrainFromViews(const GraphConfig& g, StageInstances& stages, const 
     l.views.clear();
     l.views.shrink_to_fit();
     nlohmann::json classes = nlohmann::json::object();
-    size_t parts = 0, views = 0;
-    for (const auto& [c, vp] : l.per_class) {
-      classes[c] = {{"views", vp.first}, {"parts", vp.second}};
-      parts += vp.second;
-      views += vp.first;
+    size_t parts = 0, views = 0, meshes = 0;
+    for (const auto& [c, n] : l.per_class) {
+      classes[c] = {{"views", n.views}, {"parts", n.parts}};
+      if (n.meshes > 0) classes[c]["meshes"] = n.meshes;
+      parts += size_t(n.parts);
+      views += size_t(n.views);
+      meshes += size_t(n.meshes);
     }
     per_voter[l.stage->tag] = {{"views", views}, {"parts", parts}, {"classes", classes}};
+    if (meshes > 0) per_voter[l.stage->tag]["meshes"] = meshes;
     // Through CallStage: an exception escaping the plugin is caught while its library is loaded.
     CallStage(*l.stage, [&] {
       voter.Load(tvr.voter_model);
