@@ -14,6 +14,7 @@
 
 #include "furnihost/geometry.hpp"
 #include "furnihost/hash.hpp"
+#include "furnihost/log.hpp"
 #include "furnihost/plugin.hpp"
 #include "shape/shape.hpp"
 #include "catalog_shape.hpp"
@@ -164,6 +165,7 @@ nlohmann::json CatalogShapeVoter::Train(const std::vector<TrainingView>& views, 
   // Each model's shape on its own (in parallel: a catalog of thousands of meshes), then the
   // model file in the views' order.
   std::vector<MeshShape> shapes(order.size());
+  Progress progress("train: voters.catalog_shape learning models", order.size());
   tbb::parallel_for(size_t(0), order.size(), [&](size_t k) {
     const auto& [first, vs] = by_model.at(order[k]);
     const Eigen::Vector3f s = first->object_size;
@@ -187,7 +189,9 @@ nlohmann::json CatalogShapeVoter::Train(const std::vector<TrainingView>& views, 
       ms.profile = shape::TopViewProfile(xy, h, s.z(), o_.cell);
       ms.open = OpenFloor(vs, s);
     }
+    progress.Tick();
   });
+  progress.Done();
   nlohmann::json models = nlohmann::json::array();
   for (size_t k = 0; k < order.size(); ++k) {
     const std::string& id = order[k];

@@ -1,5 +1,7 @@
 #include "training.hpp"
 
+#include <optional>
+
 #include "furnihost/log.hpp"
 
 namespace furnihost::graph {
@@ -121,8 +123,13 @@ TrainedModel TrainFromViews(const GraphConfig& g, StageInstances& stages, const 
                            std::to_string(catalog.models.size()));
   std::vector<Learner> learners = Learners(g);
   std::map<std::string, double> time_ms;  // by stage tag
+  std::vector<size_t> scanned_meshes;  // per model: 1 when no learner got a scan of it
   for (size_t i = 0; i < scanned.size(); ++i) {
     ModelViews& mv = scanned[i];
+    bool mesh_only = !mv.branches.empty();
+    for (const auto& branch : mv.branches)
+      for (const TrainingView& tv : branch) mesh_only = mesh_only && tv.view < 0;
+    scanned_meshes.push_back(mesh_only ? 1 : 0);
     if (mv.branches.size() != learners.size()) throw std::logic_error("TrainFromViews: trained stages differ");
     for (const auto& [tag, ms] : mv.time_ms) time_ms[tag] += ms;
     for (size_t b = 0; b < learners.size(); ++b) {
@@ -179,6 +186,11 @@ TrainedModel TrainFromViews(const GraphConfig& g, StageInstances& stages, const 
     instance.loaded_model = m.catalog_hash + m.training_config.dump();
     m.voters[l.stage->tag] = std::move(tvr);
   }
+  size_t from_meshes = 0;
+  for (const auto& mv : scanned_meshes) from_meshes += mv;
+  if (from_meshes > 0)
+    spdlog::info("train: {} of {} models learned from their meshes alone (their voters need no scans)", from_meshes,
+                 catalog.models.size());
   // The summary describes what was learned; the times go to `timings_ms` (not saved), so that the
   // same inputs give the same model file byte for byte, however many processes trained it.
   m.summary = {{"models", catalog.models.size()}, {"voters", per_voter}};
@@ -189,12 +201,15 @@ TrainedModel TrainFromViews(const GraphConfig& g, StageInstances& stages, const 
 TrainedModel TrainGraph(const GraphConfig& g, StageInstances& stages, const Catalog& catalog, const RunContext& ctx) {
   CheckTraining(g, catalog);
   std::vector<ModelViews> views;
-  Progress progress("train: scanning models", catalog.models.size());
+  size_t scans = 0;  // models the training sensor scans (the others' voters read their meshes)
+  for (const CatalogModel& model : catalog.models) scans += FromMeshAlone(g, stages, model) ? 0 : 1;
+  std::optional<Progress> progress;
+  if (scans > 0) progress.emplace("train: scanning models", catalog.models.size());
   for (size_t i = 0; i < catalog.models.size(); ++i) {
     views.push_back(ScanModel(g, stages, catalog, i, ctx));
-    progress.Tick();
+    if (progress) progress->Tick();
   }
-  progress.Done();
+  if (progress) progress->Done();
   return TrainFromViews(g, stages, catalog, std::move(views), ctx);
 }
 
