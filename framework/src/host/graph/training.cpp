@@ -123,13 +123,13 @@ TrainedModel TrainFromViews(const GraphConfig& g, StageInstances& stages, const 
                            std::to_string(catalog.models.size()));
   std::vector<Learner> learners = Learners(g);
   std::map<std::string, double> time_ms;  // by stage tag
-  std::vector<size_t> scanned_meshes;  // per model: 1 when no learner got a scan of it
+  size_t from_meshes = 0;  // models no learner got a scan of
   for (size_t i = 0; i < scanned.size(); ++i) {
     ModelViews& mv = scanned[i];
     bool mesh_only = !mv.branches.empty();
     for (const auto& branch : mv.branches)
       for (const TrainingView& tv : branch) mesh_only = mesh_only && tv.view < 0;
-    scanned_meshes.push_back(mesh_only ? 1 : 0);
+    from_meshes += mesh_only ? 1 : 0;
     if (mv.branches.size() != learners.size()) throw std::logic_error("TrainFromViews: trained stages differ");
     for (const auto& [tag, ms] : mv.time_ms) time_ms[tag] += ms;
     for (size_t b = 0; b < learners.size(); ++b) {
@@ -186,8 +186,6 @@ TrainedModel TrainFromViews(const GraphConfig& g, StageInstances& stages, const 
     instance.loaded_model = m.catalog_hash + m.training_config.dump();
     m.voters[l.stage->tag] = std::move(tvr);
   }
-  size_t from_meshes = 0;
-  for (const auto& mv : scanned_meshes) from_meshes += mv;
   if (from_meshes > 0)
     spdlog::info("train: {} of {} models learned from their meshes alone (their voters need no scans)", from_meshes,
                  catalog.models.size());
