@@ -42,9 +42,10 @@ import calibration_fit as cf  # noqa: E402
 import cross_validate as cv  # noqa: E402
 
 
-def labelled(folder, ds, tag):
+def labelled(folder, ds, tag, scenes=None):
     """Detections of every scene of `ds` in `folder`: [(group key, class, score, evidence, tp)], and the
-    number of ground-truth objects per class."""
+    number of ground-truth objects per class; with `scenes` (a list), each scene's (group key,
+    ground truth, [its detections as dicts: cls, score, box, center, evidence]) appended to it."""
     rows, npos = [], {}
     for stem, gts in ds.scenes:
         dets = []
@@ -60,6 +61,9 @@ def labelled(folder, ds, tag):
             npos[cls] = npos.get(cls, 0) + len(truth)
             tp = cv.match_scene([x[:4] for x in mine], truth, "iou", 0.25)
             rows += [(tag(stem), cls, x[0], x[4], t) for x, t in zip(mine, tp)]
+        if scenes is not None:
+            scenes.append((tag(stem), gts, [{"score": x[0], "cls": x[1], "box": x[2], "center": x[3], "evidence": x[4]}
+                                            for x in dets]))
     return rows, npos
 
 
@@ -69,19 +73,45 @@ def fit_class(rows, features, l2):
     return cf.fit_logistic(x, y, l2)
 
 
-def held_out(rows, npos_by_group, classes, features, l2):
-    """Per class: [(confidence, tp)] of every group predicted by the map fitted on the others."""
+def held_out(rows, npos_by_group, classes, features, l2, scenes, parts):
+    """Per class: [(confidence, tp)] of every group predicted by the map fitted on the others. With
+    `parts` (the graph's calibration.part_of: pairs, share, min_confidence) the host's DropParts runs on
+    each scan with those confidences first, and what it keeps is matched anew: the figures of the
+    graph as it runs."""
     groups = sorted(set(r[0] for r in rows) | set(npos_by_group))
     out = {c: [] for c in classes}
     for g in groups:
+        maps = {}
         for c in classes:
             train = [r for r in rows if r[0] != g and r[1] == c]
-            test = [r for r in rows if r[0] == g and r[1] == c]
-            if not test:
+            if any(r[0] == g and r[1] == c for r in rows):
+                maps[c] = fit_class(train, features, l2)
+        for key, gts, dets in scenes:
+            if key != g:
                 continue
-            coef, b = fit_class(train, features, l2)
-            out[c] += [(cf.confidence(coef, b, [cf.feature_value(f, r[2], r[3]) for f in features]), r[4]) for r in test]
+            for d in dets:
+                m = maps.get(d["cls"])
+                d["confidence"] = cf.confidence(m[0], m[1], [cf.feature_value(f, d["score"], d["evidence"]) for f in features]) \
+                    if m else None
+            kept = cf.drop_parts(dets, parts[0], parts[1], parts[2]) if parts and parts[0] else dets
+            for c in classes:
+                mine = [d for d in kept if d["cls"] == c]
+                tp = cv.match_scene([(d["score"], c, d["box"], d["center"]) for d in mine], [x for x in gts if x[0] == c],
+                                    "iou", 0.25)
+                out[c] += [(d["confidence"], t) for d, t in zip(mine, tp)]
     return out
+
+
+def graph_calibration(args):
+    """The graph's calibration section as furnihost resolves it (with --set), or {}."""
+    cmd = [args.furnihost, "validate", "--graph", args.graph, "--print"]
+    for o in args.set:
+        cmd += ["--set", o]
+    r = subprocess.run(cmd, capture_output=True, text=True, env=cv.child_env())
+    if r.returncode != 0:
+        sys.stderr.write(r.stderr)
+        raise SystemExit("calibrate: furnihost validate failed: " + " ".join(cmd))
+    return json.loads(r.stdout[r.stdout.index("{"):]).get("calibration") or {}
 
 
 def git_revision(near):
@@ -112,19 +142,26 @@ def main():
     for f in features:
         cf.feature_value(f, 1.0, {})  # unknown names fail here
 
-    rows, npos, npos_by_group, sources, classes = [], {}, {}, [], []
+    # The maps are fitted on every detection the recogniser gives (the graph's part_of rule off): the
+    # host applies them to those, then drops parts (calibration.part_of); the held-out figures run
+    # that rule with each space's held-out confidences.
+    section = graph_calibration(args)
+    pairs = cf.part_of_pairs(section.get("part_of", ""))
+    parts = (pairs, float(section.get("part_share", 0.5)), args.min_confidence) if pairs else None
+    raw = ['calibration.part_of=""'] if pairs else []
+    rows, npos, npos_by_group, sources, classes, scenes = [], {}, {}, [], [], []
     for k, path in enumerate(args.dataset):
         ds = cv.Dataset(path)
         for c in ds.classes:
             if c not in classes:
                 classes.append(c)
         out = os.path.join(args.work, "set_%d" % k)
-        folder = cv.run_eval(argparse.Namespace(furnihost=args.furnihost, graph=args.graph, set=args.set), [], path, out)
+        folder = cv.run_eval(argparse.Namespace(furnihost=args.furnihost, graph=args.graph, set=args.set), raw, path, out)
 
         def tag(stem, k=k):
             m = re.search(args.group, stem)
             return "%d:%s" % (k, (m.group(1) if m.groups() else m.group(0)) if m else stem)
-        r, n = labelled(folder, ds, tag)
+        r, n = labelled(folder, ds, tag, scenes)
         rows += r
         for c, v in n.items():
             npos[c] = npos.get(c, 0) + v
@@ -140,7 +177,10 @@ def main():
           (len(rows), ", ".join(classes), sum(s["scenes"] for s in sources), len(groups)), file=sys.stderr)
 
     # Held out: each group's confidences from the map fitted on the other groups.
-    pooled = held_out(rows, npos_by_group, classes, features, args.l2)
+    pooled = held_out(rows, npos_by_group, classes, features, args.l2, scenes, parts)
+    if parts:
+        print("held out with the graph's part_of rule (%s, share %.2f) on each space's held-out confidences" %
+              (", ".join("%s:%s" % p for p in pairs), parts[1]), file=sys.stderr)
     loso = {}
     print("\nleave one group out (the map fitted on the other groups), at confidence >= %.2f, IoU 0.25:" % args.min_confidence)
     everything = []
@@ -176,6 +216,7 @@ def main():
         "method": "logistic",
         "fitted_on": {"data": data, "datasets": sources, "groups": len(groups), "group_regex": args.group,
                       "graph": os.path.relpath(os.path.abspath(args.graph)), "overrides": args.set,
+                      "part_of": section.get("part_of", ""),
                       "revision": git_revision(here), "date": now.strftime("%Y-%m-%d"),
                       "command": " ".join(["scripts/calibrate.py"] + sys.argv[1:]), "l2": args.l2,
                       "held_out": {"min_confidence": args.min_confidence, "ece_all": ece_all, "classes": loso}},

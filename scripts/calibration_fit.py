@@ -109,3 +109,57 @@ def working_point(pairs, npos, threshold=0.5):
     p = tp / len(kept) if kept else float("nan")
     r = tp / npos if npos else float("nan")
     return tp, len(kept) - tp, p, r
+
+
+def _volume(box):
+    v = 1.0
+    for k in range(3):
+        v *= max(0.0, box[1][k] - box[0][k])
+    return v
+
+
+def _iou(a, b):
+    inter = _volume(([max(a[0][k], b[0][k]) for k in range(3)], [min(a[1][k], b[1][k]) for k in range(3)]))
+    u = _volume(a) + _volume(b) - inter
+    return inter / u if u > 0 else 0.0
+
+
+def part_of_pairs(items):
+    """calibration.part_of as the graph gives it ("chair:sofa, ...") as [(part, whole)]."""
+    pairs = []
+    for item in [x.strip() for x in (items or "").split(",") if x.strip()]:
+        part, _, whole = item.partition(":")
+        pairs.append((part.strip(), whole.strip()))
+    return pairs
+
+
+def drop_parts(dets, pairs, share, min_confidence):
+    """The host's DropParts (framework/src/host/calibration.cpp) on one scan's detections: dicts with
+    "cls", "box" ((lo, hi)) and "confidence" (None without a map), accepted when their confidence is
+    at least min_confidence. Returns the detections kept, in their order."""
+    drop = set()
+    for part, whole in pairs:
+        for w, W in enumerate(dets):
+            if W["cls"] != whole or W["confidence"] is None or W["confidence"] < min_confidence or _volume(W["box"]) <= 0:
+                continue
+            inside = []
+            for p, P in enumerate(dets):
+                if P["cls"] != part or P["confidence"] is None:
+                    continue
+                v = _volume(P["box"])
+                lo = [max(P["box"][0][k], W["box"][0][k]) for k in range(3)]
+                hi = [min(P["box"][1][k], W["box"][1][k]) for k in range(3)]
+                if v > 0 and _volume((lo, hi)) >= share * v:
+                    inside.append(p)
+            if not inside:
+                continue
+            inside.sort(key=lambda p: -dets[p]["confidence"])  # stable, as the host's
+            chosen, together = [], 0.0
+            for p in inside:
+                if all(_iou(dets[p]["box"], dets[q]["box"]) < 0.25 for q in chosen):
+                    chosen.append(p)
+                    together += dets[p]["confidence"]
+            if together > W["confidence"]:
+                continue
+            drop.update(inside)
+    return [d for i, d in enumerate(dets) if i not in drop]

@@ -176,3 +176,62 @@ TEST(Calibration, AGraphWithoutACalibrationSaysSoAndOneWithItDecidesByConfidence
   EXPECT_EQ(r.code, 2) << r.err;
   if (!HasFailure()) fs::remove_all(dir);
 }
+
+namespace {
+// A detection of `cls` with a box from `lo` to `hi` (axis-aligned), its confidence, accepted or not.
+Detection Boxed(const std::string& cls, Eigen::Vector3f lo, Eigen::Vector3f hi, float confidence, bool accepted) {
+  Detection d;
+  d.cls = cls;
+  d.score = confidence;
+  d.confidence = confidence;
+  d.verified = accepted;
+  furnihost::OrientedBox b;
+  b.center = 0.5f * (lo + hi);
+  b.size = hi - lo;
+  d.box = b;
+  return d;
+}
+}  // namespace
+
+// calibration.part_of "chair:sofa": an armchair reading of a sofa's seat, inside an accepted sofa
+// more probable than it, is dropped; two chairs inside a sofa that together are more probable than
+// the sofa stay (two armchairs side by side read as a sofa); a chair beside the sofa, or inside a
+// sofa that is not accepted, stays; every other detection and the order stay.
+TEST(Calibration, PartOfDropsASeatReadAsAChairInsideAMoreProbableSofa) {
+  using V = Eigen::Vector3f;
+  const auto pairs = furnihost::PartOfPairs({"chair : sofa"}, "part_of");
+  ASSERT_EQ(pairs.size(), 1u);
+  EXPECT_EQ(pairs[0], std::make_pair(std::string("chair"), std::string("sofa")));
+  std::vector<Detection> d = {
+      Boxed("sofa", V(0, 0, 0), V(1.6, 0.9, 0.8), 0.9f, true),           // 0: a loveseat
+      Boxed("chair", V(0.1, 0, 0), V(0.9, 0.8, 0.8), 0.45f, false),      // 1: its left seat, as an armchair
+      Boxed("table", V(0.2, 0.1, 0), V(0.8, 0.6, 0.4), 0.3f, false),     // 2: another class inside: stays
+      Boxed("chair", V(2.0, 0, 0), V(2.8, 0.8, 0.8), 0.7f, true),        // 3: a chair beside it
+      Boxed("sofa", V(5, 0, 0), V(6.7, 0.9, 0.8), 0.6f, true),           // 4: two armchairs read as a sofa
+      Boxed("chair", V(5, 0, 0), V(5.8, 0.85, 0.8), 0.5f, true),         // 5
+      Boxed("chair", V(5.9, 0, 0), V(6.7, 0.85, 0.8), 0.45f, false),     // 6
+      Boxed("sofa", V(9, 0, 0), V(10.6, 0.9, 0.8), 0.9f, false),         // 7: a sofa not accepted
+      Boxed("chair", V(9.1, 0, 0), V(9.9, 0.8, 0.8), 0.2f, false),       // 8
+      Boxed("chair", V(10.4, 0, 0), V(11.2, 0.8, 0.8), 0.1f, false)};    // 9: a quarter inside the sofa 7
+  std::vector<Detection> kept = d;
+  EXPECT_EQ(furnihost::DropParts(kept, pairs, 0.5), 1u);
+  ASSERT_EQ(kept.size(), d.size() - 1);
+  const std::vector<size_t> expect = {0, 2, 3, 4, 5, 6, 7, 8, 9};
+  for (size_t k = 0; k < expect.size(); ++k) EXPECT_EQ(kept[k].box->center, d[expect[k]].box->center) << k;
+  // The sofa 7 accepted: its seat goes too, the chair mostly outside it stays.
+  d[7].verified = true;
+  kept = d;
+  EXPECT_EQ(furnihost::DropParts(kept, pairs, 0.5), 2u);
+  EXPECT_EQ(kept.size(), d.size() - 2);
+  // No pairs, nothing dropped; a malformed pair names the parameter.
+  kept = d;
+  EXPECT_EQ(furnihost::DropParts(kept, {}, 0.5), 0u);
+  for (const char* bad : {"chair", "chair:", ":sofa", "chair:chair", "chair:sofa:bed"}) {
+    try {
+      furnihost::PartOfPairs({bad}, "g.json:/calibration/part_of");
+      ADD_FAILURE() << bad << " accepted";
+    } catch (const furnihost::InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("g.json:/calibration/part_of"), std::string::npos) << e.what();
+    }
+  }
+}

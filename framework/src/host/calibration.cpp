@@ -1,8 +1,10 @@
 #include "furnihost/host/calibration.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include "furnihost/error.hpp"
+#include "furnihost/host/evaluation.hpp"
 #include "furnihost/host/io.hpp"
 #include "sdk/shown.hpp"
 
@@ -96,6 +98,72 @@ void Calibration::Apply(std::vector<Detection>& detections, double min_confidenc
     if (!replaced) d.checks.push_back(decided);
     d.verified = FirstFailure(d.checks).empty();
   }
+}
+
+std::vector<std::pair<std::string, std::string>> PartOfPairs(const std::vector<std::string>& items,
+                                                             const std::string& where) {
+  auto trim = [](std::string t) {
+    const size_t a = t.find_first_not_of(" \t"), b = t.find_last_not_of(" \t");
+    return a == std::string::npos ? std::string() : t.substr(a, b - a + 1);
+  };
+  std::vector<std::pair<std::string, std::string>> pairs;
+  for (const std::string& item : items) {
+    const size_t colon = item.find(':');
+    const std::string part = colon == std::string::npos ? std::string() : trim(item.substr(0, colon));
+    const std::string whole = colon == std::string::npos ? std::string() : trim(item.substr(colon + 1));
+    if (part.empty() || whole.empty() || whole.find(':') != std::string::npos || part == whole)
+      throw InputError(where + ": expected PART:WHOLE pairs of two classes (\"chair:sofa\"), got \"" + item + "\"");
+    pairs.emplace_back(part, whole);
+  }
+  return pairs;
+}
+
+size_t DropParts(std::vector<Detection>& detections, const std::vector<std::pair<std::string, std::string>>& part_of,
+                 double share) {
+  if (part_of.empty()) return 0;
+  std::vector<Eigen::AlignedBox3f> box(detections.size());
+  for (size_t i = 0; i < detections.size(); ++i) box[i] = DetectionBox(detections[i]);
+  auto volume = [](const Eigen::AlignedBox3f& b) { return b.isEmpty() ? 0.0 : double(b.volume()); };
+  std::vector<char> drop(detections.size(), 0);
+  for (const auto& [part, whole] : part_of) {
+    for (size_t w = 0; w < detections.size(); ++w) {
+      const Detection& W = detections[w];
+      if (W.cls != whole || !W.confidence || !W.verified.value_or(false) || volume(box[w]) <= 0) continue;
+      std::vector<size_t> inside;
+      for (size_t p = 0; p < detections.size(); ++p) {
+        const Detection& P = detections[p];
+        if (P.cls != part || !P.confidence) continue;
+        const double v = volume(box[p]);
+        if (v > 0 && volume(box[p].intersection(box[w])) >= share * v) inside.push_back(p);
+      }
+      if (inside.empty()) continue;
+      // The parts' joint probability: the most probable readings that are not one another's.
+      std::stable_sort(inside.begin(), inside.end(),
+                       [&](size_t a, size_t b) { return *detections[a].confidence > *detections[b].confidence; });
+      std::vector<size_t> chosen;
+      double together = 0;
+      for (size_t p : inside) {
+        bool apart = true;
+        for (size_t q : chosen) apart = apart && BoxIou(box[p], box[q]) < 0.25f;
+        if (!apart) continue;
+        chosen.push_back(p);
+        together += *detections[p].confidence;
+      }
+      if (together > double(*W.confidence)) continue;
+      for (size_t p : inside) drop[p] = 1;
+    }
+  }
+  size_t n = 0, kept = 0;
+  for (size_t i = 0; i < detections.size(); ++i) {
+    if (drop[i]) {
+      ++n;
+      continue;
+    }
+    if (kept != i) detections[kept] = std::move(detections[i]);
+    ++kept;
+  }
+  detections.resize(kept);
+  return n;
 }
 
 }  // namespace furnihost

@@ -10,6 +10,7 @@
 #include <map>
 #include <utility>
 
+#include "furnihost/host/calibration.hpp"
 #include "furnihost/host/evaluation.hpp"
 #include "furnihost/hash.hpp"
 #include "furnihost/log.hpp"
@@ -100,7 +101,11 @@ std::vector<Detection> FuseDetections(const std::vector<std::vector<Detection>>&
 }
 
 void Pipeline::Calibrate(std::vector<Detection>& detections) const {
-  if (graph_.calibration_map) graph_.calibration_map->Apply(detections, graph_.calibration.min_confidence);
+  if (!graph_.calibration_map) return;
+  graph_.calibration_map->Apply(detections, graph_.calibration.min_confidence);
+  const size_t dropped =
+      DropParts(detections, PartOfPairs(graph_.calibration.part_of, "calibration/part_of"), graph_.calibration.part_share);
+  if (dropped > 0) spdlog::debug("calibration: {} detection(s) dropped as parts of a more probable whole (part_of)", dropped);
 }
 
 Pipeline::Result Pipeline::Detect(const std::vector<SceneInput>& scenes, const TrainedModel* model,

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <nlohmann/json.hpp>
 
+#include "furnihost/host/calibration.hpp"
 #include "furnihost/host/config.hpp"
 #include "furnihost/host/ground_estimation.hpp"
 #include "furnihost/params.hpp"
@@ -57,7 +58,14 @@ const ParamBinding<CalibrationSection>& CalibrationBinding() {
                   "calibration file of scripts/calibrate.py, relative to the config naming it; \"\": none (the "
                   "stages' thresholds decide)")
           .Number("min_confidence", &CalibrationSection::min_confidence, 0, 1, "1",
-                  "confidence at or above which a detection of a calibrated class is accepted");
+                  "confidence at or above which a detection of a calibrated class is accepted")
+          .StringList("part_of", &CalibrationSection::part_of,
+                      "PART:WHOLE class pairs, comma-separated (\"chair:sofa\"): a PART detection whose box lies "
+                      "inside an accepted WHOLE detection's (part_share of its volume) is dropped when the WHOLE is "
+                      "at least as probable as the PART detections inside it together (a sofa's seat read as an "
+                      "armchair); \"\": none")
+          .Number("part_share", &CalibrationSection::part_share, 0.05, 1, "1",
+                  "share of a PART detection's box volume inside a WHOLE detection's box that puts it inside (part_of)");
   return b;
 }
 
@@ -104,11 +112,15 @@ nlohmann::json ToJson(const EnsembleOptions& e) {
 }
 
 CalibrationSection CalibrationSectionFromJson(const nlohmann::json& j, const std::string& where) {
-  return ParseSection(CalibrationBinding(), j, where, "{\"file\": \"calibration/scannet.json\"}");
+  CalibrationSection c = ParseSection(CalibrationBinding(), j, where, "{\"file\": \"calibration/scannet.json\"}");
+  PartOfPairs(c.part_of, where + "/part_of");  // throws on a malformed pair
+  return c;
 }
 
 nlohmann::json ToJson(const CalibrationSection& c) {
-  return {{"file", c.file}, {"min_confidence", c.min_confidence}};
+  std::string pairs;
+  for (const auto& p : c.part_of) pairs += (pairs.empty() ? "" : ", ") + p;
+  return {{"file", c.file}, {"min_confidence", c.min_confidence}, {"part_of", pairs}, {"part_share", c.part_share}};
 }
 
 std::vector<std::pair<std::string, ParamSchema>> HostSectionSchemas() {

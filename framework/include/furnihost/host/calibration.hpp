@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "furnihost/types.hpp"
@@ -47,5 +48,21 @@ class FURNIHOST_API Calibration {
   nlohmann::json fitted_on_;
   std::map<std::string, ClassMap> classes_;
 };
+
+// calibration.part_of's "PART:WHOLE" items as (part, whole) class pairs, names trimmed;
+// InputError naming `where` on an item that is not two different names around one colon.
+FURNIHOST_API std::vector<std::pair<std::string, std::string>> PartOfPairs(const std::vector<std::string>& items,
+                                                                          const std::string& where);
+
+// One object, one reading, where one class's objects are made of parts that read as another
+// class (a sofa's seats as armchairs): for each (part, whole) pair, every accepted detection of
+// the whole class (verified, with a confidence) takes the detections of the part class whose
+// boxes lie inside its box (at least `share` of a part's box volume). When the whole is at least
+// as probable as those parts together (the most probable non-overlapping ones, 3D IoU < 0.25,
+// their confidences summed), they are parts of it and are dropped; else all stay. Needs
+// confidences (Calibration::Apply first); returns how many were dropped. The order of the rest
+// is kept.
+FURNIHOST_API size_t DropParts(std::vector<Detection>& detections,
+                               const std::vector<std::pair<std::string, std::string>>& part_of, double share);
 
 }  // namespace furnihost

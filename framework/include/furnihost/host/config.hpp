@@ -96,6 +96,10 @@ struct FrameSection {
 struct CalibrationSection {
   std::string file;
   double min_confidence = 0.5;
+  // "PART:WHOLE" class pairs (Calibration::DropParts): a PART reading inside an accepted WHOLE
+  // that is more probable than the PART readings inside it together is a part of it.
+  std::vector<std::string> part_of;
+  double part_share = 0.5;  // share of a PART reading's box inside the WHOLE's that makes it inside
 };
 
 // The host's own sections of a graph config ("ground", "frame", "ensemble", "calibration"; null: the
