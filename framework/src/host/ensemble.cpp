@@ -104,7 +104,7 @@ void Pipeline::Calibrate(std::vector<Detection>& detections) const {
   if (!graph_.calibration_map) return;
   graph_.calibration_map->Apply(detections, graph_.calibration.min_confidence);
   const size_t dropped =
-      DropParts(detections, PartOfPairs(graph_.calibration.part_of, "calibration/part_of"), graph_.calibration.part_share);
+      DropParts(detections, graph_.calibration.part_pairs, graph_.calibration.part_share);
   if (dropped > 0) spdlog::debug("calibration: {} detection(s) dropped as parts of a more probable whole (part_of)", dropped);
 }
 

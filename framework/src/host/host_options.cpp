@@ -113,7 +113,7 @@ nlohmann::json ToJson(const EnsembleOptions& e) {
 
 CalibrationSection CalibrationSectionFromJson(const nlohmann::json& j, const std::string& where) {
   CalibrationSection c = ParseSection(CalibrationBinding(), j, where, "{\"file\": \"calibration/scannet.json\"}");
-  PartOfPairs(c.part_of, where + "/part_of");  // throws on a malformed pair
+  c.part_pairs = PartOfPairs(c.part_of, where + "/part_of");  // throws on a malformed pair
   return c;
 }
 

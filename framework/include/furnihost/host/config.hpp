@@ -99,6 +99,7 @@ struct CalibrationSection {
   // "PART:WHOLE" class pairs (Calibration::DropParts): a PART reading inside an accepted WHOLE
   // that is more probable than the PART readings inside it together is a part of it.
   std::vector<std::string> part_of;
+  std::vector<std::pair<std::string, std::string>> part_pairs;  // part_of as (part, whole), parsed once
   double part_share = 0.5;  // share of a PART reading's box inside the WHOLE's that makes it inside
 };
 
