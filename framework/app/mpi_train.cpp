@@ -1,6 +1,8 @@
 #include "mpi_train.hpp"
 
+#include <algorithm>
 #include <optional>
+#include <stdexcept>
 
 #include "furnihost/log.hpp"
 #include "mpi_jobs.hpp"
@@ -38,10 +40,73 @@ ModelViews Decode(const std::string& bytes, const std::string& what) {
   return mv;
 }
 
+std::string Encode(const TrainedRun& run) {
+  nlohmann::json counts = nlohmann::json::array();
+  for (const auto& per_class : run.counts) {
+    nlohmann::json c = nlohmann::json::object();
+    for (const auto& [cls, n] : per_class) c[cls] = {n.views, n.parts, n.meshes};
+    counts.push_back(std::move(c));
+  }
+  const nlohmann::json j = {{"begin", run.begin},     {"end", run.end},         {"models", run.voter_models},
+                            {"counts", counts},       {"time_ms", run.time_ms}, {"from_meshes", run.from_meshes}};
+  const std::vector<uint8_t> cbor = nlohmann::json::to_cbor(j);
+  return std::string(cbor.begin(), cbor.end());
+}
+
+TrainedRun DecodeRun(const std::string& bytes, const std::string& what) {
+  try {
+    const nlohmann::json j = nlohmann::json::from_cbor(bytes);
+    TrainedRun run;
+    run.begin = j.at("begin").get<size_t>();
+    run.end = j.at("end").get<size_t>();
+    run.voter_models = j.at("models").get<std::vector<nlohmann::json>>();
+    for (const auto& c : j.at("counts")) {
+      std::map<std::string, TrainingCount>& per_class = run.counts.emplace_back();
+      for (const auto& [cls, n] : c.items()) per_class[cls] = {n.at(0).get<int>(), n.at(1).get<int>(), n.at(2).get<int>()};
+    }
+    run.time_ms = j.at("time_ms").get<std::map<std::string, double>>();
+    run.from_meshes = j.at("from_meshes").get<size_t>();
+    return run;
+  } catch (const nlohmann::json::exception& e) {
+    throw std::runtime_error(what + ": " + e.what());
+  }
+}
+
+// Training whose voters merge (Pipeline::TrainingMerges): the catalog in one run of consecutive
+// models per rank, each trained where it is taken; rank 0 merges the runs in catalog order.
+TrainedModel TrainRuns(const World& world, Pipeline& p, const Catalog& catalog, const RunContext& ctx) {
+  const size_t n = catalog.models.size(), runs = std::min(n, size_t(world.Size()));
+  const auto bounds = [&](size_t r) { return std::make_pair(r * n / runs, (r + 1) * n / runs); };
+  if (world.Root())
+    spdlog::info("train: the voters learn the catalog in {} runs of consecutive models, one per rank, merged on rank 0",
+                 runs);
+  const std::vector<std::string> trained = ShareJobs(
+      world, runs,
+      [&](size_t r) {
+        const auto [begin, end] = bounds(r);
+        return Encode(p.TrainRun(catalog, begin, end, ctx));
+      },
+      [&](size_t r) {
+        const auto [begin, end] = bounds(r);
+        return "training on catalog models " + std::to_string(begin + 1) + " to " + std::to_string(end) + " (" +
+               catalog.models[begin].id + " to " + catalog.models[end - 1].id + ") of " + catalog.path;
+      });
+  std::optional<TrainedModel> merged;  // rank 0's, with its timings
+  const std::string bytes = FromRoot(world, [&] {
+    std::vector<TrainedRun> parts;
+    for (size_t r = 0; r < trained.size(); ++r)
+      parts.push_back(DecodeRun(trained[r], "the models of run " + std::to_string(r + 1)));
+    merged = p.MergeRuns(catalog, std::move(parts), ctx);
+    return ModelBytes(*merged);
+  });
+  return merged ? std::move(*merged) : ModelFromBytes(bytes, "the model from rank 0");
+}
+
 }  // namespace
 
 TrainedModel TrainShared(const World& world, Pipeline& p, const Catalog& catalog, const RunContext& ctx) {
   if (!world.Shared()) return p.Train(catalog, ctx);
+  if (p.TrainingMerges()) return TrainRuns(world, p, catalog, ctx);
   Progress progress("train: scanning models (rank " + std::to_string(world.Rank()) + ")", catalog.models.size());
   const std::vector<std::string> scanned = ShareJobs(
       world, catalog.models.size(),

@@ -3,6 +3,9 @@
 // rank 0 gathers every model's views in catalog order, trains the voters (TrainFromViews) and
 // writes the model; every rank gets the model. The model is the one process's byte for byte:
 // a model's views depend on the model, the graph and the seed only, whichever rank scans them.
+// When every voter of the graph merges (Pipeline::TrainingMerges: each learns every model on its
+// own), each rank also trains its voters on a run of consecutive models, and rank 0 merges the
+// runs: the voters' own work (a catalog of thousands of meshes) is shared as well.
 #pragma once
 #include "furnihost/host/detector.hpp"
 #include "furnihost/host/pipeline.hpp"

@@ -5,8 +5,9 @@
 #   eval    `mpirun -n 2` eval of benchmarks/scannet_dev.json (configs/scannet.json, one thread a
 #           rank) writes summary.json, report.md and run_scannet.json byte for byte as one process
 #           (both with --reproducible: the run's own times, memory and host left out).
-#   train   `mpirun -n 2` training of configs/scannet.json (the 38 models of the shared catalog)
-#           writes the one process's model file byte for byte.
+#   train   `mpirun -n 2` training of configs/scannet.json (the 38 models of the shared catalog,
+#           each rank's voter learning a run of them, merged on rank 0) writes the one process's
+#           model file byte for byte.
 #   cv      `mpirun -n 2` scripts/cross_validate.py (python3-mpi4py) on 6 ScanNet dev scans of 3
 #           spaces, grid "tiny": the same stdout and heldout.json as one process.
 #   failure a scene that cannot be read, taken by a rank: exit 2, the error names the rank, its host
@@ -34,9 +35,10 @@ eval)
   ;;
 train)
   "$FH" train --graph "$SRC/configs/scannet.json" --out one.fhm -q --threads 2 >one.log 2>&1 || fail "one process: $(tail -3 one.log)"
-  "${MPI[@]}" "$FH" train --graph "$SRC/configs/scannet.json" --out two.fhm -q --threads 1 >two.log 2>&1 ||
+  "${MPI[@]}" "$FH" train --graph "$SRC/configs/scannet.json" --out two.fhm --threads 1 >two.log 2>&1 ||
     fail "two ranks: $(tail -3 two.log)"
   cmp one.fhm two.fhm || fail "the model files differ"
+  grep -q "in 2 runs of consecutive models" two.log || fail "the ranks did not share the voter's work: $(cat two.log)"
   ;;
 cv)
   python3 - "$DATA" six.json <<'PY' || fail "manifest"

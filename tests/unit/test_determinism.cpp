@@ -337,3 +337,38 @@ TEST(Determinism, DepthCameraViewInItsOpticalFrame) {
   EXPECT_LT(accepted(dir + "/flat").size(), 2u);
   if (!HasFailure()) fs::remove_all(dir);
 }
+
+// Training in runs of models (Pipeline::TrainRun, MergeRuns; what `mpirun furnihost train` shares
+// among ranks): room.json's recogniser learns each model on its own, so runs of the bundled
+// catalog, merged in order, give the model one Train gives, byte for byte; paper.json's voter
+// (a vocabulary of every model's parts) does not merge; runs that skip a model are refused.
+TEST(Determinism, TrainingInRunsMergesToTheModelOfOneTraining) {
+  const std::string src = furnihost::testing::SourceDir();
+  auto reg = furnihost::testing::MakeRegistry();
+  ASSERT_NE(reg->Find("voters.catalog_shape"), nullptr) << "room.json needs voters.catalog_shape (build all plugins)";
+  const furnihost::GraphConfig g = furnihost::LoadGraph(src + "/configs/room.json", *reg);
+  const furnihost::Catalog catalog = furnihost::LoadCatalog(g.catalog);
+  const size_t n = catalog.models.size();
+  ASSERT_GE(n, 4u);
+  furnihost::Pipeline one(g, *reg), runs(g, *reg);
+  ASSERT_TRUE(runs.TrainingMerges());
+  const furnihost::RunContext ctx;
+  const furnihost::TrainedModel whole = one.Train(catalog, ctx);
+  std::vector<furnihost::TrainedRun> parts;
+  // Out of order, as ranks finish; MergeRuns takes them in catalog order.
+  parts.push_back(runs.TrainRun(catalog, 1, n - 2, ctx));
+  parts.push_back(runs.TrainRun(catalog, n - 2, n, ctx));
+  parts.insert(parts.begin(), runs.TrainRun(catalog, 0, 1, ctx));
+  EXPECT_EQ(parts[1].from_meshes, n - 3);
+  std::vector<furnihost::TrainedRun> gap = {parts[0], parts[2]};
+  EXPECT_THROW(runs.MergeRuns(catalog, gap, ctx), std::logic_error);
+  const furnihost::TrainedModel merged = runs.MergeRuns(catalog, parts, ctx);
+  EXPECT_EQ(merged.summary, whole.summary);
+  EXPECT_EQ(furnihost::ModelBytes(merged), furnihost::ModelBytes(whole)) << "the merged runs are another model";
+  EXPECT_GT(whole.voters.at("recognise").voter_model.at("models").size(), 0u);
+
+  const furnihost::GraphConfig paper = furnihost::LoadGraph(src + "/configs/paper.json", *reg);
+  furnihost::Pipeline words(paper, *reg);
+  EXPECT_FALSE(words.TrainingMerges());
+  EXPECT_THROW(words.TrainRun(furnihost::LoadCatalog(paper.catalog), 0, 1, ctx), std::logic_error);
+}

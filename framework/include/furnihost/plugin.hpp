@@ -28,7 +28,7 @@
 // changes layout or one of their exported functions its signature; the host's headers
 // (furnihost/host/: pipeline, config, registry, io, evaluation, ...) change freely, since no
 // plugin includes them.
-#define FURNIHOST_ABI_VERSION 11
+#define FURNIHOST_ABI_VERSION 12
 
 namespace furnihost {
 

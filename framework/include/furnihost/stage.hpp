@@ -36,6 +36,12 @@ struct StageNeeds {
   // view of each other model with no points (view -1, scan empty): training then costs what
   // the voters' own work on the meshes costs.
   bool training_scans = true;
+  // Voters: true when Train learns each catalog model on its own, so that Train on the views of
+  // consecutive runs of the catalog's models, then Merge of those models in catalog order, gives
+  // the model Train on every view gives, byte for byte. The host then shares a voter's training
+  // among processes (`mpirun furnihost train`: each rank trains a run of models). Voters whose
+  // views carry features never merge: the host fits the features' normaliser on every view.
+  bool training_merges = false;
 };
 
 class FURNIHOST_API Stage {
@@ -117,6 +123,10 @@ class FURNIHOST_API Voter : public Stage {
   virtual nlohmann::json Train(const std::vector<TrainingView>& views, const RunContext& ctx) = 0;
   // Installs a model returned by Train (possibly after a save/load round trip).
   virtual void Load(const nlohmann::json& model) = 0;
+  // Joins the models Train returned for consecutive runs of the catalog's models, given in
+  // catalog order, into the model Train returns on all their views (StageNeeds::training_merges).
+  // Called only on voters that declare it; the default throws std::logic_error.
+  virtual nlohmann::json Merge(const std::vector<nlohmann::json>& parts);
   // Votes with the parts of one or more scenes (fused in the world frame, Scan::pose).
   virtual VoteResult Vote(const std::vector<SceneParts>& scenes, const RunContext& ctx) = 0;
 };

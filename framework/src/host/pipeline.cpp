@@ -44,6 +44,16 @@ TrainedModel Pipeline::TrainFromViews(const Catalog& catalog, std::vector<ModelV
   return graph::TrainFromViews(graph_, *stages_, catalog, std::move(scanned), ctx);
 }
 
+bool Pipeline::TrainingMerges() const { return graph::TrainingMerges(graph_, *stages_); }
+
+TrainedRun Pipeline::TrainRun(const Catalog& catalog, size_t begin, size_t end, const RunContext& ctx) {
+  return graph::TrainRun(graph_, *stages_, catalog, begin, end, ctx);
+}
+
+TrainedModel Pipeline::MergeRuns(const Catalog& catalog, std::vector<TrainedRun> runs, const RunContext& ctx) {
+  return graph::MergeRuns(graph_, *stages_, catalog, std::move(runs), ctx);
+}
+
 Pipeline::Result Pipeline::DetectOnce(const std::vector<SceneInput>& scenes, const TrainedModel* model,
                                       const Catalog* catalog, const RunContext& ctx,
                                       const std::function<void()>& before_stages, const RunJitter& jitter) {

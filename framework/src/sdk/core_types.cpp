@@ -1,4 +1,5 @@
 #include <cstdio>
+#include <stdexcept>
 
 #include "furnihost/error.hpp"
 #include "furnihost/stage.hpp"
@@ -17,6 +18,10 @@ Proposer::~Proposer() = default;
 Features::~Features() = default;
 Voter::~Voter() = default;
 Fitter::~Fitter() = default;
+
+nlohmann::json Voter::Merge(const std::vector<nlohmann::json>&) {
+  throw std::logic_error("this voter does not merge models trained apart (StageNeeds::training_merges)");
+}
 
 Check Check::AtLeast(std::string name, double value, double limit) {
   return Check{std::move(name), value, limit, true, value >= limit};

@@ -221,5 +221,5 @@ const ParamBinding<Options>& Binding() {
 
 }  // namespace furnihost::catalog_shape
 
-FURNIHOST_PLUGIN(furnihost::catalog_shape::CatalogShapeVoter, "voters.catalog_shape", "1.7.1",
+FURNIHOST_PLUGIN(furnihost::catalog_shape::CatalogShapeVoter, "voters.catalog_shape", "1.8.0",
                  "recognises object proposals by the catalog models' metric sizes and top-view height profiles")

@@ -107,12 +107,15 @@ class CatalogShapeVoter : public Voter {
 
   nlohmann::json Train(const std::vector<TrainingView>& views, const RunContext&) override;
   // A model with a mesh is learned from the mesh (its size, top-view profile, open floor and
-  // one-eye profiles): training need not scan it.
+  // one-eye profiles): training need not scan it. Each model is learned on its own, so models
+  // trained on runs of the catalog merge (Merge: their model lists joined in order).
   StageNeeds Needs() const override {
     StageNeeds n;
     n.training_scans = false;
+    n.training_merges = true;
     return n;
   }
+  nlohmann::json Merge(const std::vector<nlohmann::json>& parts) override;
 
   void Load(const nlohmann::json& m) override;
 

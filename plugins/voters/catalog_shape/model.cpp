@@ -214,6 +214,19 @@ nlohmann::json CatalogShapeVoter::Train(const std::vector<TrainingView>& views, 
   return {{"format", "catalog_shape/1"}, {"profile_cell_m", o_.cell}, {"models", models}};
 }
 
+nlohmann::json CatalogShapeVoter::Merge(const std::vector<nlohmann::json>& parts) {
+  nlohmann::json models = nlohmann::json::array();
+  for (const nlohmann::json& part : parts) {
+    if (!part.is_object() || part.value("format", "") != "catalog_shape/1" || !part.contains("models") ||
+        !part.at("models").is_array())
+      throw InputError("not a voters.catalog_shape model (format catalog_shape/1)");
+    if (part.value("profile_cell_m", -1.f) != o_.cell)
+      throw InputError("voters.catalog_shape: a part was trained with another profile_cell_m");
+    for (const nlohmann::json& m : part.at("models")) models.push_back(m);
+  }
+  return {{"format", "catalog_shape/1"}, {"profile_cell_m", o_.cell}, {"models", std::move(models)}};
+}
+
 void CatalogShapeVoter::Load(const nlohmann::json& m) {
   if (!m.is_object() || m.value("format", "") != "catalog_shape/1")
     throw InputError("not a voters.catalog_shape model (format catalog_shape/1)");

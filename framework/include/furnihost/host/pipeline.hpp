@@ -37,6 +37,23 @@ struct ModelViews {
   std::map<std::string, double> time_ms;
 };
 
+// What a trained stage learned from a class: views seen, parts in them, and models learned from
+// their mesh alone (StageNeeds::training_scans false: one view of no points each).
+struct TrainingCount {
+  int views = 0, parts = 0, meshes = 0;
+};
+
+// What training learned from a run of the catalog's models, [begin, end), when every trained stage
+// merges (StageNeeds::training_merges): each trained stage's model of the run (Voter::Train on its
+// views), in the graph's order, and the counts and times the model's summary and log give.
+struct TrainedRun {
+  size_t begin = 0, end = 0;
+  std::vector<nlohmann::json> voter_models;
+  std::vector<std::map<std::string, TrainingCount>> counts;  // per trained stage, by class
+  std::map<std::string, double> time_ms;                      // by stage tag
+  size_t from_meshes = 0;
+};
+
 // Not thread-safe: a Pipeline runs one Detect or Train at a time (copies share its stages).
 class FURNIHOST_API Pipeline {
  public:
@@ -56,6 +73,14 @@ class FURNIHOST_API Pipeline {
   // views in catalog order. Train does both here.
   ModelViews ScanModel(const Catalog& catalog, size_t index, const RunContext& ctx);
   TrainedModel TrainFromViews(const Catalog& catalog, std::vector<ModelViews> scanned, const RunContext& ctx);
+  // Training in runs of models, when TrainingMerges(): TrainRun trains every trained stage on the
+  // models [begin, end) (anywhere: a run depends on its models, the graph and the seed only), then
+  // MergeRuns joins runs that cover the catalog in order (Voter::Merge) into the model Train gives,
+  // byte for byte. Processes that share a training then share the voters' work too, not only the
+  // scanning.
+  bool TrainingMerges() const;
+  TrainedRun TrainRun(const Catalog& catalog, size_t begin, size_t end, const RunContext& ctx);
+  TrainedModel MergeRuns(const Catalog& catalog, std::vector<TrainedRun> runs, const RunContext& ctx);
 
   using SceneInput = furnihost::SceneInput;
   // The detections, and the outputs behind them: the fields below `scans` hold those of the

@@ -16,4 +16,13 @@ ModelViews ScanModel(const GraphConfig& graph, StageInstances& stages, const Cat
 TrainedModel TrainFromViews(const GraphConfig& graph, StageInstances& stages, const Catalog& catalog,
                             std::vector<ModelViews> scanned, const RunContext& ctx);
 
+// Training in runs of models (Pipeline::TrainRun, Pipeline::MergeRuns): whether every trained
+// stage merges (StageNeeds::training_merges, and no features to normalise), the trained stages
+// taught on the models [begin, end), and runs covering the catalog in order merged into its model.
+bool TrainingMerges(const GraphConfig& graph, StageInstances& stages);
+TrainedRun TrainRun(const GraphConfig& graph, StageInstances& stages, const Catalog& catalog, size_t begin, size_t end,
+                    const RunContext& ctx);
+TrainedModel MergeRuns(const GraphConfig& graph, StageInstances& stages, const Catalog& catalog,
+                       std::vector<TrainedRun> runs, const RunContext& ctx);
+
 }  // namespace furnihost::graph
