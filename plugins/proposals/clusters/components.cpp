@@ -89,26 +89,13 @@ std::vector<std::vector<std::vector<int>>> ClusterProposer::Cluster(const Points
       if (d2 < lim * lim) u.parent[std::max(ri, rj)] = std::min(ri, rj);
     }
   };
-  // Single views: the edge of a pair grows with the sparser point's local spacing, so the
-  // search reach is set by the sparsest points (the 99th percentile), while nearly every pair
-  // of the dense majority is far shorter. Two searches find the same pairs: every pair within
-  // the reach of points no sparser than the 90th percentile, then every pair within the full
-  // reach that has a sparser point, searched from that point.
-  float near_reach = reach;
-  float sparse_from = INFINITY;
-  if (adaptive) {
-    sparse_from = Quantile(lsp, 0.9);
-    near_reach = 0.f;
-    for (size_t a = 0; a < R; ++a) near_reach = std::max(near_reach, std::min(rmax[a], std::max(base[a], ms[a] * sparse_from)));
-    if (!(near_reach < reach)) near_reach = reach, sparse_from = INFINITY;
-  }
   // Every pair once: the later slots of a point's own cell and the cells after it (cells are
   // numbered in key order). Joins in any order give the same components (a root is always its
   // component's smallest index), and half the distances of visiting all 27 cells from both ends.
-  {
+  if (!adaptive) {
     VoxelIndex index;
-    index.Build(uniq, near_reach);
-    const float reach2 = near_reach * near_reach;
+    index.Build(uniq, reach);
+    const float reach2 = reach * reach;
     for (int c = 0; c < index.NumCells(); ++c) {
       for (int s = index.cell_start[c]; s < index.cell_start[c + 1]; ++s) {
         const uint32_t i = index.order[size_t(s)];
@@ -124,26 +111,58 @@ std::vector<std::vector<std::vector<int>>> ClusterProposer::Cluster(const Points
         }
       }
     }
-  }
-  if (sparse_from < INFINITY) {
-    VoxelIndex index;
-    index.Build(uniq, reach);
-    const float reach2 = reach * reach;
-    for (int c = 0; c < index.NumCells(); ++c)
-      for (int s = index.cell_start[c]; s < index.cell_start[c + 1]; ++s) {
-        const uint32_t i = index.order[size_t(s)];
-        if (!(lsp[i] > sparse_from)) continue;
-        const float px = index.x[size_t(s)], py = index.y[size_t(s)], pz = index.z[size_t(s)];
-        for (int k = index.nb_start[c]; k < index.nb_start[c + 1]; ++k) {
-          const int nc = index.nb[size_t(k)];
-          for (int t = index.cell_start[nc]; t < index.cell_start[nc + 1]; ++t) {
-            if (t == s) continue;
-            const float dx = index.x[size_t(t)] - px, dy = index.y[size_t(t)] - py, dz = index.z[size_t(t)] - pz;
-            const float d2 = dx * dx + dy * dy + dz * dz;
-            if (d2 < reach2) join(i, index.order[size_t(t)], d2);
+  } else {
+    // Single views: the edge of a pair grows with the sparser point's local spacing, from a few
+    // millimetres near the camera to centimetres far away. Each pair is searched from its
+    // sparser point (the later index of equal ones), within the reach that point's own spacing
+    // gives: the points go into bands of spacing (up to the median, then doubling), and a band's
+    // points look for partners among the points of its band and the denser ones, in cells of
+    // the band's reach. A dense surface's points then test the few neighbours their short edges
+    // can reach, not every point within the sparsest points' reach.
+    std::vector<float> bound{std::max(Quantile(lsp, 0.1), 1e-6f)};
+    const float top = *std::max_element(lsp.begin(), lsp.end());
+    while (bound.back() < top && bound.size() < 60) bound.push_back(bound.back() * 1.41421356f);
+    std::vector<uint8_t> band(uniq.size());
+    for (size_t i = 0; i < uniq.size(); ++i)
+      band[i] = uint8_t(std::lower_bound(bound.begin(), bound.end(), lsp[i]) - bound.begin());
+    // Beyond the last bound (a spacing that is not a number): the whole reach.
+    bound.push_back(INFINITY);
+    Points members;
+    std::vector<uint32_t> id;
+    for (size_t b = 0; b < bound.size(); ++b) {
+      float band_reach = 0.f;
+      for (size_t a = 0; a < R; ++a)
+        band_reach = std::max(band_reach, std::min(rmax[a], std::max(base[a], ms[a] * bound[b])));
+      if (!(band_reach > 0.f)) continue;
+      members.clear(), id.clear();
+      bool any = false;
+      for (size_t i = 0; i < uniq.size(); ++i)
+        if (band[i] <= b) {
+          members.push_back(uniq[i]), id.push_back(uint32_t(i));
+          any = any || band[i] == b;
+        }
+      if (!any) continue;
+      VoxelIndex index;
+      index.Build(members, band_reach);
+      const float reach2 = band_reach * band_reach;
+      for (int c = 0; c < index.NumCells(); ++c)
+        for (int s = index.cell_start[c]; s < index.cell_start[c + 1]; ++s) {
+          const uint32_t i = id[index.order[size_t(s)]];
+          if (band[i] != b) continue;
+          const float li = lsp[i];
+          const float px = index.x[size_t(s)], py = index.y[size_t(s)], pz = index.z[size_t(s)];
+          for (int k = index.nb_start[c]; k < index.nb_start[c + 1]; ++k) {
+            const int nc = index.nb[size_t(k)];
+            for (int t = index.cell_start[nc]; t < index.cell_start[nc + 1]; ++t) {
+              const uint32_t j = id[index.order[size_t(t)]];
+              if (!(lsp[j] < li || (lsp[j] == li && j < i))) continue;  // searched from j
+              const float dx = index.x[size_t(t)] - px, dy = index.y[size_t(t)] - py, dz = index.z[size_t(t)] - pz;
+              const float d2 = dx * dx + dy * dy + dz * dz;
+              if (d2 < reach2) join(i, j, d2);
+            }
           }
         }
-      }
+    }
   }
   for (size_t a = 0; a < R; ++a) {
     std::unordered_map<uint32_t, size_t> slot;
