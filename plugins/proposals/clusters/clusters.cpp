@@ -453,6 +453,6 @@ Proposals ClusterProposer::ProposeAll(const Scan& scan, float* too_dense) const 
 
 }  // namespace furnihost::clusters
 
-FURNIHOST_PLUGIN(furnihost::clusters::ClusterProposer, "proposals.clusters", "1.8.0",
+FURNIHOST_PLUGIN(furnihost::clusters::ClusterProposer, "proposals.clusters", "1.8.1",
                  "object proposals: ground, walls and ceiling removed, Euclidean clusters at radii scaled to the scan's "
                  "point spacing, long clusters split, floating ones extended to the ground")
