@@ -7,7 +7,8 @@
 #           (both with --reproducible: the run's own times, memory and host left out).
 #   train   `mpirun -n 2` training of configs/scannet.json (the 38 models of the shared catalog,
 #           each rank's voter learning a run of them, merged on rank 0) writes the one process's
-#           model file byte for byte.
+#           model file byte for byte; the same for configs/paper.json (the bundled catalog scanned
+#           by both ranks, its vocabulary learned on rank 0).
 #   cv      `mpirun -n 2` scripts/cross_validate.py (python3-mpi4py) on 6 ScanNet dev scans of 3
 #           spaces, grid "tiny": the same stdout and heldout.json as one process.
 #   failure a scene that cannot be read, taken by a rank: exit 2, the error names the rank, its host
@@ -39,6 +40,15 @@ train)
     fail "two ranks: $(tail -3 two.log)"
   cmp one.fhm two.fhm || fail "the model files differ"
   grep -q "in 2 runs of consecutive models" two.log || fail "the ranks did not share the voter's work: $(cat two.log)"
+  # paper.json: the bundled catalog scanned by the ranks, its vocabulary (which does not merge)
+  # learned on rank 0 from every model's views.
+  "$FH" train --graph "$SRC/configs/paper.json" --out paper_one.fhm -q --threads 2 >paper_one.log 2>&1 ||
+    fail "paper.json, one process: $(tail -3 paper_one.log)"
+  "${MPI[@]}" "$FH" train --graph "$SRC/configs/paper.json" --out paper_two.fhm --threads 1 >paper_two.log 2>&1 ||
+    fail "paper.json, two ranks: $(tail -3 paper_two.log)"
+  cmp paper_one.fhm paper_two.fhm || fail "paper.json: the model files differ"
+  grep -q "scanning models (rank 1)" paper_two.log || fail "paper.json: rank 1 scanned no model: $(cat paper_two.log)"
+  ! grep -q "runs of consecutive models" paper_two.log || fail "paper.json's vocabulary was merged from runs"
   ;;
 cv)
   python3 - "$DATA" six.json <<'PY' || fail "manifest"
